@@ -1,0 +1,66 @@
+"""The ``bmr`` command line: ``bmr demo | simulate | identify | diagnose``.
+
+Each subcommand's work lives in the module that owns the capability; this file only parses arguments.
+"""
+from __future__ import annotations
+
+import argparse
+import sys
+from typing import Sequence
+
+from bmr._core import BmrError
+
+
+def _parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="bmr", description="Torque control of bi-directional MR actuators.")
+    sub = p.add_subparsers(dest="command", required=True)
+
+    d = sub.add_parser("demo", help="run the paper's experiments on the virtual actuator and write a report")
+    d.add_argument("--out", default="bmr-demo", help="output folder (default: bmr-demo)")
+    d.add_argument("--preset", default="bmr2013", help="virtual actuator preset (default: bmr2013)")
+    d.add_argument("--seed", type=int, default=0, help="seed fixing every simulated bit (default: 0)")
+    d.add_argument("--quick", action="store_true", help="shorter runs (for tests)")
+
+    s = sub.add_parser("simulate", help="write the paper's experiment set from the virtual actuator as a bundle")
+    s.add_argument("--preset", default="bmr2013")
+    s.add_argument("--effect", action="append", default=[], metavar="NAME[:key=value,...]",
+                   help="switch on an effect of the virtual actuator (repeatable)")
+    s.add_argument("--seed", type=int, default=0)
+    s.add_argument("--quick", action="store_true", help="shorter runs")
+    s.add_argument("--format", choices=("csv", "parquet"), default="csv")
+    s.add_argument("-o", "--out", required=True, help="bundle folder to write")
+
+    i = sub.add_parser("identify", help="identify friction and CBH tables from a bundle")
+    i.add_argument("bundle")
+    i.add_argument("--method", choices=("forc", "lstsq", "both"), default="forc")
+    i.add_argument("-o", "--out", required=True, help="model file to write (bmr-model/1 JSON)")
+
+    g = sub.add_parser("diagnose", help="find what the model gets wrong in a bundle and name the cause")
+    g.add_argument("bundle")
+    g.add_argument("--model", help="model file (default: identify from the bundle)")
+    g.add_argument("--folds", type=int, default=5)
+    g.add_argument("--seed", type=int, default=0)
+    g.add_argument("--json", dest="json_out", help="write the bmr-diagnosis/1 JSON here")
+    g.add_argument("--report", help="write an HTML report here")
+    return p
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    args = _parser().parse_args(argv)
+    try:
+        if args.command == "demo":
+            from bmr.demo import run_cli
+        elif args.command == "simulate":
+            from bmr.experiments import run_cli
+        elif args.command == "identify":
+            from bmr.identify import run_cli
+        else:
+            from bmr.diagnose import run_cli
+        return int(run_cli(args) or 0)
+    except BmrError as exc:
+        print(f"bmr {args.command}: error: {exc}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":
+    sys.exit(main())
