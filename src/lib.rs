@@ -6,3 +6,6 @@ extern crate alloc;
 
 #[cfg(feature = "python")]
 mod python;
+
+#[cfg(feature = "lstsq")]
+pub mod identification;
