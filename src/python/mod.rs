@@ -1,6 +1,8 @@
 //! Python bindings: the `bmr._core` extension module.
 use pyo3::prelude::*;
 
+mod identification;
+
 pyo3::create_exception!(
     bmr,
     BmrError,
@@ -11,5 +13,6 @@ pyo3::create_exception!(
 #[pymodule]
 fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("BmrError", m.py().get_type::<BmrError>())?;
+    identification::register(m)?;
     Ok(())
 }
