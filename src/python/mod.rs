@@ -1,7 +1,12 @@
 //! Python bindings: the `bmr._core` extension module.
 use pyo3::prelude::*;
 
-pyo3::create_exception!(bmr, BmrError, pyo3::exceptions::PyValueError, "Invalid bmr input or table.");
+pyo3::create_exception!(
+    bmr,
+    BmrError,
+    pyo3::exceptions::PyValueError,
+    "Invalid bmr input or table."
+);
 
 #[pymodule]
 fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
