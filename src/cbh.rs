@@ -290,6 +290,9 @@ impl<S: AsRef<[f64]>, const N: usize> Hysteresis<S, N> {
     pub(crate) fn branch_output(&mut self, u: f64) -> f64 {
         let top = *self.state.history.top();
         if self.state.history.rising() {
+            if u >= self.hi && self.state.history.len() == 1 {
+                return self.y_hi; // positive saturation is exact, like the negative one
+            }
             let e = self.asc.everett(&top.strip, u, &mut self.state.hint_a);
             match top.via {
                 Some(v) if u > v.u => v.y + v.k * (e - v.e),

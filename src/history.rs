@@ -86,7 +86,7 @@ impl<const N: usize> History<N> {
     /// True when the newest entry is a minimum (the output is on a rising branch).
     #[inline]
     pub fn rising(&self) -> bool {
-        (self.len - 1) % 2 == 0
+        (self.len - 1).is_multiple_of(2)
     }
     /// The newest entry's closure target, or `None` for the anchor (target: positive saturation).
     #[inline]

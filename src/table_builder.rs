@@ -89,7 +89,7 @@ pub fn build_tables(
     let hi = -desc[d_major].u[0];
     let y_lo = asc[a_major].y0;
     let y_hi = desc[d_major].y0;
-    if !(hi > lo) {
+    if hi <= lo {
         return Err(TableError::ReversalOutOfRange {
             family: Descending,
             curve: d_major,
@@ -98,7 +98,7 @@ pub fn build_tables(
             hi: lo,
         });
     }
-    if !(y_hi > y_lo) {
+    if y_hi <= y_lo {
         return Err(TableError::NoOutputSpan { lo: y_lo, hi: y_hi });
     }
     let span_y = y_hi - y_lo;

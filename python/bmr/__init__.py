@@ -1,19 +1,36 @@
-"""bmr: CBH hysteresis, exact inverse and friction compensation for bi-directional MR actuators."""
-from bmr._core import BmrError, EverettModel, fit_everett
+"""bmr: accurate torque control of bi-directional magneto-rheological actuators.
+
+Core (Rust): ``Hysteresis`` (CBH operator), ``Friction`` (angle-periodic seal friction).
+Identification: ``identify`` (friction + CBH tables from a bundle) giving a ``Model`` (``bmr-model/1`` files),
+``fit_friction``, ``extract_first_order_curves``, ``fit_tables_lstsq`` / ``EverettModel`` (least-squares
+Preisach tables). Lab readers: ``read_table``, ``bundle_from_files``.
+Units: current in A (nominal current spans both coils: negative = coil 1, positive = coil 2), torque in N·mm,
+angles in rad, time in s.
+"""
+from bmr._core import BmrError, EverettModel, Friction, Hysteresis, HysteresisState, fit_everett
+from bmr.bundle import Bundle, Run, read_bundle, write_bundle
 from bmr.identify import FrictionFit, extract_first_order_curves, fit_friction, fit_tables_lstsq, identify
 from bmr.io import bundle_from_files, read_table
 from bmr.model import Model
 
 __all__ = [
     "BmrError",
+    "Bundle",
     "EverettModel",
+    "Friction",
     "FrictionFit",
+    "Hysteresis",
+    "HysteresisState",
     "Model",
+    "Run",
     "bundle_from_files",
     "extract_first_order_curves",
     "fit_everett",
     "fit_friction",
     "fit_tables_lstsq",
     "identify",
+    "read_bundle",
     "read_table",
+    "write_bundle",
 ]
+__version__ = "0.1.0"

@@ -86,11 +86,11 @@ pub fn edge_grid(n: usize) -> Vec<f64> {
     (0..=n).map(|i| -1.0 + 2.0 * i as f64 / n as f64).collect()
 }
 
+/// One measured curve: inputs and outputs.
+pub type Curve = (Vec<f64>, Vec<f64>);
+
 /// First-order curves measured on the plant at the edge grid, reversals at `count` evenly spaced edge nodes.
-pub fn measure_first_order(
-    n: usize,
-    count: usize,
-) -> (Vec<(Vec<f64>, Vec<f64>)>, Vec<(Vec<f64>, Vec<f64>)>) {
+pub fn measure_first_order(n: usize, count: usize) -> (Vec<Curve>, Vec<Curve>) {
     let grid = edge_grid(n);
     let step = n / (count - 1);
     let mut asc = Vec::new();
