@@ -247,11 +247,10 @@ def find_reversals(u: np.ndarray, deadband: float) -> np.ndarray:
         if direction <= 0 and x < u[i_min]:
             i_min = i
         if direction == 0:
+            # The first move larger than the dead-band sets the direction; what came before is no reversal.
             if u[i_max] - x > deadband:
-                out.append(i_max) if i_max > 0 else None
                 direction, i_min = -1, i
             elif x - u[i_min] > deadband:
-                out.append(i_min) if i_min > 0 else None
                 direction, i_max = 1, i
         elif direction > 0 and u[i_max] - x > deadband:
             out.append(i_max)
