@@ -109,6 +109,9 @@ def read_table(
         source = _columns_from_mat(file)
     else:
         raise BmrError(f"{file}: unsupported file type {suffix!r} (read .csv, .parquet, .tdms, .mat)")
+    if not source:
+        kind = {".tdms": "TDMS channels", ".mat": "MATLAB variables"}.get(suffix, "columns")
+        raise BmrError(f"{file}: no numeric {kind} found (empty or not a {suffix[1:]} file)")
 
     out: dict[str, np.ndarray] = {}
     for col in (*REQUIRED_COLUMNS, *OPTIONAL_COLUMNS):
