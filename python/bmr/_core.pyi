@@ -69,3 +69,34 @@ class Friction:
     @property
     def order(self) -> int: ...
     def amplitude_phase(self) -> tuple[np.ndarray, np.ndarray]: ...
+
+# --- identification (least squares, faer) ---
+def fit_friction_order(theta_rad: np.ndarray, torque_nmm: np.ndarray, order: int) -> dict:
+    """Friction c0 + Σ a_k sin kθ + b_k cos kθ of one order: c0, a, b, *_stderr, covariance, rss, n, order."""
+
+class EverettModel:
+    """Preisach model with a tabulated Everett function E(β, α) on an input grid (nonnegative cell masses)."""
+    def __init__(self, grid: np.ndarray, masses: np.ndarray, offset: float) -> None: ...
+    @property
+    def grid(self) -> np.ndarray: ...
+    @property
+    def masses(self) -> np.ndarray: ...
+    @property
+    def offset(self) -> float: ...
+    def everett(self, beta: float, alpha: float) -> float: ...
+    def everett_table(self) -> np.ndarray: ...
+    def simulate(self, u: np.ndarray, offset: float | None = None) -> np.ndarray: ...
+    def first_order_curves(
+        self,
+    ) -> tuple[list[tuple[np.ndarray, np.ndarray]], list[tuple[np.ndarray, np.ndarray]]]: ...
+
+def fit_everett(
+    grid: np.ndarray,
+    runs: Sequence[tuple[np.ndarray, np.ndarray, np.ndarray, int]],
+    n_offsets: int = 1,
+    *,
+    smoothing: float = 1e-4,
+    ridge: float = 1e-9,
+    max_iter: int = 500,
+) -> dict:
+    """Regularised NNLS Everett table: model, offsets, rss, rms, n_rows, iterations."""

@@ -4,9 +4,20 @@ use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList, PyTuple};
 
 use crate::identification::{
-    EverettFitOptions, EverettGrid, EverettModel, EverettRun, fit_everett as fit_everett_rs, fit_friction,
+    EverettFitOptions, EverettGrid, EverettModel, EverettRun, fit_everett as fit_everett_rs,
+    fit_friction,
 };
 use crate::python::BmrError;
+
+/// One training run as passed from Python: input, output, row weights, offset column.
+type RunArrays<'py> = (
+    PyReadonlyArray1<'py, f64>,
+    PyReadonlyArray1<'py, f64>,
+    PyReadonlyArray1<'py, f64>,
+    usize,
+);
+/// The same run copied out of Python (so the fit can run without the interpreter lock).
+type RunData = (Vec<f64>, Vec<f64>, Vec<f64>, usize);
 
 fn to_vec(a: &PyReadonlyArray1<'_, f64>) -> Vec<f64> {
     a.as_array().iter().copied().collect()
@@ -36,7 +47,10 @@ fn fit_friction_order<'py>(
     d.set_item("c0_stderr", fit.c0_stderr)?;
     d.set_item("a_stderr", PyArray1::from_slice(py, &fit.a_stderr))?;
     d.set_item("b_stderr", PyArray1::from_slice(py, &fit.b_stderr))?;
-    d.set_item("covariance", PyArray1::from_slice(py, &fit.covariance).reshape([p, p])?)?;
+    d.set_item(
+        "covariance",
+        PyArray1::from_slice(py, &fit.covariance).reshape([p, p])?,
+    )?;
     d.set_item("rss", fit.rss)?;
     d.set_item("n", fit.n)?;
     Ok(d)
@@ -56,7 +70,11 @@ impl PyEverettModel {
     /// output `offset`.
     #[new]
     #[pyo3(signature = (grid, masses, offset))]
-    fn new(grid: PyReadonlyArray1<'_, f64>, masses: PyReadonlyArray1<'_, f64>, offset: f64) -> PyResult<Self> {
+    fn new(
+        grid: PyReadonlyArray1<'_, f64>,
+        masses: PyReadonlyArray1<'_, f64>,
+        offset: f64,
+    ) -> PyResult<Self> {
         let grid = EverettGrid::new(to_vec(&grid)).map_err(BmrError::new_err)?;
         let inner = EverettModel::new(grid, to_vec(&masses), offset).map_err(BmrError::new_err)?;
         Ok(Self { inner })
@@ -109,7 +127,10 @@ impl PyEverettModel {
     ) -> PyResult<Bound<'py, PyArray1<f64>>> {
         let u = to_vec(&u);
         if let Some(i) = u.iter().position(|v| !v.is_finite()) {
-            return Err(BmrError::new_err(format!("input sample {i} is not finite ({})", u[i])));
+            return Err(BmrError::new_err(format!(
+                "input sample {i} is not finite ({})",
+                u[i]
+            )));
         }
         let y = py.detach(|| self.inner.simulate(&u, offset));
         Ok(PyArray1::from_vec(py, y))
@@ -122,7 +143,9 @@ impl PyEverettModel {
         let conv = |fam: Vec<(Vec<f64>, Vec<f64>)>| -> PyResult<Bound<'py, PyList>> {
             let items: Vec<Bound<'py, PyTuple>> = fam
                 .into_iter()
-                .map(|(u, y)| PyTuple::new(py, [PyArray1::from_vec(py, u), PyArray1::from_vec(py, y)]))
+                .map(|(u, y)| {
+                    PyTuple::new(py, [PyArray1::from_vec(py, u), PyArray1::from_vec(py, y)])
+                })
                 .collect::<PyResult<_>>()?;
             PyList::new(py, items)
         };
@@ -148,21 +171,32 @@ impl PyEverettModel {
 fn fit_everett<'py>(
     py: Python<'py>,
     grid: PyReadonlyArray1<'py, f64>,
-    runs: Vec<(PyReadonlyArray1<'py, f64>, PyReadonlyArray1<'py, f64>, PyReadonlyArray1<'py, f64>, usize)>,
+    runs: Vec<RunArrays<'py>>,
     n_offsets: usize,
     smoothing: f64,
     ridge: f64,
     max_iter: usize,
 ) -> PyResult<Bound<'py, PyDict>> {
     let grid = EverettGrid::new(to_vec(&grid)).map_err(BmrError::new_err)?;
-    let data: Vec<(Vec<f64>, Vec<f64>, Vec<f64>, usize)> =
-        runs.iter().map(|(u, y, w, o)| (to_vec(u), to_vec(y), to_vec(w), *o)).collect();
-    let options = EverettFitOptions { smoothing, ridge, max_iter };
+    let data: Vec<RunData> = runs
+        .iter()
+        .map(|(u, y, w, o)| (to_vec(u), to_vec(y), to_vec(w), *o))
+        .collect();
+    let options = EverettFitOptions {
+        smoothing,
+        ridge,
+        max_iter,
+    };
     let fit = py
         .detach(|| {
             let views: Vec<EverettRun<'_>> = data
                 .iter()
-                .map(|(u, y, w, o)| EverettRun { u, y, weight: w, offset_col: *o })
+                .map(|(u, y, w, o)| EverettRun {
+                    u,
+                    y,
+                    weight: w,
+                    offset_col: *o,
+                })
                 .collect();
             fit_everett_rs(&grid, &views, n_offsets, options)
         })
