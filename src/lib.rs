@@ -4,5 +4,8 @@
 #[cfg(feature = "alloc")]
 extern crate alloc;
 
+#[cfg(feature = "std")]
+pub mod plant;
+
 #[cfg(feature = "python")]
 mod python;
