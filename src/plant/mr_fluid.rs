@@ -81,7 +81,7 @@ mod tests {
     fn cubic_matches_datasheet_points_and_is_monotone() {
         let f = MrFluid::mrf132dg();
         assert!((f.yield_stress_kpa(0.0) - 0.82).abs() < 1e-12);
-        assert!((f.yield_stress_kpa(0.8) - 43.6832).abs() < 1e-3);
+        assert!((f.yield_stress_kpa(0.8) - 43.68432).abs() < 1e-9);
         let mut prev = f.yield_stress_kpa(0.0);
         for k in 1..200 {
             let t = f.yield_stress_kpa(0.01 * k as f64);
