@@ -1,11 +1,33 @@
 //! bmr: congruency-based hysteresis (CBH) for bi-directional magneto-rheological actuators.
+//!
+//! The real-time core (curve tables, extrema memory, CBH operator, friction) is `no_std` and never allocates in a
+//! `step`; building tables from measured curves needs `alloc`; identification (faer least squares) needs
+//! `lstsq`; the Python module needs `python`.
 #![cfg_attr(not(feature = "std"), no_std)]
 
 #[cfg(feature = "alloc")]
 extern crate alloc;
 
+pub mod cbh;
+pub mod congruency;
+pub mod error;
+pub mod everett;
+pub mod friction;
+#[cfg(feature = "alloc")]
+pub mod from_curves;
+pub mod history;
 #[cfg(feature = "std")]
 pub mod plant;
+#[cfg(feature = "alloc")]
+pub mod table_builder;
+
+pub use cbh::{Hysteresis, Initial, State};
+pub use congruency::{Congruency, congruency};
+pub use error::{FamilyKind, TableError};
+pub use everett::{Family, Strip};
+pub use friction::Friction;
+#[cfg(feature = "alloc")]
+pub use table_builder::{BuildOptions, MeasuredCurve, build_tables};
 
 #[cfg(feature = "python")]
 mod python;

@@ -1,6 +1,9 @@
-//! Links the bmr core into a `#![no_std]` static library with no global allocator.
+//! Links the bmr real-time core into a `#![no_std]` static library with no global allocator: a CBH operator on
+//! static tables, stepped, plus the friction model. If anything in that path needed `std` or `alloc`, this would
+//! not build.
 #![no_std]
 
+use bmr::{Family, FamilyKind, Friction, Hysteresis, Initial};
 use core::panic::PanicInfo;
 
 #[panic_handler]
@@ -8,4 +11,32 @@ fn panic(_: &PanicInfo) -> ! {
     loop {}
 }
 
-pub use bmr as _core_linked;
+// Three-node tables: grid | reversals | rows (rising orientation; see bmr::everett).
+static ASC: [f64; 3 + 2 + 6] = [-1.0, 0.0, 1.0, -1.0, 0.0, 0.0, 1.0, 2.0, 0.0, 0.0, 1.0];
+static DESC: [f64; 3 + 2 + 6] = [-1.0, 0.0, 1.0, -1.0, 0.0, 0.0, 1.0, 2.0, 0.0, 0.0, 1.0];
+
+/// Step a fresh operator through `n` inputs of `inputs` and return the last output plus friction at `theta`.
+///
+/// # Safety
+/// `inputs` must point to `n` readable `f64`.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn bmr_nostd_demo(inputs: *const f64, n: usize, theta: f64) -> f64 {
+    let asc = match Family::new(&ASC[..], 3, 2, FamilyKind::Ascending) {
+        Ok(f) => f,
+        Err(_) => return f64::NAN,
+    };
+    let desc = match Family::new(&DESC[..], 3, 2, FamilyKind::Descending) {
+        Ok(f) => f,
+        Err(_) => return f64::NAN,
+    };
+    let Ok(mut h) = Hysteresis::<_, 8>::new(asc, desc, -1.0, 1.0, Initial::Negative) else {
+        return f64::NAN;
+    };
+    let inputs = unsafe { core::slice::from_raw_parts(inputs, n) };
+    let mut y = 0.0;
+    for &u in inputs {
+        y = h.step(u);
+    }
+    let f = Friction::<12>::from_coefficients(1.0, &[0.5], &[0.25]).unwrap_or(Friction::zero());
+    y + f.eval(theta)
+}

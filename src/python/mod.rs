@@ -1,18 +1,28 @@
-//! Python bindings: the `bmr._core` extension module.
+//! Python bindings: the `bmr._core` extension module. Each bound concept has its own file with a `register`.
 use pyo3::prelude::*;
 
+mod arrays;
+mod friction;
+mod hysteresis;
 mod virtual_actuator;
 
 pyo3::create_exception!(
     bmr,
     BmrError,
     pyo3::exceptions::PyValueError,
-    "Invalid bmr input or table."
+    "Invalid bmr input, table or file."
 );
+
+/// Turn any displayable core error into a `BmrError`.
+pub(crate) fn bmr_err(e: impl core::fmt::Display) -> PyErr {
+    BmrError::new_err(e.to_string())
+}
 
 #[pymodule]
 fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("BmrError", m.py().get_type::<BmrError>())?;
+    hysteresis::register(m)?;
+    friction::register(m)?;
     virtual_actuator::register(m)?;
     Ok(())
 }

@@ -1,23 +1,12 @@
 //! Python binding of the virtual BMR actuator (`bmr.VirtualActuator`, `bmr.EFFECTS`, `bmr.effect_parameters`).
+use crate::plant::VirtualActuator;
 use crate::plant::effects::{Effect, EffectKind, EffectSet};
 use crate::plant::presets::{DEFAULT_SAMPLE_RATE_HZ, PRESETS, preset as preset_config};
-use crate::plant::{PlantError, VirtualActuator};
-use crate::python::BmrError;
-use numpy::{AllowTypeChange, PyArray1, PyArrayLike1};
+use crate::python::arrays::{extract_f64_array, to_numpy};
+use crate::python::{BmrError, bmr_err};
+use numpy::PyArray1;
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList, PyString, PyTuple};
-
-fn err(e: PlantError) -> PyErr {
-    BmrError::new_err(e.to_string())
-}
-
-/// Read a 1-D float array (any array-like of numbers) or fail with a BmrError naming the argument.
-fn float_array(arg: &Bound<'_, PyAny>, what: &str) -> PyResult<Vec<f64>> {
-    let arr: PyArrayLike1<'_, f64, AllowTypeChange> = arg
-        .extract()
-        .map_err(|e| BmrError::new_err(format!("{what} must be a 1-D array of numbers ({e})")))?;
-    Ok(arr.as_array().to_vec())
-}
 
 /// Apply a Python effects specification to `set`: None, a dict `{name: {param: value} | None}` (None
 /// removes the preset's effect), or a list of `"name:key=value,..."` strings (`"name:off"` removes it).
@@ -30,7 +19,7 @@ fn apply_effects(set: &mut EffectSet, spec: &Bound<'_, PyAny>) -> PyResult<()> {
             let name: String = name.extract().map_err(|_| {
                 BmrError::new_err(format!("effect names must be strings, got {name}"))
             })?;
-            let kind = EffectKind::from_name(&name).map_err(err)?;
+            let kind = EffectKind::from_name(&name).map_err(bmr_err)?;
             if params.is_none() {
                 set.remove(kind);
                 continue;
@@ -51,7 +40,7 @@ fn apply_effects(set: &mut EffectSet, spec: &Bound<'_, PyAny>) -> PyResult<()> {
                 given.push((k, v));
             }
             let refs: Vec<(&str, f64)> = given.iter().map(|(k, v)| (k.as_str(), *v)).collect();
-            set.insert(Effect::from_params(kind, &refs).map_err(err)?);
+            set.insert(Effect::from_params(kind, &refs).map_err(bmr_err)?);
         }
         return Ok(());
     }
@@ -69,9 +58,9 @@ fn apply_effects(set: &mut EffectSet, spec: &Bound<'_, PyAny>) -> PyResult<()> {
     for item in items {
         match item.split_once(':') {
             Some((name, rest)) if rest.trim() == "off" => {
-                set.remove(EffectKind::from_name(name.trim()).map_err(err)?)
+                set.remove(EffectKind::from_name(name.trim()).map_err(bmr_err)?)
             }
-            _ => set.insert(Effect::parse(&item).map_err(err)?),
+            _ => set.insert(Effect::parse(&item).map_err(bmr_err)?),
         }
     }
     Ok(())
@@ -103,12 +92,12 @@ impl PyVirtualActuator {
                 BmrError::new_err(format!("seed must be an integer in [0, 2**64), got {s}"))
             })?,
         };
-        let mut config = preset_config(preset).map_err(err)?;
+        let mut config = preset_config(preset).map_err(bmr_err)?;
         config.sample_rate_hz = sample_rate_hz;
         if let Some(spec) = effects {
             apply_effects(&mut config.effects, spec)?;
         }
-        let inner = VirtualActuator::new(config, seed).map_err(err)?;
+        let inner = VirtualActuator::new(config, seed).map_err(bmr_err)?;
         Ok(PyVirtualActuator {
             inner,
             preset: preset.to_string(),
@@ -123,7 +112,7 @@ impl PyVirtualActuator {
         py: Python<'py>,
         current_a: &Bound<'py, PyAny>,
     ) -> PyResult<Bound<'py, PyDict>> {
-        let cmd = float_array(current_a, "current_a")?;
+        let cmd = extract_f64_array(current_a, "current_a")?;
         if let Some(i) = cmd.iter().position(|v| !v.is_finite()) {
             return Err(BmrError::new_err(format!(
                 "current_a[{i}] = {} is not finite; commands must be finite currents in A",
@@ -148,7 +137,7 @@ impl PyVirtualActuator {
             ("torque_true_nmm", trace.torque_true_nmm),
         ];
         for (name, v) in cols {
-            out.set_item(name, PyArray1::from_vec(py, v))?;
+            out.set_item(name, to_numpy(py, v))?;
         }
         Ok(out)
     }
@@ -164,17 +153,17 @@ impl PyVirtualActuator {
         py: Python<'py>,
         theta_rad: &Bound<'py, PyAny>,
     ) -> PyResult<Bound<'py, PyArray1<f64>>> {
-        let th = float_array(theta_rad, "theta_rad")?;
+        let th = extract_f64_array(theta_rad, "theta_rad")?;
         let v: Vec<f64> = th
             .iter()
             .map(|&t| self.inner.true_friction_nmm(t))
             .collect();
-        Ok(PyArray1::from_vec(py, v))
+        Ok(to_numpy(py, v))
     }
 
     /// Encoder angles (rad) of the next ``n`` samples, without advancing (the angle does not depend on current).
     fn theta_ahead<'py>(&self, py: Python<'py>, n: usize) -> Bound<'py, PyArray1<f64>> {
-        PyArray1::from_vec(py, self.inner.theta_ahead(n))
+        to_numpy(py, self.inner.theta_ahead(n))
     }
 
     /// Active effects and their parameters: ``{name: {param: value}}``.

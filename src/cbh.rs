@@ -1,0 +1,373 @@
+//! The congruency-based hysteresis (CBH) operator: first-order curve tables + extrema memory → output.
+//!
+//! Rising from the newest minimum `m`: `y = y(m) + k·E^a(m, u)`; falling from the newest maximum `M`:
+//! `y = y(M) − k·E^d(M, u)` (paper eq 12 and 16, DESIGN section 2). `k = 1` for tables whose two families agree
+//! (Preisach data); otherwise `k` scales the branch so that it closes exactly on the stored output of its target,
+//! which keeps the output continuous and monotone in the input when the measured families disagree.
+//! Inputs outside the table range saturate at its ends. `step` is `O(log nodes)`, allocation-free and
+//! deterministic to the bit.
+use crate::error::{FamilyKind, TableError};
+use crate::everett::Family;
+use crate::history::{History, Reversal, Via};
+
+/// Where the operator starts (or is reset to).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Initial {
+    /// After negative saturation: at the lowest input, on the ascending major branch.
+    Negative,
+    /// After positive saturation: at the highest input, on the descending major branch.
+    Positive,
+    /// At this input on the ascending major branch (negative saturation, then up to it).
+    Ascending(f64),
+    /// At this input on the descending major branch (positive saturation, then down to it).
+    Descending(f64),
+}
+
+/// Everything that evolves: memory, current input and output. A plain `Copy` value: snapshot/restore is a copy.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct State<const N: usize> {
+    pub(crate) history: History<N>,
+    pub(crate) u: f64,
+    pub(crate) y: f64,
+    pub(crate) hint_a: usize,
+    pub(crate) hint_d: usize,
+    fingerprint: u64,
+}
+
+impl<const N: usize> State<N> {
+    /// Current (clamped) input.
+    pub fn input(&self) -> f64 {
+        self.u
+    }
+    /// Current output.
+    pub fn output(&self) -> f64 {
+        self.y
+    }
+    /// The remembered reversal points `(input, output)`, oldest (the saturation anchor) first.
+    pub fn memory(&self) -> impl Iterator<Item = (f64, f64)> + '_ {
+        self.history.entries().iter().map(|r| (r.u, r.y))
+    }
+    pub fn history(&self) -> &History<N> {
+        &self.history
+    }
+}
+
+/// The CBH operator over table storage `S` with a memory of at most `N` reversal points.
+#[derive(Debug, Clone)]
+pub struct Hysteresis<S, const N: usize> {
+    pub(crate) asc: Family<S>,
+    pub(crate) desc: Family<S>,
+    pub(crate) y_lo: f64,
+    pub(crate) y_hi: f64,
+    pub(crate) lo: f64,
+    pub(crate) hi: f64,
+    anchor: Reversal,
+    fingerprint: u64,
+    pub(crate) state: State<N>,
+}
+
+impl<S: AsRef<[f64]>, const N: usize> Hysteresis<S, N> {
+    /// Combine two validated families (descending in rising orientation, see [`crate::everett`]) with the
+    /// major-loop outputs `y_lo` (negative saturation) and `y_hi` (positive saturation).
+    pub fn new(
+        asc: Family<S>,
+        desc: Family<S>,
+        y_lo: f64,
+        y_hi: f64,
+        initial: Initial,
+    ) -> Result<Self, TableError> {
+        if asc.kind() != FamilyKind::Ascending || desc.kind() != FamilyKind::Descending {
+            return Err(TableError::BadTable {
+                family: asc.kind(),
+                what: "families passed in the wrong order",
+                index: 0,
+            });
+        }
+        let (lo, hi) = (asc.lo(), asc.hi());
+        if desc.lo() != -hi || desc.hi() != -lo {
+            return Err(TableError::BadTable {
+                family: FamilyKind::Descending,
+                what: "input range differs from the ascending family's",
+                index: 0,
+            });
+        }
+        if !(y_lo.is_finite() && y_hi.is_finite() && y_hi > y_lo) {
+            return Err(TableError::NoOutputSpan { lo: y_lo, hi: y_hi });
+        }
+        let strip = asc.strip(lo);
+        let e_top = asc.everett_max(&strip);
+        let k = branch_scale(y_hi - y_lo, e_top);
+        let anchor = Reversal {
+            u: lo,
+            y: y_lo,
+            k,
+            strip,
+            via: None,
+        };
+        let fingerprint = fingerprint(&asc, &desc, y_lo, y_hi);
+        let state = State {
+            history: History::new(anchor),
+            u: lo,
+            y: y_lo,
+            hint_a: 0,
+            hint_d: 0,
+            fingerprint,
+        };
+        let mut h = Hysteresis {
+            asc,
+            desc,
+            y_lo,
+            y_hi,
+            lo,
+            hi,
+            anchor,
+            fingerprint,
+            state,
+        };
+        h.reset(initial);
+        Ok(h)
+    }
+
+    /// `(lowest, highest)` input of the table; inputs outside saturate.
+    pub fn input_range(&self) -> (f64, f64) {
+        (self.lo, self.hi)
+    }
+    /// `(output at negative saturation, output at positive saturation)`.
+    pub fn output_range(&self) -> (f64, f64) {
+        (self.y_lo, self.y_hi)
+    }
+    pub fn ascending(&self) -> &Family<S> {
+        &self.asc
+    }
+    pub fn descending(&self) -> &Family<S> {
+        &self.desc
+    }
+    pub fn state(&self) -> &State<N> {
+        &self.state
+    }
+    /// Current output.
+    pub fn output(&self) -> f64 {
+        self.state.y
+    }
+    /// A copy of the state (no allocation).
+    pub fn snapshot(&self) -> State<N> {
+        self.state
+    }
+    /// Return to a snapshot of this operator (or of one with identical tables).
+    pub fn restore(&mut self, s: &State<N>) -> Result<(), TableError> {
+        if s.fingerprint != self.fingerprint {
+            return Err(TableError::ForeignState);
+        }
+        self.state = *s;
+        Ok(())
+    }
+
+    /// Forget all memory and start from `initial`. A major-branch input outside the range saturates.
+    pub fn reset(&mut self, initial: Initial) {
+        let st = &mut self.state;
+        st.history = History::new(self.anchor);
+        st.u = self.lo;
+        st.y = self.y_lo;
+        match initial {
+            Initial::Negative => {}
+            Initial::Positive => self.saturate_positive(),
+            Initial::Ascending(u) => {
+                self.step(u);
+            }
+            Initial::Descending(u) => {
+                self.saturate_positive();
+                self.step(u);
+            }
+        }
+    }
+
+    /// Positive saturation with the descending major branch ahead.
+    fn saturate_positive(&mut self) {
+        self.step(self.hi);
+        self.state.y = self.y_hi;
+        self.push_reversal();
+    }
+
+    /// Apply input `u` and return the output. A NaN input leaves the memory untouched and returns NaN; infinite
+    /// or out-of-range inputs saturate.
+    #[inline]
+    pub fn step(&mut self, u: f64) -> f64 {
+        if u.is_nan() {
+            return f64::NAN;
+        }
+        let u = u.clamp(self.lo, self.hi);
+        self.advance(u);
+        let y = self.branch_output(u);
+        self.state.u = u;
+        self.state.y = y;
+        y
+    }
+
+    /// Feed `inputs` through `step`, writing into `out` (same length; extra elements untouched).
+    pub fn run_into(&mut self, inputs: &[f64], out: &mut [f64]) {
+        for (o, &u) in out.iter_mut().zip(inputs) {
+            *o = self.step(u);
+        }
+    }
+
+    /// Update the memory for the move from the current input to `u`: a reversal if the direction changes, then
+    /// wiping-out of every pair whose closure target the input passes.
+    #[inline]
+    pub(crate) fn advance(&mut self, u: f64) {
+        let h = &self.state.history;
+        let cur = self.state.u;
+        if (h.rising() && u < cur) || (!h.rising() && u > cur) {
+            self.turn();
+        }
+        self.wipe_out(u);
+    }
+
+    /// The direction changes at the current point: remember it, unless we never left the newest reversal.
+    pub(crate) fn turn(&mut self) {
+        let top = *self.state.history.top();
+        if self.state.u == top.u && self.state.history.len() > 1 {
+            self.state.history.pop(1);
+        } else {
+            self.push_reversal();
+        }
+    }
+
+    #[inline]
+    pub(crate) fn wipe_out(&mut self, u: f64) {
+        loop {
+            let h = &self.state.history;
+            let Some(target) = h.target() else { return };
+            let passed = if h.rising() {
+                u >= target.u
+            } else {
+                u <= target.u
+            };
+            if !passed {
+                return;
+            }
+            let n = if h.len() == 2 { 1 } else { 2 };
+            self.state.history.pop(n);
+        }
+    }
+
+    /// Push the current point as a reversal (a maximum if rising until now, else a minimum).
+    pub(crate) fn push_reversal(&mut self) {
+        if self.state.history.is_full() {
+            let (asc, desc) = (&self.asc, &self.desc);
+            self.state
+                .history
+                .make_room(|entry, old, new| second_piece(asc, desc, entry, old, new));
+        }
+        let (u, y) = (self.state.u, self.state.y);
+        let below = *self.state.history.top();
+        let becomes_max = self.state.history.rising();
+        let r = if becomes_max {
+            let strip = self.desc.strip(-u);
+            let e = self.desc.everett(&strip, -below.u, &mut self.state.hint_d);
+            Reversal {
+                u,
+                y,
+                k: branch_scale(y - below.y, e),
+                strip,
+                via: None,
+            }
+        } else {
+            let strip = self.asc.strip(u);
+            let e = self.asc.everett(&strip, below.u, &mut self.state.hint_a);
+            Reversal {
+                u,
+                y,
+                k: branch_scale(below.y - y, e),
+                strip,
+                via: None,
+            }
+        };
+        self.state.history.push(r);
+    }
+
+    /// Output on the branch leaving the newest reversal, at input `u` (inside its range).
+    #[inline]
+    pub(crate) fn branch_output(&mut self, u: f64) -> f64 {
+        let top = *self.state.history.top();
+        if self.state.history.rising() {
+            if u >= self.hi && self.state.history.len() == 1 {
+                return self.y_hi; // positive saturation is exact, like the negative one
+            }
+            let e = self.asc.everett(&top.strip, u, &mut self.state.hint_a);
+            match top.via {
+                Some(v) if u > v.u => v.y + v.k * (e - v.e),
+                _ => top.y + top.k * e,
+            }
+        } else {
+            let e = self.desc.everett(&top.strip, -u, &mut self.state.hint_d);
+            match top.via {
+                Some(v) if u < v.u => v.y - v.k * (e - v.e),
+                _ => top.y - top.k * e,
+            }
+        }
+    }
+}
+
+/// Branch scale that makes an increment `e` produce the output change `dy`; 1 when undefined.
+#[inline]
+pub(crate) fn branch_scale(dy: f64, e: f64) -> f64 {
+    if e > 0.0 {
+        let k = dy / e;
+        if k.is_finite() { k.max(0.0) } else { 1.0 }
+    } else {
+        1.0
+    }
+}
+
+/// Second branch piece of `entry` from its old target to its new one (see [`History::make_room`]).
+fn second_piece<S: AsRef<[f64]>>(
+    asc: &Family<S>,
+    desc: &Family<S>,
+    entry: &Reversal,
+    old: &Reversal,
+    new: &Reversal,
+) -> Via {
+    let mut hint = 0;
+    // Entry rises if it is a minimum, i.e. its targets are maxima above it.
+    let (e_old, e_new, dy) = if old.u > entry.u {
+        (
+            asc.everett(&entry.strip, old.u, &mut hint),
+            asc.everett(&entry.strip, new.u, &mut hint),
+            new.y - old.y,
+        )
+    } else {
+        (
+            desc.everett(&entry.strip, -old.u, &mut hint),
+            desc.everett(&entry.strip, -new.u, &mut hint),
+            old.y - new.y,
+        )
+    };
+    Via {
+        u: old.u,
+        y: old.y,
+        e: e_old,
+        k: branch_scale(dy, e_new - e_old),
+    }
+}
+
+/// FNV-1a over the table dimensions, end points and a few values: tells snapshots of different tables apart.
+fn fingerprint<S: AsRef<[f64]>>(asc: &Family<S>, desc: &Family<S>, y_lo: f64, y_hi: f64) -> u64 {
+    let mut h: u64 = 0xcbf2_9ce4_8422_2325;
+    let mut mix = |x: u64| {
+        for b in x.to_le_bytes() {
+            h ^= b as u64;
+            h = h.wrapping_mul(0x0100_0000_01b3);
+        }
+    };
+    for f in [asc, desc] {
+        mix(f.nodes() as u64);
+        mix(f.curves() as u64);
+        let d = f.data();
+        for i in [0, d.len() / 3, d.len() / 2, 2 * d.len() / 3, d.len() - 1] {
+            mix(d[i].to_bits());
+        }
+    }
+    mix(y_lo.to_bits());
+    mix(y_hi.to_bits());
+    h
+}

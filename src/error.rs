@@ -1,0 +1,216 @@
+//! Errors raised when a curve table is built or validated (never in `step`).
+use core::fmt;
+
+/// Which first-order curve family a table error refers to.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum FamilyKind {
+    Ascending,
+    Descending,
+}
+
+impl fmt::Display for FamilyKind {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(match self {
+            FamilyKind::Ascending => "ascending",
+            FamilyKind::Descending => "descending",
+        })
+    }
+}
+
+/// What is wrong with a table, with the curve index and sample index it concerns.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum TableError {
+    /// Fewer than two curves in a family.
+    TooFewCurves { family: FamilyKind, curves: usize },
+    /// A curve with fewer than two samples, or input/output arrays of different lengths.
+    BadLength {
+        family: FamilyKind,
+        curve: usize,
+        inputs: usize,
+        outputs: usize,
+    },
+    /// NaN or infinite input or output.
+    NonFinite {
+        family: FamilyKind,
+        curve: usize,
+        sample: usize,
+    },
+    /// Input not strictly increasing (ascending) / decreasing (descending) along the curve.
+    InputNotMonotone {
+        family: FamilyKind,
+        curve: usize,
+        sample: usize,
+        previous: f64,
+        value: f64,
+    },
+    /// Output moves against the curve's direction by more than the tolerance.
+    OutputNotMonotone {
+        family: FamilyKind,
+        curve: usize,
+        sample: usize,
+        drop: f64,
+        tolerance: f64,
+    },
+    /// Two curves start at the same reversal input.
+    DuplicateReversal {
+        family: FamilyKind,
+        curve: usize,
+        other: usize,
+        input: f64,
+    },
+    /// A curve does not reach the saturation input of its direction.
+    ShortCurve {
+        family: FamilyKind,
+        curve: usize,
+        reaches: f64,
+        needed: f64,
+    },
+    /// A reversal lies outside the input range spanned by the two major branches.
+    ReversalOutOfRange {
+        family: FamilyKind,
+        curve: usize,
+        input: f64,
+        lo: f64,
+        hi: f64,
+    },
+    /// The major branches do not meet at the saturations (relative mismatch of the output span).
+    MajorLoopOpen {
+        at_input: f64,
+        ascending: f64,
+        descending: f64,
+    },
+    /// The major loop has no height (output at positive saturation not above negative saturation).
+    NoOutputSpan { lo: f64, hi: f64 },
+    /// A raw internal table is inconsistent (dimensions, grid, rows).
+    BadTable {
+        family: FamilyKind,
+        what: &'static str,
+        index: usize,
+    },
+    /// Snapshot taken from another table.
+    ForeignState,
+    /// A parameter outside its documented range.
+    BadParameter { name: &'static str, value: f64 },
+}
+
+impl fmt::Display for TableError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match *self {
+            TableError::TooFewCurves { family, curves } => {
+                write!(
+                    f,
+                    "{family} family has {curves} curve(s); at least 2 are needed (the major branch and one more)"
+                )
+            }
+            TableError::BadLength {
+                family,
+                curve,
+                inputs,
+                outputs,
+            } => write!(
+                f,
+                "{family} curve {curve}: needs at least 2 samples with as many inputs as outputs (got {inputs} inputs, {outputs} outputs)"
+            ),
+            TableError::NonFinite {
+                family,
+                curve,
+                sample,
+            } => {
+                write!(
+                    f,
+                    "{family} curve {curve}, sample {sample}: value is NaN or infinite"
+                )
+            }
+            TableError::InputNotMonotone {
+                family,
+                curve,
+                sample,
+                previous,
+                value,
+            } => {
+                let dir = match family {
+                    FamilyKind::Ascending => "increase",
+                    FamilyKind::Descending => "decrease",
+                };
+                write!(
+                    f,
+                    "{family} curve {curve}, sample {sample}: input must strictly {dir} along the curve ({value} after {previous})"
+                )
+            }
+            TableError::OutputNotMonotone {
+                family,
+                curve,
+                sample,
+                drop,
+                tolerance,
+            } => {
+                let dir = match family {
+                    FamilyKind::Ascending => "falls",
+                    FamilyKind::Descending => "rises",
+                };
+                write!(
+                    f,
+                    "{family} curve {curve}, sample {sample}: output {dir} by {drop:.6} against the curve's direction (tolerance {tolerance:.6})"
+                )
+            }
+            TableError::DuplicateReversal {
+                family,
+                curve,
+                other,
+                input,
+            } => {
+                write!(
+                    f,
+                    "{family} curves {other} and {curve} start at the same reversal input {input}"
+                )
+            }
+            TableError::ShortCurve {
+                family,
+                curve,
+                reaches,
+                needed,
+            } => write!(
+                f,
+                "{family} curve {curve} stops at input {reaches}; it must reach saturation at {needed}"
+            ),
+            TableError::ReversalOutOfRange {
+                family,
+                curve,
+                input,
+                lo,
+                hi,
+            } => write!(
+                f,
+                "{family} curve {curve} starts at {input}, outside the major-loop input range [{lo}, {hi}]"
+            ),
+            TableError::MajorLoopOpen {
+                at_input,
+                ascending,
+                descending,
+            } => write!(
+                f,
+                "major branches do not meet at saturation input {at_input}: ascending ends at {ascending}, descending at {descending}"
+            ),
+            TableError::NoOutputSpan { lo, hi } => write!(
+                f,
+                "the major loop has no output span (output {lo} at negative saturation, {hi} at positive)"
+            ),
+            TableError::BadTable {
+                family,
+                what,
+                index,
+            } => {
+                write!(f, "{family} table: {what} (at index {index})")
+            }
+            TableError::ForeignState => {
+                f.write_str("snapshot does not belong to this operator's table")
+            }
+            TableError::BadParameter { name, value } => {
+                write!(f, "parameter {name} = {value} is out of range")
+            }
+        }
+    }
+}
+
+#[cfg(feature = "std")]
+impl std::error::Error for TableError {}

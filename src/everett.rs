@@ -1,0 +1,327 @@
+//! One family of first-order reversal curves as an Everett table, and its evaluation at any reversal point.
+//!
+//! The family is stored in *rising orientation*: an ascending family as measured, a descending family mirrored
+//! (`v = -u`, increments taken positive). Row `j` holds `E_j(g_k) = S(r_j, g_k) - S(r_j, r_j)` on one shared grid
+//! `g` that contains every reversal `r_j`; `E_j = 0` at and below `r_j`. Values between nodes are linear in the
+//! input, so every evaluation and its inverse are closed-form inside one grid cell.
+//!
+//! Off-grid reversals (`r_j <= m < r_{j+1}`, `λ = (m - r_j)/(r_{j+1} - r_j)`) assume the Preisach density is uniform
+//! across the reversal direction inside one strip (it may vary freely along the input):
+//! - `u > r_{j+1}`: `E(m,u) = (1-λ) E_j(u) + λ E_{j+1}(u) - λ(1-λ) T_j`, with `T_j = E_j(r_{j+1})`;
+//! - `m < u <= r_{j+1}`: `E(m,u) = (1-λ)² E_j(r_j + (r_{j+1}-r_j)(u-m)/(r_{j+1}-m))`.
+//!
+//! This is exact for a density that is uniform inside the strip, exact at measured reversals (`λ = 0`),
+//! continuous in `m` and `u`, and monotone in `u`. The simpler interpolation
+//! `(1-λ)[E_j(u) - E_j(m)] + λ E_{j+1}(u)` misses the strip's triangle by `λ(1-λ)²T_j` under the same density.
+//! Above the highest measured reversal the strip closes on a virtual curve at saturation (`E ≡ 0`).
+use crate::error::{FamilyKind, TableError};
+
+/// Where a reversal point sits in the family: the strip `[r_j, r_next)` and its interpolation weights.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Strip {
+    /// Reversal input (rising orientation), clamped to the table range.
+    pub m: f64,
+    /// Index of the measured curve at or below `m`.
+    pub j: usize,
+    /// Reversal input of curve `j`.
+    pub r_j: f64,
+    /// Reversal input of curve `j + 1`, or the saturation input above the last curve.
+    pub r_next: f64,
+    /// `(m - r_j) / (r_next - r_j)` in `[0, 1)`.
+    pub lambda: f64,
+    /// `E_j(r_next)`: the strip triangle's total increment.
+    pub t_j: f64,
+}
+
+impl Strip {
+    /// A strip that evaluates to zero everywhere (used for empty state slots).
+    pub const ZERO: Strip = Strip {
+        m: 0.0,
+        j: 0,
+        r_j: 0.0,
+        r_next: 0.0,
+        lambda: 0.0,
+        t_j: 0.0,
+    };
+}
+
+/// A validated family table over storage `S` (owned `Vec<f64>` or a `&'static [f64]` on embedded targets).
+///
+/// `data` = `[grid (nodes) | reversals (curves) | values (curves × nodes, row-major)]`.
+#[derive(Debug, Clone)]
+pub struct Family<S> {
+    data: S,
+    nodes: usize,
+    curves: usize,
+    kind: FamilyKind,
+}
+
+/// Total storage length (in `f64`) of a family table with these dimensions.
+pub const fn family_len(nodes: usize, curves: usize) -> usize {
+    nodes + curves + curves * nodes
+}
+
+impl<S: AsRef<[f64]>> Family<S> {
+    /// Validate a raw table once: strictly increasing finite grid, reversals on grid nodes, rows zero up to their
+    /// reversal and non-decreasing after it. `O(curves × nodes)`; nothing is checked again per step.
+    pub fn new(data: S, nodes: usize, curves: usize, kind: FamilyKind) -> Result<Self, TableError> {
+        let bad = |what, index| TableError::BadTable {
+            family: kind,
+            what,
+            index,
+        };
+        if curves < 2 {
+            return Err(TableError::TooFewCurves {
+                family: kind,
+                curves,
+            });
+        }
+        if nodes < 2 {
+            return Err(bad("fewer than 2 grid nodes", nodes));
+        }
+        if data.as_ref().len() != family_len(nodes, curves) {
+            return Err(bad(
+                "storage length is not nodes + curves + curves*nodes",
+                data.as_ref().len(),
+            ));
+        }
+        let f = Family {
+            data,
+            nodes,
+            curves,
+            kind,
+        };
+        let g = f.grid();
+        for (i, w) in g.windows(2).enumerate() {
+            if !(w[0].is_finite() && w[1].is_finite()) {
+                return Err(bad("grid value not finite", i));
+            }
+            if w[1] <= w[0] {
+                return Err(bad("grid not strictly increasing", i + 1));
+            }
+        }
+        let r = f.reversals();
+        if r[0] != g[0] {
+            return Err(bad(
+                "first reversal must be the grid's first node (major branch)",
+                0,
+            ));
+        }
+        for j in 0..curves {
+            if j > 0 && r[j] <= r[j - 1] {
+                return Err(bad("reversals not strictly increasing", j));
+            }
+            let Ok(node) = g.binary_search_by(|x| x.total_cmp(&r[j])) else {
+                return Err(bad("reversal is not a grid node", j));
+            };
+            if node + 1 >= nodes {
+                return Err(bad(
+                    "reversal at the last grid node (saturation) has no curve",
+                    j,
+                ));
+            }
+            let row = f.row(j);
+            for (k, &v) in row.iter().enumerate() {
+                if !v.is_finite() {
+                    return Err(TableError::NonFinite {
+                        family: kind,
+                        curve: j,
+                        sample: k,
+                    });
+                }
+                if k <= node && v != 0.0 {
+                    return Err(bad(
+                        "row must be zero at and below its reversal",
+                        j * nodes + k,
+                    ));
+                }
+                if k > 0 && v < row[k - 1] {
+                    return Err(bad("row decreases along the input", j * nodes + k));
+                }
+            }
+        }
+        Ok(f)
+    }
+
+    pub fn kind(&self) -> FamilyKind {
+        self.kind
+    }
+    pub fn nodes(&self) -> usize {
+        self.nodes
+    }
+    pub fn curves(&self) -> usize {
+        self.curves
+    }
+    /// The raw storage (for serialisation).
+    pub fn data(&self) -> &[f64] {
+        self.data.as_ref()
+    }
+    pub fn grid(&self) -> &[f64] {
+        &self.data.as_ref()[..self.nodes]
+    }
+    pub fn reversals(&self) -> &[f64] {
+        &self.data.as_ref()[self.nodes..self.nodes + self.curves]
+    }
+    /// `E_j` at every grid node.
+    pub fn row(&self, j: usize) -> &[f64] {
+        let start = self.nodes + self.curves + j * self.nodes;
+        &self.data.as_ref()[start..start + self.nodes]
+    }
+    /// Lowest input (negative saturation in rising orientation).
+    pub fn lo(&self) -> f64 {
+        self.grid()[0]
+    }
+    /// Highest input (positive saturation in rising orientation).
+    pub fn hi(&self) -> f64 {
+        self.grid()[self.nodes - 1]
+    }
+
+    /// Grid cell `k` with `g[k] <= u <= g[k+1]`, hunting from `hint` (a cache that only speeds the search).
+    #[inline]
+    pub fn locate(&self, u: f64, hint: &mut usize) -> usize {
+        let g = self.grid();
+        let last = self.nodes - 2;
+        let h = (*hint).min(last);
+        let k = if g[h] <= u && u <= g[h + 1] {
+            h
+        } else if h < last && g[h + 1] <= u && u <= g[h + 2] {
+            h + 1
+        } else if h > 0 && g[h - 1] <= u && u <= g[h] {
+            h - 1
+        } else {
+            // First node above u, minus one: the cell holding u.
+            g.partition_point(|&x| x <= u).clamp(1, last + 1) - 1
+        };
+        *hint = k;
+        k
+    }
+
+    /// `E_j(u)` by linear interpolation in cell `k`.
+    #[inline]
+    fn row_at(&self, j: usize, k: usize, u: f64) -> f64 {
+        let g = self.grid();
+        let row = self.row(j);
+        let t = (u - g[k]) / (g[k + 1] - g[k]);
+        row[k] + t * (row[k + 1] - row[k])
+    }
+
+    /// The strip holding reversal `m` (clamped to the table range). `O(log curves)`; called at reversals only.
+    pub fn strip(&self, m: f64) -> Strip {
+        let m = m.clamp(self.lo(), self.hi());
+        let r = self.reversals();
+        let j = r.partition_point(|&x| x <= m).max(1) - 1;
+        let r_j = r[j];
+        let r_next = if j + 1 < self.curves {
+            r[j + 1]
+        } else {
+            self.hi()
+        };
+        let lambda = ((m - r_j) / (r_next - r_j)).clamp(0.0, 1.0);
+        let mut hint = 0;
+        let k = self.locate(r_next, &mut hint);
+        let t_j = self.row_at(j, k, r_next);
+        Strip {
+            m,
+            j,
+            r_j,
+            r_next,
+            lambda,
+            t_j,
+        }
+    }
+
+    /// `E(m, u)`: the output increment from reversal `s.m` to input `u` (rising orientation).
+    #[inline]
+    pub fn everett(&self, s: &Strip, u: f64, hint: &mut usize) -> f64 {
+        if u <= s.m {
+            return 0.0;
+        }
+        let one_l = 1.0 - s.lambda;
+        if u <= s.r_next {
+            // Inside the strip's triangle: the measured curve j, squeezed onto [m, r_next].
+            let v = s.r_j + (s.r_next - s.r_j) * (u - s.m) / (s.r_next - s.m);
+            let mut h = 0;
+            let k = self.locate(v, &mut h);
+            return one_l * one_l * self.row_at(s.j, k, v);
+        }
+        let k = self.locate(u, hint);
+        let lo = self.combined_node(s, k);
+        let hi = self.combined_node(s, k + 1);
+        let g = self.grid();
+        let t = (u - g[k]) / (g[k + 1] - g[k]);
+        lo + t * (hi - lo)
+    }
+
+    /// The strip combination `(1-λ)E_j + λE_{j+1} - λ(1-λ)T_j` at grid node `k` (only for nodes at or above r_next).
+    #[inline]
+    fn combined_node(&self, s: &Strip, k: usize) -> f64 {
+        let one_l = 1.0 - s.lambda;
+        let a = self.row(s.j)[k];
+        if s.lambda == 0.0 {
+            return a;
+        }
+        let b = self.row(s.j + 1)[k];
+        one_l * a + s.lambda * b - s.lambda * one_l * s.t_j
+    }
+
+    /// `E(m, hi)`: the largest increment reachable from reversal `s.m`.
+    pub fn everett_max(&self, s: &Strip) -> f64 {
+        let mut h = self.nodes - 2;
+        self.everett(s, self.hi(), &mut h)
+    }
+
+    /// Smallest input `u >= s.m` with `E(m, u) = e`, for `0 <= e <= everett_max(s)`; `e` beyond the range clamps
+    /// to `s.m` or `hi`. Closed form inside one cell after an `O(log nodes)` search.
+    pub fn everett_inverse(&self, s: &Strip, e: f64) -> f64 {
+        if e <= 0.0 || s.m >= self.hi() {
+            return s.m;
+        }
+        let one_l = 1.0 - s.lambda;
+        let t_tri = one_l * one_l * s.t_j;
+        let g = self.grid();
+        if e <= t_tri {
+            // Invert E_j on [r_j, r_next], then map back onto [m, r_next].
+            let target = e / (one_l * one_l);
+            let row = self.row(s.j);
+            let v = invert_monotone(g, |k| row[k], target, s.r_j);
+            return s.m + (v - s.r_j) * (s.r_next - s.m) / (s.r_next - s.r_j);
+        }
+        if s.j + 1 >= self.curves {
+            return self.hi();
+        }
+        let u = invert_monotone(g, |k| self.combined_node(s, k), e, s.r_next);
+        u.max(s.r_next)
+    }
+}
+
+/// Smallest `u >= from` where the piecewise-linear function with node values `f(k)` on `grid` reaches `target`.
+/// `f` must be non-decreasing from the cell holding `from` on. Returns the last node if `target` is never reached.
+fn invert_monotone(grid: &[f64], f: impl Fn(usize) -> f64, target: f64, from: f64) -> f64 {
+    let n = grid.len();
+    let start = grid.partition_point(|&x| x <= from).clamp(1, n) - 1;
+    // First node at or after `start` whose value reaches the target.
+    let (mut lo, mut hi) = (start, n);
+    while lo < hi {
+        let mid = lo + (hi - lo) / 2;
+        if f(mid) >= target {
+            hi = mid;
+        } else {
+            lo = mid + 1;
+        }
+    }
+    if lo >= n {
+        return grid[n - 1];
+    }
+    if lo == start {
+        return grid[start].max(from);
+    }
+    let (k0, k1) = (lo - 1, lo);
+    let (f0, f1) = (f(k0), f(k1));
+    let t = if f1 > f0 {
+        (target - f0) / (f1 - f0)
+    } else {
+        1.0
+    };
+    let u = grid[k0] + t.clamp(0.0, 1.0) * (grid[k1] - grid[k0]);
+    u.max(from)
+}

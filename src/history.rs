@@ -1,0 +1,159 @@
+//! The extrema memory: a fixed-capacity stack of the reversal points that still matter.
+//!
+//! Index 0 is always the negative-saturation anchor (a minimum at the lowest input). Above it minima and maxima
+//! alternate: even indices are minima (the output rises from them), odd indices are maxima (it falls from them).
+//! The entry below each one is its *closure target*: when the input passes the target, the pair is wiped out and
+//! the output returns exactly to the stored output (return-point memory). The anchor's target is positive
+//! saturation.
+use crate::everett::Strip;
+
+/// A point where the output follows a second piece after a merge (see [`History::make_room`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Via {
+    /// Input where the second piece starts (the merged-away closure target).
+    pub u: f64,
+    /// Output there.
+    pub y: f64,
+    /// Everett increment from this entry's reversal to `u`.
+    pub e: f64,
+    /// Scale of the second piece, so that it closes on the new target.
+    pub k: f64,
+}
+
+/// One remembered reversal point and the branch that leaves it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Reversal {
+    /// Input at the reversal.
+    pub u: f64,
+    /// Output at the reversal.
+    pub y: f64,
+    /// Branch scale: output = `y ± k·E(reversal, input)`; 1 for congruent (Preisach-consistent) tables, otherwise
+    /// chosen so that the branch closes exactly on its target's output (continuity at wipe-out).
+    pub k: f64,
+    /// Where the reversal sits in its curve family.
+    pub strip: Strip,
+    /// Second branch piece after a merge.
+    pub via: Option<Via>,
+}
+
+impl Reversal {
+    pub const EMPTY: Reversal = Reversal {
+        u: 0.0,
+        y: 0.0,
+        k: 1.0,
+        strip: Strip::ZERO,
+        via: None,
+    };
+}
+
+/// Fixed-capacity reversal stack. `N >= 4`; never allocates.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct History<const N: usize> {
+    entries: [Reversal; N],
+    len: usize,
+}
+
+impl<const N: usize> History<N> {
+    const CAPACITY_OK: () = assert!(N >= 4, "history capacity must be at least 4");
+
+    /// A history holding only the anchor.
+    pub fn new(anchor: Reversal) -> Self {
+        let () = Self::CAPACITY_OK;
+        let mut entries = [Reversal::EMPTY; N];
+        entries[0] = anchor;
+        History { entries, len: 1 }
+    }
+
+    #[inline]
+    pub fn len(&self) -> usize {
+        self.len
+    }
+    #[inline]
+    pub fn is_empty(&self) -> bool {
+        self.len == 0
+    }
+    pub const fn capacity(&self) -> usize {
+        N
+    }
+    #[inline]
+    pub fn top(&self) -> &Reversal {
+        &self.entries[self.len - 1]
+    }
+    #[inline]
+    pub fn get(&self, i: usize) -> &Reversal {
+        &self.entries[i]
+    }
+    /// True when the newest entry is a minimum (the output is on a rising branch).
+    #[inline]
+    pub fn rising(&self) -> bool {
+        (self.len - 1).is_multiple_of(2)
+    }
+    /// The newest entry's closure target, or `None` for the anchor (target: positive saturation).
+    #[inline]
+    pub fn target(&self) -> Option<&Reversal> {
+        if self.len >= 2 {
+            Some(&self.entries[self.len - 2])
+        } else {
+            None
+        }
+    }
+    pub fn entries(&self) -> &[Reversal] {
+        &self.entries[..self.len]
+    }
+    pub fn is_full(&self) -> bool {
+        self.len == N
+    }
+
+    #[inline]
+    pub fn push(&mut self, r: Reversal) {
+        debug_assert!(self.len < N);
+        self.entries[self.len] = r;
+        self.len += 1;
+    }
+
+    /// Remove the newest `n` entries; the anchor always stays.
+    #[inline]
+    pub fn pop(&mut self, n: usize) {
+        self.len = (self.len - n).max(1);
+    }
+
+    /// Keep only the anchor.
+    pub fn clear(&mut self) {
+        self.len = 1;
+    }
+
+    /// Make room for one more entry when full: merge away the interior pair `(j, j+1)` with the smallest input
+    /// excursion (the newest such pair on ties) whose upper neighbour `j+2` has no second piece yet. Entry `j+2`
+    /// keeps its branch up to the old target's input and output, then follows a second piece scaled to close on
+    /// its new target `j-1`. No stored output changes, so the output stays continuous now and at every later
+    /// wipe-out; only the shape between the two targets is approximated. `second_piece(entry, old_target,
+    /// new_target)` computes that piece. With `N >= 4` a candidate always exists (the newest entry has no piece).
+    pub fn make_room(&mut self, second_piece: impl Fn(&Reversal, &Reversal, &Reversal) -> Via) {
+        if self.len < N {
+            return;
+        }
+        let mut best: Option<(usize, f64)> = None;
+        for j in 1..self.len - 2 {
+            if self.entries[j + 2].via.is_some() {
+                continue;
+            }
+            let excursion = (self.entries[j].u - self.entries[j + 1].u).abs();
+            if best.is_none_or(|(_, e)| excursion <= e) {
+                best = Some((j, excursion));
+            }
+        }
+        let Some((j, _)) = best else {
+            // Unreachable for N >= 4 (see above); dropping the newest pair keeps the stack valid regardless.
+            self.len -= 2;
+            return;
+        };
+        let via = second_piece(
+            &self.entries[j + 2],
+            &self.entries[j + 1],
+            &self.entries[j - 1],
+        );
+        self.entries[j + 2].via = Some(via);
+        self.entries.copy_within(j + 2..self.len, j);
+        self.len -= 2;
+    }
+}

@@ -1,0 +1,113 @@
+//! `bmr.Friction`: angle-periodic seal friction `c0 + Σ a_k sin kθ + b_k cos kθ` (N·mm), up to 12 harmonics.
+use numpy::{AllowTypeChange, PyArray1, PyArrayLike1};
+use pyo3::prelude::*;
+
+use crate::friction::{Friction, MAX_ORDER};
+use crate::python::BmrError;
+use crate::python::arrays::{DETACH_LEN, to_numpy, to_vec};
+
+pub(crate) type Model = Friction<MAX_ORDER>;
+
+/// Angle-periodic seal friction torque (N·mm) as a function of rotor angle (rad).
+#[pyclass(name = "Friction", module = "bmr", frozen)]
+#[derive(Clone)]
+pub(crate) struct PyFriction {
+    pub(crate) f: Model,
+}
+
+#[pymethods]
+impl PyFriction {
+    /// `c0` (N·mm) plus sine coefficients `a` and cosine coefficients `b` of harmonics 1..K (K ≤ 12).
+    #[new]
+    #[pyo3(signature = (c0=0.0, a=Vec::new(), b=Vec::new()))]
+    fn new(c0: f64, a: Vec<f64>, b: Vec<f64>) -> PyResult<Self> {
+        Model::from_coefficients(c0, &a, &b).map(|f| PyFriction { f }).ok_or_else(|| {
+            BmrError::new_err(format!(
+                "Friction: need finite coefficients and at most {MAX_ORDER} harmonics (got {} sine, {} cosine)",
+                a.len(),
+                b.len()
+            ))
+        })
+    }
+
+    /// From the paper's form `c0 + Σ A_k sin(kθ + φ_k)` (amplitudes N·mm, phases rad).
+    #[staticmethod]
+    fn from_amplitude_phase(c0: f64, amplitude: Vec<f64>, phase: Vec<f64>) -> PyResult<Self> {
+        Model::from_amplitude_phase(c0, &amplitude, &phase).map(|f| PyFriction { f }).ok_or_else(|| {
+            BmrError::new_err(format!(
+                "Friction.from_amplitude_phase: need as many phases as amplitudes ({} vs {}), finite, at most {MAX_ORDER}",
+                amplitude.len(),
+                phase.len()
+            ))
+        })
+    }
+
+    /// Friction torque (N·mm) at `theta` (rad): a float for a float, an array for an array.
+    fn __call__<'py>(
+        &self,
+        py: Python<'py>,
+        theta: &Bound<'py, PyAny>,
+    ) -> PyResult<Bound<'py, PyAny>> {
+        if let Ok(x) = theta.extract::<f64>() {
+            return Ok(self.f.eval(x).into_pyobject(py)?.into_any());
+        }
+        let arr: PyArrayLike1<'py, f64, AllowTypeChange> = theta.extract().map_err(|_| {
+            BmrError::new_err(
+                "Friction(theta): theta must be a float or a 1-D array of angles (rad)",
+            )
+        })?;
+        let th = to_vec(arr);
+        let n = th.len();
+        let f = self.f;
+        let eval = move || th.iter().map(|&x| f.eval(x)).collect::<Vec<f64>>();
+        let out = if n > DETACH_LEN {
+            py.detach(eval)
+        } else {
+            eval()
+        };
+        Ok(to_numpy(py, out).into_any())
+    }
+
+    #[getter]
+    fn c0(&self) -> f64 {
+        self.f.c0
+    }
+    /// Sine coefficients of harmonics 1..order.
+    #[getter]
+    fn a(&self) -> Vec<f64> {
+        self.f.a.as_slice()[..self.f.order()].to_vec()
+    }
+    /// Cosine coefficients of harmonics 1..order.
+    #[getter]
+    fn b(&self) -> Vec<f64> {
+        self.f.b.as_slice()[..self.f.order()].to_vec()
+    }
+    /// Highest harmonic with a non-zero coefficient.
+    #[getter]
+    fn order(&self) -> usize {
+        self.f.order()
+    }
+    /// `(amplitudes, phases)` of harmonics 1..order in the paper's form.
+    fn amplitude_phase<'py>(
+        &self,
+        py: Python<'py>,
+    ) -> (Bound<'py, PyArray1<f64>>, Bound<'py, PyArray1<f64>>) {
+        let (amp, ph): (Vec<f64>, Vec<f64>) = (1..=self.f.order())
+            .map(|k| self.f.amplitude_phase(k))
+            .unzip();
+        (to_numpy(py, amp), to_numpy(py, ph))
+    }
+    fn __repr__(&self) -> String {
+        format!(
+            "Friction(c0={}, a={:?}, b={:?})",
+            self.f.c0,
+            self.a(),
+            self.b()
+        )
+    }
+}
+
+pub(crate) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_class::<PyFriction>()?;
+    Ok(())
+}
