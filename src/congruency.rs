@@ -5,7 +5,7 @@
 //! drift); the mismatch, in output units, is a free diagnostic.
 use crate::everett::Family;
 
-/// Mismatch between the two families over every measured reversal and every grid input beyond it.
+/// Mismatch between the two families over every pair of measured reversals (minimum below maximum).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Congruency {
     /// Largest absolute mismatch (output units).
@@ -16,8 +16,8 @@ pub struct Congruency {
     pub pairs: usize,
 }
 
-/// Compare `E^a(m, u)` with `E^d(u, m)` at every measured reversal of both families (descending family in
-/// rising orientation, as stored).
+/// Compare `E^a(m, M)` with `E^d(M, m)` for every measured minimum `m` and measured maximum `M > m` (descending
+/// family in rising orientation, as stored).
 pub fn congruency<S: AsRef<[f64]>>(asc: &Family<S>, desc: &Family<S>) -> Congruency {
     let mut sum_sq = 0.0;
     let mut max_abs: f64 = 0.0;
@@ -27,22 +27,16 @@ pub fn congruency<S: AsRef<[f64]>>(asc: &Family<S>, desc: &Family<S>) -> Congrue
         max_abs = max_abs.max(d.abs());
         pairs += 1;
     };
+    // Pairs of measured reversals: minimum m (ascending family) below maximum M (descending family). Both sides
+    // are then read on measured curves (no off-grid interpolation across reversals).
     let mut hint = 0;
-    // Measured ascending curves against the descending family at off-grid maxima.
-    for (j, &m) in asc.reversals().iter().enumerate() {
-        for (k, &u) in asc.grid().iter().enumerate() {
-            if u > m {
-                let s = desc.strip(-u);
-                add(asc.row(j)[k] - desc.everett(&s, -m, &mut hint));
-            }
-        }
-    }
-    // Measured descending curves against the ascending family at off-grid minima.
-    for (j, &v_max) in desc.reversals().iter().enumerate() {
-        for (k, &v) in desc.grid().iter().enumerate() {
-            if v > v_max {
-                let s = asc.strip(-v);
-                add(desc.row(j)[k] - asc.everett(&s, -v_max, &mut hint));
+    for &m in asc.reversals() {
+        let sa = asc.strip(m);
+        for &v in desc.reversals() {
+            let big_m = -v;
+            if big_m > m {
+                let sd = desc.strip(v);
+                add(asc.everett(&sa, big_m, &mut hint) - desc.everett(&sd, -m, &mut hint));
             }
         }
     }

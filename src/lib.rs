@@ -16,6 +16,8 @@ pub mod friction;
 #[cfg(feature = "alloc")]
 pub mod from_curves;
 pub mod history;
+#[cfg(feature = "std")]
+pub mod plant;
 #[cfg(feature = "alloc")]
 pub mod table_builder;
 

@@ -1,19 +1,34 @@
 """bmr: accurate torque control of bi-directional magneto-rheological actuators.
 
-Core (Rust): ``Hysteresis`` (CBH operator), ``Friction`` (angle-periodic seal friction).
+Core (Rust): ``Hysteresis`` (CBH operator), ``Friction`` (angle-periodic seal friction), ``VirtualActuator``
+(a physical simulator of the rig; ``EFFECTS`` names its switchable effects, ``effect_parameters()`` documents
+them). Experiment protocols and bundles of them: ``bmr.experiments``.
 Identification: ``identify`` (friction + CBH tables from a bundle) giving a ``Model`` (``bmr-model/1`` files),
 ``fit_friction``, ``extract_first_order_curves``, ``fit_tables_lstsq`` / ``EverettModel`` (least-squares
 Preisach tables). Lab readers: ``read_table``, ``bundle_from_files``.
 Units: current in A (nominal current spans both coils: negative = coil 1, positive = coil 2), torque in N·mm,
 angles in rad, time in s.
 """
-from bmr._core import BmrError, EverettModel, Friction, Hysteresis, HysteresisState, fit_everett
+from bmr._core import (
+    EFFECTS,
+    PRESETS,
+    BmrError,
+    EverettModel,
+    Friction,
+    Hysteresis,
+    HysteresisState,
+    VirtualActuator,
+    effect_parameters,
+    fit_everett,
+)
 from bmr.bundle import Bundle, Run, read_bundle, write_bundle
 from bmr.identify import FrictionFit, extract_first_order_curves, fit_friction, fit_tables_lstsq, identify
 from bmr.io import bundle_from_files, read_table
 from bmr.model import Model
 
 __all__ = [
+    "EFFECTS",
+    "PRESETS",
     "BmrError",
     "Bundle",
     "EverettModel",
@@ -23,7 +38,9 @@ __all__ = [
     "HysteresisState",
     "Model",
     "Run",
+    "VirtualActuator",
     "bundle_from_files",
+    "effect_parameters",
     "extract_first_order_curves",
     "fit_everett",
     "fit_friction",

@@ -100,3 +100,48 @@ def fit_everett(
     max_iter: int = 500,
 ) -> dict:
     """Regularised NNLS Everett table: model, offsets, rss, rms, n_rows, iterations."""
+EFFECTS: tuple[str, ...]
+"""Names of the virtual actuator's switchable effects (the diagnosis vocabulary)."""
+PRESETS: tuple[str, ...]
+"""Names of the virtual actuator presets."""
+
+def effect_parameters() -> dict[str, dict[str, object]]:
+    """Every effect: ``{name: {"doc": str, "params": {param: {"unit", "default", "min", "max", "doc"}}}}``."""
+
+EffectsSpec = Union[None, dict[str, Union[dict[str, float], None]], Sequence[str], str]
+
+class VirtualActuator:
+    """Seeded physical simulator of the BMR rig (converters, hysteretic steel per coil, MR fluid, rotors, seal
+    friction, torque sensor, switchable effects). Bit-for-bit deterministic for a seed."""
+    def __init__(
+        self,
+        preset: str = "bmr2013",
+        *,
+        seed: int | None = 0,
+        sample_rate_hz: float = 1000.0,
+        effects: EffectsSpec = None,
+    ) -> None: ...
+    def run(self, current_a: ArrayLike) -> dict[str, np.ndarray]:
+        """Commanded nominal currents (A) → ``t_s, current_a, coil1_a, coil2_a, theta_rad, speed_rad_s,
+        torque_nmm`` and the hidden ``b1_t, b2_t, field_torque_nmm, friction_nmm, torque_true_nmm``."""
+    def reset(self) -> None: ...
+    def true_friction(self, theta_rad: ArrayLike) -> np.ndarray: ...
+    def theta_ahead(self, n: int) -> np.ndarray: ...
+    @property
+    def effects(self) -> dict[str, dict[str, float]]: ...
+    @property
+    def preset(self) -> str: ...
+    @property
+    def name(self) -> str: ...
+    @property
+    def seed(self) -> int: ...
+    @property
+    def sample_rate_hz(self) -> float: ...
+    @property
+    def time_s(self) -> float: ...
+    @property
+    def noise_nmm(self) -> float: ...
+    @property
+    def resolution_nmm(self) -> float: ...
+    @property
+    def converter_gain_a_per_v(self) -> float: ...

@@ -5,6 +5,7 @@ mod arrays;
 mod friction;
 mod hysteresis;
 mod identification;
+mod virtual_actuator;
 
 pyo3::create_exception!(
     bmr,
@@ -24,5 +25,6 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     hysteresis::register(m)?;
     friction::register(m)?;
     identification::register(m)?;
+    virtual_actuator::register(m)?;
     Ok(())
 }

@@ -1,0 +1,102 @@
+//! Voltage→current converters and the coil split of the nominal current (paper eq 8).
+//!
+//! The controller writes control voltages `u = I / gain`; each converter drives its coil with `gain · u`
+//! amperes (0.125 A/V on the paper's rig), clamped to `[0, limit_a]`, optionally through a first-order
+//! bandwidth. Nominal current `I > 0` excites coil 2, `I < 0` excites coil 1 with `|I|`; the other is off.
+
+use super::{PlantError, check_range, lag_factor};
+
+/// Parameters of one voltage→current converter.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ConverterParams {
+    /// Conversion gain (A/V); 0.125 on the paper's rig.
+    pub gain_a_per_v: f64,
+    /// Current limit of the converter (A).
+    pub limit_a: f64,
+    /// Closed-loop bandwidth (Hz) of the current control; `None` = ideal (instantaneous).
+    pub bandwidth_hz: Option<f64>,
+}
+
+impl Default for ConverterParams {
+    fn default() -> Self {
+        ConverterParams {
+            gain_a_per_v: 0.125,
+            limit_a: 1.5,
+            bandwidth_hz: None,
+        }
+    }
+}
+
+impl ConverterParams {
+    pub fn validate(&self) -> Result<(), PlantError> {
+        check_range("converter.gain_a_per_v", self.gain_a_per_v, 1e-6, 100.0)?;
+        check_range("converter.limit_a", self.limit_a, 1e-6, 100.0)?;
+        if let Some(bw) = self.bandwidth_hz {
+            check_range("converter.bandwidth_hz", bw, 1e-3, 1e9)?;
+        }
+        Ok(())
+    }
+}
+
+/// Split nominal current into (coil 1, coil 2) currents (eq 8): only one coil carries current.
+pub fn coil_split(nominal_a: f64) -> (f64, f64) {
+    if nominal_a < 0.0 {
+        (-nominal_a, 0.0)
+    } else {
+        (0.0, nominal_a)
+    }
+}
+
+/// One converter with its (optional) bandwidth state.
+#[derive(Clone, Debug)]
+pub struct Converter {
+    params: ConverterParams,
+    pole: f64,
+    current_a: f64,
+}
+
+impl Converter {
+    pub fn new(params: ConverterParams, dt_s: f64) -> Self {
+        let pole = match params.bandwidth_hz {
+            Some(bw) => lag_factor(dt_s, 1.0 / (2.0 * core::f64::consts::PI * bw)),
+            None => 0.0,
+        };
+        Converter {
+            params,
+            pole,
+            current_a: 0.0,
+        }
+    }
+
+    /// Control voltage (V) the controller writes for a coil current command (A).
+    pub fn voltage_for(&self, current_a: f64) -> f64 {
+        current_a / self.params.gain_a_per_v
+    }
+
+    /// Advance one sample with control voltage `u_v`; returns the coil current (A).
+    pub fn step(&mut self, u_v: f64) -> f64 {
+        let target = (self.params.gain_a_per_v * u_v).clamp(0.0, self.params.limit_a);
+        self.current_a = self.pole * self.current_a + (1.0 - self.pole) * target;
+        self.current_a
+    }
+
+    pub fn reset(&mut self) {
+        self.current_a = 0.0;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn split_and_limit() {
+        assert_eq!(coil_split(-0.5), (0.5, 0.0));
+        assert_eq!(coil_split(0.7), (0.0, 0.7));
+        let mut c = Converter::new(ConverterParams::default(), 1e-3);
+        assert_eq!(c.voltage_for(1.25), 10.0);
+        assert_eq!(c.step(10.0), 1.25);
+        assert_eq!(c.step(100.0), 1.5);
+        assert_eq!(c.step(-3.0), 0.0);
+    }
+}

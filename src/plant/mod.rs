@@ -1,0 +1,72 @@
+//! The virtual BMR actuator: a physical simulator richer than the CBH model, used as "measured" data.
+//!
+//! The physics chain, one stage per file:
+//! command → [`effects`] time delay → [`converter`] (voltage→current, coil split, eq 8) → coil lag →
+//! [`steel_preisach`] (coil current → gap flux density, one hysteretic circuit per coil) → [`mr_fluid`]
+//! (yield stress and Bingham viscosity) → [`rotor_geometry`] (eq 7, torque per rotor) → `T = T2 − T1` →
+//! [`seal_friction`] (angle-periodic, θ from [`rotor_drive`]) → [`torque_sensor`] (lever, noise, quantisation).
+//! [`presets`] holds calibrated configurations; [`virtual_actuator`] wires the stages together.
+
+pub mod converter;
+pub mod effects;
+pub mod mr_fluid;
+pub mod presets;
+pub mod rng;
+pub mod rotor_drive;
+pub mod rotor_geometry;
+pub mod seal_friction;
+pub mod steel_preisach;
+pub mod torque_sensor;
+pub mod virtual_actuator;
+
+pub use effects::{Effect, EffectKind, EffectSet, ParamSpec};
+pub use presets::{PRESETS, preset};
+pub use virtual_actuator::{ActuatorConfig, Sample, Trace, VirtualActuator};
+
+use std::fmt;
+
+/// Everything that can be wrong when configuring the virtual actuator.
+#[derive(Clone, Debug, PartialEq)]
+pub enum PlantError {
+    /// A configuration value is out of its physical range; the message names the parameter.
+    InvalidParameter(String),
+    /// An effect string or parameter could not be understood; the message says which and lists the valid ones.
+    InvalidEffect(String),
+    /// No preset by that name.
+    UnknownPreset(String),
+}
+
+impl fmt::Display for PlantError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            PlantError::InvalidParameter(m) | PlantError::InvalidEffect(m) => f.write_str(m),
+            PlantError::UnknownPreset(name) => write!(
+                f,
+                "unknown virtual actuator preset {name:?}; available: {}",
+                PRESETS.join(", ")
+            ),
+        }
+    }
+}
+
+impl std::error::Error for PlantError {}
+
+/// Check that `value` is finite and within `[lo, hi]`; the error names `what` and its unit.
+pub(crate) fn check_range(what: &str, value: f64, lo: f64, hi: f64) -> Result<f64, PlantError> {
+    if value.is_finite() && value >= lo && value <= hi {
+        Ok(value)
+    } else {
+        Err(PlantError::InvalidParameter(format!(
+            "{what} = {value} is outside [{lo}, {hi}]"
+        )))
+    }
+}
+
+/// Exact discretisation factor of a first-order lag: `exp(-dt/tau)` (0 when `tau` is 0: no lag).
+pub(crate) fn lag_factor(dt_s: f64, tau_s: f64) -> f64 {
+    if tau_s > 0.0 {
+        libm::exp(-dt_s / tau_s)
+    } else {
+        0.0
+    }
+}

@@ -1,0 +1,82 @@
+//! Motor and gear set: the rotors turn at a (rippled) speed; the encoder reports the rotor angle.
+//!
+//! `dθ/dt = ω0 (1 + ripple · sin θ)` — a once-per-revolution speed ripple from gear eccentricity. The two rotors
+//! turn in opposite directions at the same speed; θ is the rotor-1 angle, wrapped to [0, 2π).
+
+use super::{PlantError, check_range};
+use core::f64::consts::TAU;
+
+#[derive(Clone, Debug, PartialEq)]
+pub struct DriveParams {
+    /// Mean rotor speed, rad/s.
+    pub speed_rad_s: f64,
+    /// Relative once-per-revolution speed ripple (0 = none).
+    pub speed_ripple: f64,
+    /// Rotor angle at t = 0, rad.
+    pub theta0_rad: f64,
+}
+
+impl Default for DriveParams {
+    fn default() -> Self {
+        DriveParams {
+            speed_rad_s: TAU,
+            speed_ripple: 0.0,
+            theta0_rad: 0.0,
+        }
+    }
+}
+
+impl DriveParams {
+    pub fn validate(&self) -> Result<(), PlantError> {
+        check_range("drive.speed_rad_s", self.speed_rad_s, 0.0, 1e4)?;
+        check_range("drive.speed_ripple", self.speed_ripple, 0.0, 0.5)?;
+        check_range("drive.theta0_rad", self.theta0_rad, -1e6, 1e6)?;
+        Ok(())
+    }
+}
+
+/// Rotor angle state.
+#[derive(Clone, Debug)]
+pub struct RotorDrive {
+    params: DriveParams,
+    dt_s: f64,
+    theta_rad: f64,
+}
+
+impl RotorDrive {
+    pub fn new(params: DriveParams, dt_s: f64) -> Self {
+        let theta_rad = params.theta0_rad.rem_euclid(TAU);
+        RotorDrive {
+            params,
+            dt_s,
+            theta_rad,
+        }
+    }
+
+    pub fn reset(&mut self) {
+        self.theta_rad = self.params.theta0_rad.rem_euclid(TAU);
+    }
+
+    /// Current rotor speed, rad/s.
+    #[inline]
+    pub fn speed_rad_s(&self) -> f64 {
+        self.params.speed_rad_s * (1.0 + self.params.speed_ripple * libm::sin(self.theta_rad))
+    }
+
+    /// Rotor angle of the current sample, rad in [0, 2π).
+    #[inline]
+    pub fn theta_rad(&self) -> f64 {
+        self.theta_rad
+    }
+
+    /// Advance one sample period.
+    #[inline]
+    pub fn advance(&mut self) {
+        let next = self.theta_rad + self.speed_rad_s() * self.dt_s;
+        self.theta_rad = next.rem_euclid(TAU);
+        // rem_euclid can round up to exactly TAU for tiny negative inputs.
+        if self.theta_rad >= TAU {
+            self.theta_rad = 0.0;
+        }
+    }
+}

@@ -1,0 +1,419 @@
+//! The virtual BMR actuator: all stages wired together, fixed sample period, seeded, bit-for-bit deterministic.
+//!
+//! Per sample: (time delay) → coil split and converters → (coil lag) → steel Preisach per coil → yield and
+//! viscous stress → rotor torques (non-congruent output map) → `T = T2 − T1` (thermal gain, torque ripple) →
+//! + seal friction at the encoder angle (current-dependent growth, extra harmonic) → torque sensor (drift).
+//! Positive nominal current excites coil 2 and gives positive torque.
+
+use super::converter::{Converter, ConverterParams, coil_split};
+use super::effects::{Effect, EffectSet};
+use super::mr_fluid::MrFluid;
+use super::rng::Rng;
+use super::rotor_drive::{DriveParams, RotorDrive};
+use super::rotor_geometry::RotorGeometry;
+use super::seal_friction::SealFriction;
+use super::steel_preisach::{PreisachSteel, SteelParams};
+use super::torque_sensor::SensorParams;
+use super::{PlantError, check_range, lag_factor};
+use std::collections::VecDeque;
+
+/// Everything that defines a virtual actuator (a preset is one of these).
+#[derive(Clone, Debug, PartialEq)]
+pub struct ActuatorConfig {
+    /// Free-text name written into bundles.
+    pub name: String,
+    /// Fixed sample rate of the simulation and of its output, Hz.
+    pub sample_rate_hz: f64,
+    /// Converter of each coil (both identical).
+    pub converter: ConverterParams,
+    /// Steel of the coil-1 and coil-2 magnetic circuits.
+    pub steel1: SteelParams,
+    pub steel2: SteelParams,
+    pub fluid: MrFluid,
+    /// Geometry of each rotor (both identical).
+    pub geometry: RotorGeometry,
+    pub drive: DriveParams,
+    pub friction: SealFriction,
+    pub sensor: SensorParams,
+    /// Full-scale coil current (A): the reference of the thermal model.
+    pub full_current_a: f64,
+    /// Full-scale field torque of one rotor (N·mm): the reference of the non-congruent output map.
+    pub full_torque_nmm: f64,
+    pub effects: EffectSet,
+}
+
+impl ActuatorConfig {
+    pub fn validate(&self) -> Result<(), PlantError> {
+        check_range("sample_rate_hz", self.sample_rate_hz, 1.0, 1e7)?;
+        self.converter.validate()?;
+        self.steel1.validate("steel1")?;
+        self.steel2.validate("steel2")?;
+        self.fluid.validate()?;
+        self.geometry.validate()?;
+        self.drive.validate()?;
+        self.friction.validate()?;
+        self.sensor.validate()?;
+        check_range("full_current_a", self.full_current_a, 1e-6, 100.0)?;
+        check_range("full_torque_nmm", self.full_torque_nmm, 1e-6, 1e9)?;
+        Ok(())
+    }
+}
+
+/// One output sample: what the rig logs plus the hidden true quantities (for tests and studies).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Sample {
+    /// Time of the sample since start (or reset), s.
+    pub t_s: f64,
+    /// Commanded nominal current, A (NaN commands are logged as 0).
+    pub current_cmd_a: f64,
+    /// Converter output currents of coil 1 and coil 2, A.
+    pub coil1_a: f64,
+    pub coil2_a: f64,
+    /// Flux density in the gap of circuit 1 and 2, T.
+    pub b1_t: f64,
+    pub b2_t: f64,
+    /// Encoder rotor angle in [0, 2π), rad, and rotor speed, rad/s.
+    pub theta_rad: f64,
+    pub speed_rad_s: f64,
+    /// Noise-free field torque T2 − T1 (yield + viscous, after the field effects), N·mm.
+    pub field_torque_nmm: f64,
+    /// Noise-free seal friction, N·mm.
+    pub friction_nmm: f64,
+    /// Viscous torque of one rotor, N·mm (the two cancel when the rotors turn at equal speed).
+    pub viscous_nmm: f64,
+    /// Noise-free torque on the casing (field + friction), N·mm.
+    pub torque_true_nmm: f64,
+    /// Measured torque (sensor noise, quantisation, drift), N·mm.
+    pub torque_nmm: f64,
+    /// False when the command was not finite and the safe command (0 A) was applied instead.
+    pub command_valid: bool,
+}
+
+/// A run of samples, column by column.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Trace {
+    pub t_s: Vec<f64>,
+    pub current_cmd_a: Vec<f64>,
+    pub coil1_a: Vec<f64>,
+    pub coil2_a: Vec<f64>,
+    pub b1_t: Vec<f64>,
+    pub b2_t: Vec<f64>,
+    pub theta_rad: Vec<f64>,
+    pub speed_rad_s: Vec<f64>,
+    pub field_torque_nmm: Vec<f64>,
+    pub friction_nmm: Vec<f64>,
+    pub torque_true_nmm: Vec<f64>,
+    pub torque_nmm: Vec<f64>,
+}
+
+impl Trace {
+    fn with_capacity(n: usize) -> Self {
+        let v = || Vec::with_capacity(n);
+        Trace {
+            t_s: v(),
+            current_cmd_a: v(),
+            coil1_a: v(),
+            coil2_a: v(),
+            b1_t: v(),
+            b2_t: v(),
+            theta_rad: v(),
+            speed_rad_s: v(),
+            field_torque_nmm: v(),
+            friction_nmm: v(),
+            torque_true_nmm: v(),
+            torque_nmm: v(),
+        }
+    }
+
+    fn push(&mut self, s: &Sample) {
+        self.t_s.push(s.t_s);
+        self.current_cmd_a.push(s.current_cmd_a);
+        self.coil1_a.push(s.coil1_a);
+        self.coil2_a.push(s.coil2_a);
+        self.b1_t.push(s.b1_t);
+        self.b2_t.push(s.b2_t);
+        self.theta_rad.push(s.theta_rad);
+        self.speed_rad_s.push(s.speed_rad_s);
+        self.field_torque_nmm.push(s.field_torque_nmm);
+        self.friction_nmm.push(s.friction_nmm);
+        self.torque_true_nmm.push(s.torque_true_nmm);
+        self.torque_nmm.push(s.torque_nmm);
+    }
+
+    pub fn len(&self) -> usize {
+        self.t_s.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.t_s.is_empty()
+    }
+}
+
+/// Effect parameters flattened for the per-sample loop (neutral values when an effect is off).
+#[derive(Clone, Debug)]
+struct ActiveEffects {
+    lag_pole: f64,
+    thermal_loss: f64,
+    thermal_pole: f64,
+    friction_gain_per_a: f64,
+    harmonic: Option<(f64, f64, f64)>,
+    ripple: Option<(f64, f64)>,
+    drift_nmm_per_s: f64,
+    delay_samples: usize,
+    curvature: f64,
+}
+
+impl ActiveEffects {
+    fn from_set(set: &EffectSet, dt_s: f64) -> Self {
+        let mut a = ActiveEffects {
+            lag_pole: 0.0,
+            thermal_loss: 0.0,
+            thermal_pole: 1.0,
+            friction_gain_per_a: 0.0,
+            harmonic: None,
+            ripple: None,
+            drift_nmm_per_s: 0.0,
+            delay_samples: 0,
+            curvature: 0.0,
+        };
+        for e in set.iter() {
+            match *e {
+                Effect::CoilLag { tau_s } => a.lag_pole = lag_factor(dt_s, tau_s),
+                Effect::ThermalDrift { gain_loss, tau_s } => {
+                    a.thermal_loss = gain_loss;
+                    a.thermal_pole = lag_factor(dt_s, tau_s);
+                }
+                Effect::FrictionCurrent { gain_per_a } => a.friction_gain_per_a = gain_per_a,
+                Effect::FrictionHarmonics {
+                    order,
+                    amplitude_nmm,
+                    phase_rad,
+                } => a.harmonic = Some((order as f64, amplitude_nmm, phase_rad)),
+                Effect::TorqueRipple { eps, phase_rad } => a.ripple = Some((eps, phase_rad)),
+                Effect::SensorDrift { rate_nmm_per_s } => a.drift_nmm_per_s = rate_nmm_per_s,
+                Effect::TimeDelay { delay_s } => {
+                    a.delay_samples = libm::round(delay_s / dt_s) as usize
+                }
+                Effect::NonCongruent { curvature } => a.curvature = curvature,
+            }
+        }
+        a
+    }
+}
+
+/// The simulator. `new(config, seed)`, then `step`/`run` with commanded nominal current (A).
+#[derive(Clone, Debug)]
+pub struct VirtualActuator {
+    config: ActuatorConfig,
+    seed: u64,
+    dt_s: f64,
+    fx: ActiveEffects,
+    torque_per_kpa: f64,
+    delay_line: VecDeque<f64>,
+    converter1: Converter,
+    converter2: Converter,
+    field1_a: f64,
+    field2_a: f64,
+    steel1: PreisachSteel,
+    steel2: PreisachSteel,
+    thermal_state: f64,
+    drive: RotorDrive,
+    rng: Rng,
+    index: u64,
+}
+
+impl VirtualActuator {
+    /// Build from a validated configuration; `seed` fixes every random bit (sensor noise).
+    pub fn new(config: ActuatorConfig, seed: u64) -> Result<Self, PlantError> {
+        config.validate()?;
+        let dt_s = 1.0 / config.sample_rate_hz;
+        let fx = ActiveEffects::from_set(&config.effects, dt_s);
+        let steel1 = PreisachSteel::new(config.steel1.clone())?;
+        let steel2 = PreisachSteel::new(config.steel2.clone())?;
+        Ok(VirtualActuator {
+            torque_per_kpa: config.geometry.yield_torque_per_kpa(),
+            delay_line: std::iter::repeat_n(0.0, fx.delay_samples).collect(),
+            converter1: Converter::new(config.converter.clone(), dt_s),
+            converter2: Converter::new(config.converter.clone(), dt_s),
+            field1_a: 0.0,
+            field2_a: 0.0,
+            steel1,
+            steel2,
+            thermal_state: 0.0,
+            drive: RotorDrive::new(config.drive.clone(), dt_s),
+            rng: Rng::new(seed),
+            index: 0,
+            fx,
+            dt_s,
+            seed,
+            config,
+        })
+    }
+
+    /// A preset by name with extra effects (each replaces the preset's effect of the same kind).
+    pub fn from_preset(
+        name: &str,
+        sample_rate_hz: f64,
+        effects: &[Effect],
+        seed: u64,
+    ) -> Result<Self, PlantError> {
+        let mut config = super::presets::preset(name)?;
+        config.sample_rate_hz = sample_rate_hz;
+        for e in effects {
+            config.effects.insert(*e);
+        }
+        VirtualActuator::new(config, seed)
+    }
+
+    pub fn config(&self) -> &ActuatorConfig {
+        &self.config
+    }
+
+    pub fn seed(&self) -> u64 {
+        self.seed
+    }
+
+    pub fn sample_period_s(&self) -> f64 {
+        self.dt_s
+    }
+
+    /// Time of the next sample, s.
+    pub fn time_s(&self) -> f64 {
+        self.index as f64 * self.dt_s
+    }
+
+    /// Back to the state right after construction (demagnetised steel, cold coils, same noise stream).
+    pub fn reset(&mut self) {
+        self.delay_line.iter_mut().for_each(|v| *v = 0.0);
+        self.converter1.reset();
+        self.converter2.reset();
+        self.field1_a = 0.0;
+        self.field2_a = 0.0;
+        self.steel1.demagnetise();
+        self.steel2.demagnetise();
+        self.thermal_state = 0.0;
+        self.drive.reset();
+        self.rng = Rng::new(self.seed);
+        self.index = 0;
+    }
+
+    /// Noise-free seal friction (N·mm) at zero current and angle `theta_rad`, including any extra harmonic.
+    pub fn true_friction_nmm(&self, theta_rad: f64) -> f64 {
+        self.friction_nmm(theta_rad, 0.0)
+    }
+
+    #[inline]
+    fn friction_nmm(&self, theta_rad: f64, field_current_a: f64) -> f64 {
+        let f = &self.config.friction;
+        let mut ripple = f.ripple_nmm(theta_rad);
+        if let Some((k, a, p)) = self.fx.harmonic {
+            ripple += a * libm::sin(k * theta_rad + p);
+        }
+        f.offset_nmm + ripple * (1.0 + self.fx.friction_gain_per_a * field_current_a.abs())
+    }
+
+    /// The encoder angles (rad) of the next `n` samples, without advancing the actuator (the rotor angle does
+    /// not depend on the current, so a controller can be fed it ahead of time).
+    pub fn theta_ahead(&self, n: usize) -> Vec<f64> {
+        let mut d = self.drive.clone();
+        (0..n)
+            .map(|_| {
+                let th = d.theta_rad();
+                d.advance();
+                th
+            })
+            .collect()
+    }
+
+    /// Output map of one rotor's field torque (the `non_congruent` effect; identity when off).
+    #[inline]
+    fn output_map(&self, torque_nmm: f64) -> f64 {
+        let c = self.fx.curvature;
+        if c == 0.0 {
+            return torque_nmm;
+        }
+        let full = self.config.full_torque_nmm;
+        let n = torque_nmm / full;
+        full * n * (1.0 + c * n.abs()) / (1.0 + c)
+    }
+
+    /// Advance one sample with commanded nominal current `current_cmd_a` (A). A non-finite command applies the
+    /// safe command 0 A and is flagged in the sample.
+    pub fn step(&mut self, current_cmd_a: f64) -> Sample {
+        let valid = current_cmd_a.is_finite();
+        let cmd = if valid { current_cmd_a } else { 0.0 };
+        let t_s = self.time_s();
+        let applied = if self.fx.delay_samples > 0 {
+            self.delay_line.push_back(cmd);
+            self.delay_line.pop_front().unwrap_or(0.0)
+        } else {
+            cmd
+        };
+        let (c1, c2) = coil_split(applied);
+        let coil1_a = self.converter1.step(self.converter1.voltage_for(c1));
+        let coil2_a = self.converter2.step(self.converter2.voltage_for(c2));
+        let p = self.fx.lag_pole;
+        self.field1_a = p * self.field1_a + (1.0 - p) * coil1_a;
+        self.field2_a = p * self.field2_a + (1.0 - p) * coil2_a;
+        let b1_t = self.steel1.apply(self.field1_a);
+        let b2_t = self.steel2.apply(self.field2_a);
+
+        let theta_rad = self.drive.theta_rad();
+        let speed_rad_s = self.drive.speed_rad_s();
+        let fluid = &self.config.fluid;
+        let yield1 = self.output_map(fluid.yield_stress_kpa(b1_t) * self.torque_per_kpa);
+        let yield2 = self.output_map(fluid.yield_stress_kpa(b2_t) * self.torque_per_kpa);
+        let viscous_nmm = self
+            .config
+            .geometry
+            .viscous_torque_nmm(fluid.viscosity_pa_s, speed_rad_s);
+        // Both rotors turn at the same speed in opposite directions: their viscous drags oppose.
+        let mut field = (yield2 + viscous_nmm) - (yield1 + viscous_nmm);
+
+        if self.fx.thermal_loss > 0.0 {
+            let full = self.config.full_current_a;
+            let heat = (coil1_a * coil1_a + coil2_a * coil2_a) / (full * full);
+            self.thermal_state += (1.0 - self.fx.thermal_pole) * (heat - self.thermal_state);
+            field *= 1.0 - self.fx.thermal_loss * self.thermal_state;
+        }
+        if let Some((eps, phase)) = self.fx.ripple {
+            field *= 1.0 + eps * libm::cos(theta_rad + phase);
+        }
+        let friction_nmm = self.friction_nmm(theta_rad, self.field1_a + self.field2_a);
+        let torque_true_nmm = field + friction_nmm;
+        let drift = self.fx.drift_nmm_per_s * t_s;
+        let torque_nmm = self
+            .config
+            .sensor
+            .measure(torque_true_nmm, drift, &mut self.rng);
+
+        self.drive.advance();
+        self.index += 1;
+        Sample {
+            t_s,
+            current_cmd_a: cmd,
+            coil1_a,
+            coil2_a,
+            b1_t,
+            b2_t,
+            theta_rad,
+            speed_rad_s,
+            field_torque_nmm: field,
+            friction_nmm,
+            viscous_nmm,
+            torque_true_nmm,
+            torque_nmm,
+            command_valid: valid,
+        }
+    }
+
+    /// Run a command sequence from the current state; returns every sample, column by column.
+    pub fn run(&mut self, current_cmd_a: &[f64]) -> Trace {
+        let mut trace = Trace::with_capacity(current_cmd_a.len());
+        for &c in current_cmd_a {
+            let s = self.step(c);
+            trace.push(&s);
+        }
+        trace
+    }
+}

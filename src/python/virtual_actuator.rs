@@ -1,0 +1,280 @@
+//! Python binding of the virtual BMR actuator (`bmr.VirtualActuator`, `bmr.EFFECTS`, `bmr.effect_parameters`).
+use crate::plant::VirtualActuator;
+use crate::plant::effects::{Effect, EffectKind, EffectSet};
+use crate::plant::presets::{DEFAULT_SAMPLE_RATE_HZ, PRESETS, preset as preset_config};
+use crate::python::arrays::{extract_f64_array, to_numpy};
+use crate::python::{BmrError, bmr_err};
+use numpy::PyArray1;
+use pyo3::prelude::*;
+use pyo3::types::{PyDict, PyList, PyString, PyTuple};
+
+/// Apply a Python effects specification to `set`: None, a dict `{name: {param: value} | None}` (None
+/// removes the preset's effect), or a list of `"name:key=value,..."` strings (`"name:off"` removes it).
+fn apply_effects(set: &mut EffectSet, spec: &Bound<'_, PyAny>) -> PyResult<()> {
+    if spec.is_none() {
+        return Ok(());
+    }
+    if let Ok(dict) = spec.cast::<PyDict>() {
+        for (name, params) in dict.iter() {
+            let name: String = name.extract().map_err(|_| {
+                BmrError::new_err(format!("effect names must be strings, got {name}"))
+            })?;
+            let kind = EffectKind::from_name(&name).map_err(bmr_err)?;
+            if params.is_none() {
+                set.remove(kind);
+                continue;
+            }
+            let params = params.cast::<PyDict>().map_err(|_| {
+                BmrError::new_err(format!(
+                    "effect {name}: parameters must be a dict {{param: value}} or None"
+                ))
+            })?;
+            let mut given: Vec<(String, f64)> = Vec::new();
+            for (k, v) in params.iter() {
+                let k: String = k.extract().map_err(|_| {
+                    BmrError::new_err(format!("effect {name}: parameter names must be strings"))
+                })?;
+                let v: f64 = v.extract().map_err(|_| {
+                    BmrError::new_err(format!("effect {name}: {k} = {v} is not a number"))
+                })?;
+                given.push((k, v));
+            }
+            let refs: Vec<(&str, f64)> = given.iter().map(|(k, v)| (k.as_str(), *v)).collect();
+            set.insert(Effect::from_params(kind, &refs).map_err(bmr_err)?);
+        }
+        return Ok(());
+    }
+    let items: Vec<String> = if let Ok(s) = spec.cast::<PyString>() {
+        vec![s.to_string()]
+    } else if spec.cast::<PyList>().is_ok() || spec.cast::<PyTuple>().is_ok() {
+        spec.extract().map_err(|_| {
+            BmrError::new_err("effects list must hold strings like \"coil_lag:tau_s=0.02\"")
+        })?
+    } else {
+        return Err(BmrError::new_err(
+            "effects must be None, a dict {name: {param: value}} or a list of \"name:key=value\" strings",
+        ));
+    };
+    for item in items {
+        match item.split_once(':') {
+            Some((name, rest)) if rest.trim() == "off" => {
+                set.remove(EffectKind::from_name(name.trim()).map_err(bmr_err)?)
+            }
+            _ => set.insert(Effect::parse(&item).map_err(bmr_err)?),
+        }
+    }
+    Ok(())
+}
+
+/// The virtual BMR actuator: a seeded physical simulator of the paper's rig.
+///
+/// ``VirtualActuator(preset="bmr2013", *, seed=0, sample_rate_hz=1000.0, effects=None)``; ``effects`` adds to
+/// (or, with ``None`` / ``"name:off"``, removes from) the preset's effects.
+#[pyclass(name = "VirtualActuator", module = "bmr._core")]
+pub struct PyVirtualActuator {
+    inner: VirtualActuator,
+    preset: String,
+}
+
+#[pymethods]
+impl PyVirtualActuator {
+    #[new]
+    #[pyo3(signature = (preset = "bmr2013", *, seed = None, sample_rate_hz = DEFAULT_SAMPLE_RATE_HZ, effects = None))]
+    fn new(
+        preset: &str,
+        seed: Option<&Bound<'_, PyAny>>,
+        sample_rate_hz: f64,
+        effects: Option<&Bound<'_, PyAny>>,
+    ) -> PyResult<Self> {
+        let seed: u64 = match seed {
+            None => 0,
+            Some(s) => s.extract().map_err(|_| {
+                BmrError::new_err(format!("seed must be an integer in [0, 2**64), got {s}"))
+            })?,
+        };
+        let mut config = preset_config(preset).map_err(bmr_err)?;
+        config.sample_rate_hz = sample_rate_hz;
+        if let Some(spec) = effects {
+            apply_effects(&mut config.effects, spec)?;
+        }
+        let inner = VirtualActuator::new(config, seed).map_err(bmr_err)?;
+        Ok(PyVirtualActuator {
+            inner,
+            preset: preset.to_string(),
+        })
+    }
+
+    /// Run commanded nominal currents (A) from the current state; releases the GIL. Returns a dict of arrays:
+    /// ``t_s, current_a, coil1_a, coil2_a, theta_rad, speed_rad_s, torque_nmm`` (what the rig logs) and the
+    /// hidden truths ``b1_t, b2_t, field_torque_nmm, friction_nmm, torque_true_nmm``.
+    fn run<'py>(
+        &mut self,
+        py: Python<'py>,
+        current_a: &Bound<'py, PyAny>,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        let cmd = extract_f64_array(current_a, "current_a")?;
+        if let Some(i) = cmd.iter().position(|v| !v.is_finite()) {
+            return Err(BmrError::new_err(format!(
+                "current_a[{i}] = {} is not finite; commands must be finite currents in A",
+                cmd[i]
+            )));
+        }
+        let inner = &mut self.inner;
+        let trace = py.detach(move || inner.run(&cmd));
+        let out = PyDict::new(py);
+        let cols: [(&str, Vec<f64>); 12] = [
+            ("t_s", trace.t_s),
+            ("current_a", trace.current_cmd_a),
+            ("coil1_a", trace.coil1_a),
+            ("coil2_a", trace.coil2_a),
+            ("theta_rad", trace.theta_rad),
+            ("speed_rad_s", trace.speed_rad_s),
+            ("torque_nmm", trace.torque_nmm),
+            ("b1_t", trace.b1_t),
+            ("b2_t", trace.b2_t),
+            ("field_torque_nmm", trace.field_torque_nmm),
+            ("friction_nmm", trace.friction_nmm),
+            ("torque_true_nmm", trace.torque_true_nmm),
+        ];
+        for (name, v) in cols {
+            out.set_item(name, to_numpy(py, v))?;
+        }
+        Ok(out)
+    }
+
+    /// Back to the state right after construction (demagnetised, cold, t = 0, same noise stream).
+    fn reset(&mut self) {
+        self.inner.reset();
+    }
+
+    /// Noise-free seal friction (N·mm) at zero current for each angle in ``theta_rad``.
+    fn true_friction<'py>(
+        &self,
+        py: Python<'py>,
+        theta_rad: &Bound<'py, PyAny>,
+    ) -> PyResult<Bound<'py, PyArray1<f64>>> {
+        let th = extract_f64_array(theta_rad, "theta_rad")?;
+        let v: Vec<f64> = th
+            .iter()
+            .map(|&t| self.inner.true_friction_nmm(t))
+            .collect();
+        Ok(to_numpy(py, v))
+    }
+
+    /// Encoder angles (rad) of the next ``n`` samples, without advancing (the angle does not depend on current).
+    fn theta_ahead<'py>(&self, py: Python<'py>, n: usize) -> Bound<'py, PyArray1<f64>> {
+        to_numpy(py, self.inner.theta_ahead(n))
+    }
+
+    /// Active effects and their parameters: ``{name: {param: value}}``.
+    #[getter]
+    fn effects<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let out = PyDict::new(py);
+        for e in self.inner.config().effects.iter() {
+            let params = PyDict::new(py);
+            for (k, v) in e.params() {
+                params.set_item(k, v)?;
+            }
+            out.set_item(e.name(), params)?;
+        }
+        Ok(out)
+    }
+
+    #[getter]
+    fn preset(&self) -> &str {
+        &self.preset
+    }
+
+    /// Free-text description of the actuator (written into bundles).
+    #[getter]
+    fn name(&self) -> &str {
+        &self.inner.config().name
+    }
+
+    #[getter]
+    fn seed(&self) -> u64 {
+        self.inner.seed()
+    }
+
+    #[getter]
+    fn sample_rate_hz(&self) -> f64 {
+        self.inner.config().sample_rate_hz
+    }
+
+    /// Time of the next sample, s.
+    #[getter]
+    fn time_s(&self) -> f64 {
+        self.inner.time_s()
+    }
+
+    /// Standard deviation of the torque sensor noise, N·mm.
+    #[getter]
+    fn noise_nmm(&self) -> f64 {
+        self.inner.config().sensor.noise_nmm()
+    }
+
+    /// Torque quantisation step of the sensor, N·mm (0 = none).
+    #[getter]
+    fn resolution_nmm(&self) -> f64 {
+        let s = &self.inner.config().sensor;
+        s.resolution_n * s.lever_mm
+    }
+
+    /// Converter gain, A/V.
+    #[getter]
+    fn converter_gain_a_per_v(&self) -> f64 {
+        self.inner.config().converter.gain_a_per_v
+    }
+
+    fn __repr__(&self) -> String {
+        let effects: Vec<String> = self
+            .inner
+            .config()
+            .effects
+            .iter()
+            .map(|e| e.to_string())
+            .collect();
+        format!(
+            "VirtualActuator(preset={:?}, seed={}, sample_rate_hz={}, effects=[{}])",
+            self.preset,
+            self.inner.seed(),
+            self.inner.config().sample_rate_hz,
+            effects.join(", ")
+        )
+    }
+}
+
+/// Every effect's documentation and parameters: ``{name: {"doc": str, "params": {param: {"unit", "default",
+/// "min", "max", "doc"}}}}``.
+#[pyfunction]
+fn effect_parameters(py: Python<'_>) -> PyResult<Bound<'_, PyDict>> {
+    let out = PyDict::new(py);
+    for kind in EffectKind::ALL {
+        let entry = PyDict::new(py);
+        entry.set_item("doc", kind.doc())?;
+        let params = PyDict::new(py);
+        for s in kind.params() {
+            let p = PyDict::new(py);
+            p.set_item("unit", s.unit)?;
+            p.set_item("default", s.default)?;
+            p.set_item("min", s.min)?;
+            p.set_item("max", s.max)?;
+            p.set_item("doc", s.doc)?;
+            params.set_item(s.name, p)?;
+        }
+        entry.set_item("params", params)?;
+        out.set_item(kind.name(), entry)?;
+    }
+    Ok(out)
+}
+
+pub(crate) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_class::<PyVirtualActuator>()?;
+    m.add_function(wrap_pyfunction!(effect_parameters, m)?)?;
+    m.add(
+        "EFFECTS",
+        PyTuple::new(m.py(), EffectKind::ALL.map(|k| k.name()))?,
+    )?;
+    m.add("PRESETS", PyTuple::new(m.py(), PRESETS)?)?;
+    Ok(())
+}
