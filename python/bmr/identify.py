@@ -40,6 +40,8 @@ __all__ = [
 ]
 
 DEFAULT_MAX_ORDER = 12
+# A run's state is known once its current is this close (fraction of the span) to a saturation end.
+SATURATION_TOL = 0.002
 Curve = tuple[np.ndarray, np.ndarray]
 
 
@@ -170,6 +172,9 @@ def fit_friction(
     theta = np.ascontiguousarray(theta, dtype=float)
     torque = np.ascontiguousarray(torque, dtype=float)
     n = theta.size
+    # Residuals below round-off carry no information: without this floor noise-free data would "prefer" every
+    # extra harmonic that fits the rounding error.
+    rss_floor = n * (1e-9 * max(float(np.max(np.abs(torque))), 1e-12)) ** 2
     scores: dict[int, float] = {}
     fits: dict[int, dict[str, Any]] = {}
     for k in range(int(max_order) + 1):
@@ -179,7 +184,7 @@ def fit_friction(
             break  # higher orders are not determined by this angle coverage either
         fits[k] = fit
         if criterion == "bic":
-            rss = max(fit["rss"], 1e-300)
+            rss = max(fit["rss"], rss_floor)
             scores[k] = n * math.log(rss / n) + (2 * k + 1) * math.log(n)
         else:
             scores[k] = _holdout_rms(theta, torque, k, folds)
@@ -460,16 +465,24 @@ class LstsqTables:
 
 
 def evaluation_start(u: np.ndarray, lo: float, hi: float, tol: float) -> int:
-    """First sample at a saturation: the model state is known from there on (0 if never reached)."""
-    hit = np.flatnonzero((u <= lo + tol) | (u >= hi - tol))
-    return int(hit[0]) if hit.size else 0
+    """First sample from which the hysteresis state is known: the run has reached one saturation end and then
+    the other (a real actuator's steel may not saturate within the current range, so one end alone does not erase
+    the unknown initial state; the major loop does). Falls back to the one end reached, then to 0."""
+    u = np.asarray(u, dtype=float)
+    top = np.flatnonzero(u >= hi - tol)
+    bottom = np.flatnonzero(u <= lo + tol)
+    if top.size and bottom.size:
+        return int(max(top[0], bottom[0]))
+    if top.size or bottom.size:
+        return int((top if top.size else bottom)[0])
+    return 0
 
 
 def fit_tables_lstsq(
     runs: Iterable[Run],
     friction: Any = None,
     *,
-    n_intervals: int = 32,
+    n_intervals: int = 48,
     input_range: tuple[float, float] | None = None,
     smoothing: float = 1e-4,
     ridge: float = 1e-9,
@@ -495,7 +508,7 @@ def fit_tables_lstsq(
     if not hi > lo:
         raise BmrError("the current never varies in the training runs; nothing to identify")
     grid = np.linspace(lo, hi, n_intervals + 1)
-    tol = 0.02 * (hi - lo)
+    tol = SATURATION_TOL * (hi - lo)
     total = sum(u.size for u in us)
     stride = max(1, math.ceil(total / max_rows))
     packed = []
@@ -516,7 +529,7 @@ def fit_tables_lstsq(
 # ------------------------------------------------------------------------------------------------ identify
 def _heldout_rms(model: Any, runs: Sequence[Run], lo: float, hi: float) -> dict[str, float]:
     out = {}
-    tol = 0.02 * (hi - lo)
+    tol = SATURATION_TOL * (hi - lo)
     for r in runs:
         y = model.simulate(r.current, r.theta)
         s = evaluation_start(r.current, lo, hi, tol)
@@ -531,7 +544,7 @@ def identify(
     method: str = "forc",
     max_order: int = DEFAULT_MAX_ORDER,
     n_nodes: int = 40,
-    n_intervals: int = 32,
+    n_intervals: int = 48,
     smoothing: float = 1e-4,
     train_kinds: Sequence[str] | None = None,
     deadband_a: float | None = None,
