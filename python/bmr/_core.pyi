@@ -69,3 +69,46 @@ class Friction:
     @property
     def order(self) -> int: ...
     def amplitude_phase(self) -> tuple[np.ndarray, np.ndarray]: ...
+
+class Command:
+    """One control-period command."""
+    current_a: float
+    coil1_a: float
+    coil2_a: float
+    volt1_v: float
+    volt2_v: float
+    saturated: bool
+    fault: bool
+
+class CompensatorState:
+    """Opaque snapshot of a Compensator's memory."""
+
+class Compensator:
+    """Open-loop torque compensator: I = H⁻¹[T_ref − T_f(θ)], coil split, current limit, converter voltages."""
+    def __init__(
+        self,
+        hysteresis: Hysteresis,
+        friction: Friction | None = None,
+        *,
+        inverse: str = "exact",
+        converter_gain: float = 0.125,
+        current_limit: float = 1.25,
+        initial: Initial | None = None,
+    ) -> None: ...
+    def step(self, torque_ref_nmm: float, theta_rad: float) -> Command: ...
+    def run(self, torque_ref_nmm: ArrayLike, theta_rad: ArrayLike) -> dict[str, np.ndarray]: ...
+    def reset(self, initial: Initial | None = None) -> None: ...
+    def snapshot(self) -> CompensatorState: ...
+    def restore(self, state: CompensatorState) -> None: ...
+    @property
+    def inverse(self) -> str: ...
+    @property
+    def converter_gain(self) -> float: ...
+    @property
+    def current_limit(self) -> float: ...
+    @property
+    def predicted_torque_nmm(self) -> float: ...
+    @property
+    def hysteresis(self) -> Hysteresis: ...
+    @property
+    def friction(self) -> Friction: ...

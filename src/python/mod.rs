@@ -2,6 +2,7 @@
 use pyo3::prelude::*;
 
 mod arrays;
+mod compensator;
 mod friction;
 mod hysteresis;
 
@@ -22,5 +23,6 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("BmrError", m.py().get_type::<BmrError>())?;
     hysteresis::register(m)?;
     friction::register(m)?;
+    compensator::register(m)?;
     Ok(())
 }
