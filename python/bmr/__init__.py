@@ -1,18 +1,22 @@
 """bmr: accurate torque control of bi-directional magneto-rheological actuators.
 
-Core (Rust): ``Hysteresis`` (CBH operator), ``Friction`` (angle-periodic seal friction), ``VirtualActuator``
-(a physical simulator of the rig; ``EFFECTS`` names its switchable effects, ``effect_parameters()`` documents
-them). Experiment protocols and bundles of them: ``bmr.experiments``.
+Core (Rust): ``Hysteresis`` (CBH operator), ``Friction`` (angle-periodic seal friction), ``Compensator``
+(exact or paper inverse + friction feedforward, coil split, current limit), ``VirtualActuator`` (a physical
+simulator of the rig; ``EFFECTS`` names its switchable effects, ``effect_parameters()`` documents them).
+Experiment protocols and bundles of them: ``bmr.experiments``.
 Identification: ``identify`` (friction + CBH tables from a bundle) giving a ``Model`` (``bmr-model/1`` files),
 ``fit_friction``, ``extract_first_order_curves``, ``fit_tables_lstsq`` / ``EverettModel`` (least-squares
 Preisach tables). Lab readers: ``read_table``, ``bundle_from_files``.
 Units: current in A (nominal current spans both coils: negative = coil 1, positive = coil 2), torque in N·mm,
-angles in rad, time in s.
+angles in rad, time in s, converter voltages in V.
 """
 from bmr._core import (
     EFFECTS,
     PRESETS,
     BmrError,
+    Command,
+    Compensator,
+    CompensatorState,
     EverettModel,
     Friction,
     Hysteresis,
@@ -31,6 +35,9 @@ __all__ = [
     "PRESETS",
     "BmrError",
     "Bundle",
+    "Command",
+    "Compensator",
+    "CompensatorState",
     "EverettModel",
     "Friction",
     "FrictionFit",

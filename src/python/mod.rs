@@ -2,6 +2,7 @@
 use pyo3::prelude::*;
 
 mod arrays;
+mod compensator;
 mod friction;
 mod hysteresis;
 mod identification;
@@ -26,5 +27,6 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     friction::register(m)?;
     identification::register(m)?;
     virtual_actuator::register(m)?;
+    compensator::register(m)?;
     Ok(())
 }
