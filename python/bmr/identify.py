@@ -126,7 +126,8 @@ def _off_state_samples(runs: list[Run], current_tol_a: float | None) -> tuple[np
     thetas, torques = [], []
     for run in runs:
         i_a = run.current
-        tol = current_tol_a if current_tol_a is not None else max(1e-9, 1e-3 * float(np.max(np.abs(i_a))))
+        # Default: 1 % of the run's largest current (its opening excursion), above converter/measurement noise.
+        tol = current_tol_a if current_tol_a is not None else max(1e-9, 1e-2 * float(np.max(np.abs(i_a))))
         # Zero-current samples after the last nonzero one: the opening excursion (if any) is over.
         nonzero = np.flatnonzero(np.abs(i_a) > tol)
         start = int(nonzero[-1]) + 1 if nonzero.size else 0
@@ -583,6 +584,8 @@ def identify(
         curves = extract_first_order_curves(protocol, friction, n_nodes=n_nodes, deadband_a=deadband_a,
                                             input_range=(lo, hi))
         candidates["forc"] = Model.from_curves(curves.ascending, curves.descending, friction, limits=limits)
+        # Ascending vs descending family disagreement: zero for Preisach data (DESIGN section 2).
+        info["forc_consistency_nmm"] = candidates["forc"].hysteresis.consistency()
         info["time_s"]["forc"] = time.perf_counter() - t
         info["forc_curves"] = {"ascending": len(curves.ascending), "descending": len(curves.descending)}
     if method in ("lstsq", "both"):

@@ -148,7 +148,10 @@ class Model:
         content = self.to_dict()
         content["sha256"] = _digest(content)
         p = Path(path)
-        p.write_text(json.dumps(content, indent=1, allow_nan=False) + "\n")
+        try:
+            p.write_text(json.dumps(content, indent=1, allow_nan=False) + "\n")
+        except OSError as exc:
+            raise BmrError(f"cannot write model file {str(p)!r}: {exc.strerror or exc}") from None
         return p
 
     @classmethod
