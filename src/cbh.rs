@@ -224,8 +224,7 @@ impl<S: AsRef<[f64]>, const N: usize> Hysteresis<S, N> {
 
     /// The direction changes at the current point: remember it, unless we never left the newest reversal.
     pub(crate) fn turn(&mut self) {
-        let top = *self.state.history.top();
-        if self.state.u == top.u && self.state.history.len() > 1 {
+        if self.state.u == self.state.history.top().u && self.state.history.len() > 1 {
             self.state.history.pop(1);
         } else {
             self.push_reversal();
@@ -258,18 +257,20 @@ impl<S: AsRef<[f64]>, const N: usize> Hysteresis<S, N> {
     /// Output on the branch leaving the newest reversal, at input `u` (inside its range).
     #[inline]
     pub(crate) fn branch_output(&mut self, u: f64) -> f64 {
-        let top = *self.state.history.top();
-        if self.state.history.rising() {
-            if u >= self.hi && self.state.history.len() == 1 {
+        let st = &mut self.state;
+        let rising = st.history.rising();
+        let top = st.history.top();
+        if rising {
+            if u >= self.hi && st.history.len() == 1 {
                 return self.y_hi; // positive saturation is exact, like the negative one
             }
-            let e = self.asc.everett(&top.strip, u, &mut self.state.hint_a);
+            let e = self.asc.everett(&top.strip, u, &mut st.hint_a);
             match top.via {
                 Some(v) if u > v.u => v.y + v.k * (e - v.e),
                 _ => top.y + top.k * e,
             }
         } else {
-            let e = self.desc.everett(&top.strip, -u, &mut self.state.hint_d);
+            let e = self.desc.everett(&top.strip, -u, &mut st.hint_d);
             match top.via {
                 Some(v) if u < v.u => v.y - v.k * (e - v.e),
                 _ => top.y - top.k * e,

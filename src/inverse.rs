@@ -52,30 +52,28 @@ impl<S: AsRef<[f64]>, const N: usize> Hysteresis<S, N> {
             &st.history
         };
         let len = h.len();
-        let (first, mut below): (Reversal, usize) = if up == h.rising() {
-            (*h.top(), len - 1)
+        let virtual_entry;
+        let (mut level, mut below): (&Reversal, usize) = if up == h.rising() {
+            (h.top(), len - 1)
         } else if u_c == h.top().u && len > 1 {
             // Never left the newest reversal: turning back just continues the branch below it.
-            (*h.get(len - 2), len - 2)
+            (h.get(len - 2), len - 2)
         } else {
-            (self.new_reversal_at(u_c, y_c, h.top(), up), len)
+            virtual_entry = self.new_reversal_at(u_c, y_c, h.top(), up);
+            (&virtual_entry, len)
         };
-        let mut level = first;
         loop {
             // Closure target of `level`: the entry below it, or positive saturation for the anchor.
-            let target_entry = if below >= 1 {
-                Some(*h.get(below - 1))
+            let (end_u, end_y) = if below >= 1 {
+                let t = h.get(below - 1);
+                (t.u, t.y)
             } else {
-                None
-            };
-            let (end_u, end_y) = match target_entry {
-                Some(t) => (t.u, t.y),
-                None => (self.hi, self.y_hi),
+                (self.hi, self.y_hi)
             };
             let inside = if up { target <= end_y } else { target >= end_y };
             if inside {
                 return InverseInput {
-                    input: self.invert_branch(&level, target, up, end_u),
+                    input: self.invert_branch(level, target, up, end_u),
                     saturated: false,
                 };
             }
@@ -87,7 +85,7 @@ impl<S: AsRef<[f64]>, const N: usize> Hysteresis<S, N> {
                     saturated: true,
                 };
             }
-            level = *h.get(below - 2);
+            level = h.get(below - 2);
             below -= 2;
         }
     }
@@ -142,12 +140,14 @@ impl<S: AsRef<[f64]>, const N: usize> Hysteresis<S, N> {
             if e.is_infinite() {
                 return end_u;
             }
-            self.asc.everett_inverse(&r.strip, e).min(end_u)
+            self.asc
+                .everett_inverse(&r.strip, e, self.state.hint_a)
+                .min(end_u)
         } else {
             if e.is_infinite() {
                 return end_u;
             }
-            (-self.desc.everett_inverse(&r.strip, e)).max(end_u)
+            (-self.desc.everett_inverse(&r.strip, e, self.state.hint_d)).max(end_u)
         }
     }
 
