@@ -36,7 +36,6 @@ from bmr.diagnosis.field import FieldPath
 from bmr.diagnosis.extended_model import ExtendedModel, extensions_from_selection, with_extensions
 from bmr.diagnosis.residuals import prepare, structure
 from bmr.diagnosis.selection import Fitter, forward_selection
-from bmr.identify import SATURATION_TOL, evaluation_start
 
 __all__ = ["FORMAT", "Diagnosis", "diagnose", "closed_loop_gain", "run_cli", "PHYSICAL"]
 
@@ -180,19 +179,12 @@ def diagnose(bundle: Bundle | str | Path, model: Any = None, *, folds: int = 5, 
         model = Model.load(model)
     lo, hi = model.hysteresis.input_range
     data = prepare(bundle, (lo, hi), folds, friction=model.friction)
-    tol = SATURATION_TOL * (hi - lo)
-    protocol = []
-    for r in bundle.by_kind("first_order_ascending", "first_order_descending"):
-        u = r.current
-        w = np.zeros(u.size)
-        w[evaluation_start(u, lo, hi, tol):] = 1.0
-        protocol.append((u, r.torque - model.friction_torque(r.theta), w))
-    data.cache["protocol_runs"] = protocol
     fitter = Fitter(data, model)
     bar = tqdm(total=len(LIBRARY), file=sys.stderr, desc="bmr diagnose", unit="test", disable=not progress,
                leave=False)
     try:
-        sel = forward_selection(fitter, progress=bar)
+        sel = forward_selection(fitter, progress=bar,
+                                protocol=bundle.by_kind("first_order_ascending", "first_order_descending"))
     finally:
         bar.close()
     config = sel["config"]

@@ -33,6 +33,7 @@ class Effect:
     name = ""
     field = False
     doc = ""
+    needs_reidentify = False  # the effect needs least-squares core tables (compare against those)
 
     def grid(self, data: EvalData) -> list[Any]:
         return [None]
@@ -62,8 +63,11 @@ class CoilLag(Effect):
     def grid(self, data: EvalData) -> list[Any]:
         return [float(v) for v in np.geomspace(5e-4, 2.0, 22)]
 
+    needs_reidentify = True
+
     def apply(self, path, value, data, train):
-        return path.with_(lag_tau_s=float(value))
+        # Tables cut from first-order curves of a lagged current are inconsistent; identify them by least squares.
+        return path.with_(lag_tau_s=float(value), reidentify=True)
 
     def params(self, value, beta, path):
         return {"tau_s": float(path.lag_tau_s)}
@@ -82,8 +86,10 @@ class TimeDelay(Effect):
         samples = np.unique(np.round(np.geomspace(1, max(2.0, 0.5 / dt), 22)).astype(int))
         return [float(k * dt) for k in samples]
 
+    needs_reidentify = True
+
     def apply(self, path, value, data, train):
-        return path.with_(delay_s=float(value))
+        return path.with_(delay_s=float(value), reidentify=True)
 
     def params(self, value, beta, path):
         return {"delay_s": float(path.delay_s)}
@@ -108,54 +114,21 @@ class NonCongruent(Effect):
 
 
 class TableResolution(Effect):
-    """Not physics: the first-order curve tables are too coarse or noisy. Fixed by refining the tables by
-    nonnegative least squares (``bmr.fit_everett``) on the protocol runs and the training blocks."""
+    """Not physics: the first-order curve tables are too coarse or too noisy. Fixed by identifying the tables
+    again from the same protocol runs by nonnegative, smoothness-regularised least squares (``fit_everett``):
+    the whole Preisach plane from every sample instead of interpolation between a few measured curves."""
 
     name = "table_resolution"
     field = True
     doc = "first-order curve tables too coarse or noisy; least-squares refinement of the tables"
-    n_intervals = 40
 
     def apply(self, path, value, data, train):
-        from bmr import _core
-        from bmr.diagnosis.field import output_map_inverse
-
-        model = path.model
-        lo, hi = model.hysteresis.input_range
-        grid = np.linspace(lo, hi, self.n_intervals + 1)
-        packed = []
-        offset = 0
-        friction = model.friction
-        for r in data.runs:
-            u = np.ascontiguousarray(path.core_input(r.current_a, r.dt_s))
-            y = r.torque_nmm - (friction(r.theta_rad) if friction is not None else 0.0)
-            y = output_map_inverse(y, path.curvature, path.scale_nmm)
-            w = np.zeros(u.size)
-            n = r.n_eval
-            w[r.start:] = 1.0 if train is None else train[offset:offset + n].astype(float)
-            offset += n
-            packed.append((u, np.ascontiguousarray(y), w, 0))
-        for u, y, w in data.cache.get("protocol_runs", []):
-            packed.append((np.ascontiguousarray(path.core_input(u, data.runs[0].dt_s)),
-                           np.ascontiguousarray(output_map_inverse(y, path.curvature, path.scale_nmm)), w, 0))
-        total = sum(int(np.count_nonzero(p[2])) for p in packed)
-        stride = max(1, math.ceil(total / 60_000))
-        if stride > 1:
-            packed = [(u, y, _thin(w, stride), k) for u, y, w, k in packed]
-        res = _core.fit_everett(grid, packed, 1, smoothing=1e-4, ridge=1e-9, max_iter=300)
-        asc, desc = res["model"].first_order_curves()
-        tables = ([(np.asarray(u), np.asarray(y)) for u, y in asc], [(np.asarray(u), np.asarray(y)) for u, y in desc])
-        return path.with_(tables=tables)
+        return path.with_(reidentify=True)
 
     def params(self, value, beta, path):
-        return {"n_intervals": float(self.n_intervals)}
+        from bmr.diagnosis.field import REIDENTIFY_INTERVALS
 
-
-def _thin(w: np.ndarray, stride: int) -> np.ndarray:
-    idx = np.flatnonzero(w)
-    out = np.zeros_like(w)
-    out[idx[::stride]] = w[idx[::stride]]
-    return out
+        return {"n_intervals": float(REIDENTIFY_INTERVALS)}
 
 
 # ----------------------------------------------------------------------------------------------- linear effects

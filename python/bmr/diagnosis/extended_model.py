@@ -31,19 +31,21 @@ from bmr.diagnosis.field import FieldPath, delay, lead, output_map_inverse
 __all__ = ["ExtendedModel", "ExtendedCompensator", "extensions_from_selection"]
 
 KNOWN = ("coil_lag", "thermal_drift", "friction_current", "friction_harmonics", "torque_ripple", "sensor_drift",
-         "time_delay", "non_congruent", "table_resolution", "offset")
+         "time_delay", "non_congruent", "table_resolution", "offset", "core_tables")
 
 
 def extensions_from_selection(config: Any, accepted: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
     """``model.extensions`` entries of a selected configuration (refined tables stored with their effect)."""
     out = []
     for row in accepted:
-        entry: dict[str, Any] = {"name": row["name"], "params": {k: float(v) for k, v in row["params"].items()}}
-        if row["name"] == "table_resolution" and config.path.tables is not None:
-            asc, desc = config.path.tables
-            entry["tables"] = {"ascending": [[list(map(float, u)), list(map(float, y))] for u, y in asc],
-                               "descending": [[list(map(float, u)), list(map(float, y))] for u, y in desc]}
-        out.append(entry)
+        out.append({"name": row["name"], "params": {k: float(v) for k, v in row["params"].items()}})
+    path = config.path
+    if path.tables is not None or path.reidentify or path.lag_tau_s > 0 or path.delay_s > 0 or path.curvature != 0:
+        # The Preisach core's own tables (refined, or re-identified under the field effects).
+        asc, desc = path.core_curves()
+        out.append({"name": "core_tables", "params": {},
+                    "tables": {"ascending": [[list(map(float, u)), list(map(float, y))] for u, y in asc],
+                               "descending": [[list(map(float, u)), list(map(float, y))] for u, y in desc]}})
     out.append({"name": "offset", "params": {"offset_nmm": float(config.beta[0])}})
     return out
 
@@ -64,7 +66,7 @@ class ExtendedModel:
         self.full_current_a = max(abs(lo), abs(hi))
         p = self.params("non_congruent")
         tables = None
-        tr = self.ext.get("table_resolution", {}).get("tables")
+        tr = self.ext.get("core_tables", {}).get("tables")
         if tr:
             tables = ([(np.asarray(u), np.asarray(y)) for u, y in tr["ascending"]],
                       [(np.asarray(u), np.asarray(y)) for u, y in tr["descending"]])
@@ -79,7 +81,7 @@ class ExtendedModel:
 
     @property
     def names(self) -> list[str]:
-        return [e["name"] for e in self.model.extensions if e["name"] != "offset"]
+        return [e["name"] for e in self.model.extensions if e["name"] not in ("offset", "core_tables")]
 
     def thermal_state(self, current_a: np.ndarray, dt_s: float, x0: float = 0.0) -> np.ndarray:
         """Heating state (1 = steady full current) along ``current_a``, from ``x0``."""

@@ -20,6 +20,11 @@ from bmr._core import BmrError
 
 __all__ = ["FieldPath", "lag", "delay", "output_map", "output_map_inverse"]
 
+# Least-squares re-identification: table intervals and regression rows (speed vs resolution).
+REIDENTIFY_INTERVALS = 40
+REIDENTIFY_ROWS = 20_000
+_REIDENTIFIED: dict[tuple, Any] = {}
+
 Curves = tuple[list[tuple[np.ndarray, np.ndarray]], list[tuple[np.ndarray, np.ndarray]]]
 
 
@@ -91,22 +96,31 @@ class FieldPath:
     curvature: float = 0.0
     tables: Any = None
     scale_nmm: float = 600.0
+    protocol: tuple = ()  # identification runs (bmr.Run) for re-identification
+    reidentify: bool = False  # core tables by least squares on the protocol runs under this path
 
     @staticmethod
-    def nominal(model: Any) -> "FieldPath":
+    def nominal(model: Any, protocol: Sequence[Any] = ()) -> "FieldPath":
         lo, hi = model.hysteresis.output_range
-        return FieldPath(model, scale_nmm=float(max(abs(lo), abs(hi), 1e-9)))
+        return FieldPath(model, scale_nmm=float(max(abs(lo), abs(hi), 1e-9)), protocol=tuple(protocol))
 
     def with_(self, **kwargs: Any) -> "FieldPath":
         return replace(self, **kwargs)
 
     def key(self) -> tuple:
-        return (self.lag_tau_s, self.delay_s, self.curvature, id(self.tables))
+        return (self.lag_tau_s, self.delay_s, self.curvature, id(self.tables), self.reidentify)
 
     def core_curves(self) -> Curves:
         """First-order curves of the Preisach core (the model's, mapped through ``g⁻¹``, or the refined ones)."""
         if self.tables is not None:
             return self.tables
+        if self.reidentify and self.protocol:
+            key = (id(self.protocol), self.lag_tau_s, self.delay_s, self.curvature)
+            if key not in _REIDENTIFIED:
+                if len(_REIDENTIFIED) > 256:
+                    _REIDENTIFIED.clear()
+                _REIDENTIFIED[key] = self._reidentified()
+            return _REIDENTIFIED[key]
         asc, desc = self.model.hysteresis.curves()
         if self.curvature == 0.0:
             return list(asc), list(desc)
@@ -117,11 +131,41 @@ class FieldPath:
 
         return fam(asc), fam(desc)
 
+    def _reidentified(self) -> Curves:
+        """Core tables identified again from the protocol runs as the core sees them — current through the delay
+        and lag, torque (friction removed) through ``g⁻¹`` — by least squares (``bmr.fit_tables_lstsq``: exact
+        for any input history, unlike cutting first-order curves out of a lagged current)."""
+        from bmr import _core
+        from bmr.identify import SATURATION_TOL, evaluation_start
+
+        lo, hi = self.model.hysteresis.input_range
+        packed = []
+        for r in self.protocol:
+            u = r.current
+            dt = float(np.median(np.diff(r.t))) if u.size > 1 else 1.0
+            y = output_map_inverse(r.torque - self.model.friction_torque(r.theta), self.curvature, self.scale_nmm)
+            # The state is known from the *commanded* current's saturations (a lagged current never quite
+            # reaches them), plus five time constants for the lag to settle.
+            s = evaluation_start(u, lo, hi, SATURATION_TOL * (hi - lo)) + int(np.ceil(5 * self.lag_tau_s / dt))
+            w = np.zeros(u.size)
+            w[s:] = 1.0
+            packed.append((np.ascontiguousarray(self.core_input(u, dt)), np.ascontiguousarray(y), w, 0))
+        total = sum(int(np.count_nonzero(p[2])) for p in packed)
+        stride = max(1, int(np.ceil(total / REIDENTIFY_ROWS)))
+        for _, _, w, _ in packed:
+            keep = np.zeros(w.size, dtype=bool)
+            keep[np.flatnonzero(w)[::stride]] = True
+            w[~keep] = 0.0
+        res = _core.fit_everett(np.linspace(lo, hi, REIDENTIFY_INTERVALS + 1), packed, 1, smoothing=1e-4,
+                                ridge=1e-9)
+        asc, desc = res["model"].first_order_curves()
+        return ([(np.asarray(u), np.asarray(y)) for u, y in asc], [(np.asarray(u), np.asarray(y)) for u, y in desc])
+
     def hysteresis(self) -> Any:
         """A fresh ``bmr.Hysteresis`` of the core."""
         from bmr import Hysteresis
 
-        if self.tables is None and self.curvature == 0.0:
+        if self.tables is None and self.curvature == 0.0 and not self.reidentify:
             asc, desc = self.model.hysteresis.curves()
         else:
             asc, desc = self.core_curves()
@@ -131,8 +175,12 @@ class FieldPath:
             raise BmrError(f"field path with curvature {self.curvature:g}: tables rejected: {exc}") from None
 
     def core_input(self, current_a: np.ndarray, dt_s: float) -> np.ndarray:
-        """The current the core sees: delayed, then lagged."""
-        return lag(delay(current_a, self.delay_s, dt_s), self.lag_tau_s, dt_s)
+        """The current the core sees: delayed, then each coil's current lagged on its own (coil 1 carries the
+        negative part of the nominal current, coil 2 the positive part), recombined as a nominal current."""
+        u = delay(current_a, self.delay_s, dt_s)
+        if self.lag_tau_s <= 0.0:
+            return u
+        return lag(np.maximum(u, 0.0), self.lag_tau_s, dt_s) - lag(np.maximum(-u, 0.0), self.lag_tau_s, dt_s)
 
     def simulate(self, runs: Sequence[Any], hysteresis: Any = None) -> list[np.ndarray]:
         """Field torque (N·mm) of every run (full length), each from negative saturation."""

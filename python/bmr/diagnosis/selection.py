@@ -22,6 +22,8 @@ from typing import Any, Callable, Sequence
 
 import numpy as np
 
+from bmr._core import BmrError
+
 from bmr.diagnosis.effects import LIBRARY, Effect
 from bmr.diagnosis.field import FieldPath
 from bmr.diagnosis.residuals import EvalData
@@ -60,8 +62,12 @@ class Fitter:
     def field(self, path: FieldPath) -> np.ndarray:
         key = path.key()
         if key not in self._fields:
-            ys = path.simulate(self.data.runs)
-            self._fields[key] = self.data.concat([y[r.start:] for y, r in zip(ys, self.data.runs)])
+            try:
+                ys = path.simulate(self.data.runs)
+                self._fields[key] = self.data.concat([y[r.start:] for y, r in zip(ys, self.data.runs)])
+            except BmrError:
+                # This parameter value gives no valid tables (e.g. a lag so long the protocol never saturates).
+                self._fields[key] = np.full(self.data.n_eval, np.nan)
             if len(self._fields) > 200:
                 self._fields.pop(next(iter(self._fields)))
         return self._fields[key]
@@ -77,6 +83,8 @@ class Fitter:
             ) -> tuple[np.ndarray, np.ndarray]:
         """Residual (measured − predicted, N·mm, all evaluated samples) and ``beta`` fitted on ``train``."""
         x, y = self.design(path, linear)
+        if not np.all(np.isfinite(y)):
+            return np.full(y.size, np.inf), np.zeros(x.shape[1])
         target = self.measured - y
         if train is None:
             xt, tt = x, target
@@ -145,6 +153,9 @@ def evaluate(fitter: Fitter, config: Configuration, eff: Effect, before: list[np
     """Held-out gain of adding ``eff`` to ``config`` in every fold (``before``: the configuration's held-out
     residual per fold)."""
     data = fitter.data
+    if eff.needs_reidentify and not config.path.reidentify:
+        # Compare at equal table method: the gain is the effect's, not the least-squares tables'.
+        before = heldout_residuals(fitter, Configuration(config.path.with_(reidentify=True), config.linear))
     gains, after_all, before_all, values = [], [], [], []
     grid = eff.grid(data)
     for k in range(data.folds):
@@ -242,11 +253,11 @@ def linear_params(fitter: Fitter, config: Configuration) -> dict[str, dict[str, 
 
 
 def forward_selection(fitter: Fitter, *, library: Sequence[Effect] = LIBRARY, max_effects: int = 4,
-                      progress: Any = None) -> dict[str, Any]:
+                      progress: Any = None, protocol: Sequence[Any] = ()) -> dict[str, Any]:
     """Grouped forward selection (see the module doc). Returns the final configuration, the accepted steps, the
     rejected candidates (their last round) and the held-out RMS of the nominal and final configurations."""
     data = fitter.data
-    config = Configuration(FieldPath.nominal(fitter.model))
+    config = Configuration(FieldPath.nominal(fitter.model, protocol))
     _, config.beta = fitter.fit(config.path, config.linear, None)
     before = heldout_residuals(fitter, config)
     nominal_rms = _rms(np.concatenate(before))
@@ -254,13 +265,21 @@ def forward_selection(fitter: Fitter, *, library: Sequence[Effect] = LIBRARY, ma
     last: dict[str, Candidate] = {}
     remaining = list(library)
     rounds = 0
-    while remaining and len(accepted) < max_effects:
+    # Round 0: are the nominal tables themselves adequate? (Not physics; tested first so that no physical
+    # effect is credited with what finer tables explain.)
+    tables = [e for e in remaining if e.name == "table_resolution"]
+    remaining = [e for e in remaining if e.name != "table_resolution"]
+    while (remaining or tables) and len(accepted) < max_effects:
         current_rms = _rms(np.concatenate(before))
         if current_rms <= NOISE_MARGIN * data.noise_floor_nmm:
             break
-        rounds += 1
+        candidates = tables if tables else remaining
+        if tables:
+            tables = []
+        else:
+            rounds += 1
         cands = []
-        for eff in remaining:
+        for eff in candidates:
             if progress is not None:
                 progress.set_postfix_str(f"round {rounds}: {eff.name}")
             cands.append(evaluate(fitter, config, eff, before))
@@ -270,6 +289,8 @@ def forward_selection(fitter: Fitter, *, library: Sequence[Effect] = LIBRARY, ma
             last[c.effect.name] = c
         ok = [c for c in cands if c.accepted]
         if not ok:
+            if candidates[0].name == "table_resolution":
+                continue
             break
         best = max(ok, key=lambda c: c.mean_gain)
         config, params = refit(fitter, config, best.effect)
@@ -279,8 +300,6 @@ def forward_selection(fitter: Fitter, *, library: Sequence[Effect] = LIBRARY, ma
         row["round"] = rounds
         accepted.append(row)
         remaining = [e for e in remaining if e is not best.effect]
-        if progress is not None:
-            progress.total = (progress.total or 0) + 0
     final_params = linear_params(fitter, config)
     for row in accepted:
         eff_name = row["name"]
