@@ -88,7 +88,7 @@ class Diagnosis:
             return x
 
         keys = ("name", "params", "heldout_rms_before_nmm", "heldout_rms_after_nmm", "gain", "folds_positive",
-                "gain_interval", "fold_gains", "round")
+                "gain_interval", "gain_interval_bootstrap", "fold_gains", "excess_explained", "round", "reason")
         return clean({
             "format": FORMAT,
             "actuator": self.actuator,
@@ -184,7 +184,8 @@ def diagnose(bundle: Bundle | str | Path, model: Any = None, *, folds: int = 5, 
                leave=False)
     try:
         sel = forward_selection(fitter, progress=bar,
-                                protocol=bundle.by_kind("first_order_ascending", "first_order_descending"))
+                                protocol=[(r, data.run_start_s[r.name]) for r in
+                                          bundle.by_kind("first_order_ascending", "first_order_descending")])
     finally:
         bar.close()
     config = sel["config"]

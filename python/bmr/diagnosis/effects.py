@@ -49,6 +49,11 @@ class Effect:
     def params(self, value: Any, beta: np.ndarray, path: FieldPath) -> dict[str, float]:
         raise NotImplementedError
 
+    def update_path(self, path: FieldPath, own_beta: np.ndarray) -> FieldPath | None:
+        """The field path re-identified with this effect's fitted parameters removed from the protocol runs
+        (None: the effect leaves the tables alone)."""
+        return None
+
     def refine(self) -> bool:
         """Whether the nonlinear parameter is continuous (refined by a golden-section search)."""
         return False
@@ -83,7 +88,9 @@ class TimeDelay(Effect):
 
     def grid(self, data: EvalData) -> list[Any]:
         dt = min(r.dt_s for r in data.runs)
-        samples = np.unique(np.round(np.geomspace(1, max(2.0, 0.5 / dt), 22)).astype(int))
+        # Every whole sample up to 40, then geometric up to 0.5 s.
+        samples = np.unique(np.concatenate([np.arange(1, 41),
+                                            np.round(np.geomspace(40, max(41.0, 0.5 / dt), 10))]).astype(int))
         return [float(k * dt) for k in samples]
 
     needs_reidentify = True
@@ -220,8 +227,14 @@ class SensorDrift(Effect):
     name = "sensor_drift"
     doc = "torque sensor offset drifting linearly with time at rate_nmm_per_s"
 
+    needs_reidentify = True
+
     def columns(self, data, value, y_field, model):
         return data.concat(data.eval_slice("t_abs_s"))[:, None]
+
+    def update_path(self, path, own_beta):
+        # The drift also bent the protocol runs the tables come from: identify them again without it.
+        return path.with_(drift_nmm_per_s=float(own_beta[0]), reidentify=True)
 
     def params(self, value, beta, path):
         return {"rate_nmm_per_s": float(beta[0])}

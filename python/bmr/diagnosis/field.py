@@ -96,7 +96,8 @@ class FieldPath:
     curvature: float = 0.0
     tables: Any = None
     scale_nmm: float = 600.0
-    protocol: tuple = ()  # identification runs (bmr.Run) for re-identification
+    protocol: tuple = ()  # identification runs for re-identification: (bmr.Run, start time in the bundle (s))
+    drift_nmm_per_s: float = 0.0  # sensor drift removed from the protocol torque before re-identification
     reidentify: bool = False  # core tables by least squares on the protocol runs under this path
 
     @staticmethod
@@ -108,14 +109,15 @@ class FieldPath:
         return replace(self, **kwargs)
 
     def key(self) -> tuple:
-        return (self.lag_tau_s, self.delay_s, self.curvature, id(self.tables), self.reidentify)
+        return (self.lag_tau_s, self.delay_s, self.curvature, id(self.tables), self.reidentify,
+                self.drift_nmm_per_s)
 
     def core_curves(self) -> Curves:
         """First-order curves of the Preisach core (the model's, mapped through ``g⁻¹``, or the refined ones)."""
         if self.tables is not None:
             return self.tables
         if self.reidentify and self.protocol:
-            key = (id(self.protocol), self.lag_tau_s, self.delay_s, self.curvature)
+            key = (id(self.protocol), self.lag_tau_s, self.delay_s, self.curvature, self.drift_nmm_per_s)
             if key not in _REIDENTIFIED:
                 if len(_REIDENTIFIED) > 256:
                     _REIDENTIFIED.clear()
@@ -140,10 +142,11 @@ class FieldPath:
 
         lo, hi = self.model.hysteresis.input_range
         packed = []
-        for r in self.protocol:
+        for r, t0_s in self.protocol:
             u = r.current
             dt = float(np.median(np.diff(r.t))) if u.size > 1 else 1.0
-            y = output_map_inverse(r.torque - self.model.friction_torque(r.theta), self.curvature, self.scale_nmm)
+            y = r.torque - self.model.friction_torque(r.theta) - self.drift_nmm_per_s * (t0_s + r.t - r.t[0])
+            y = output_map_inverse(y, self.curvature, self.scale_nmm)
             # The state is known from the *commanded* current's saturations (a lagged current never quite
             # reaches them), plus five time constants for the lag to settle.
             s = evaluation_start(u, lo, hi, SATURATION_TOL * (hi - lo)) + int(np.ceil(5 * self.lag_tau_s / dt))

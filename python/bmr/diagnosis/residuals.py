@@ -56,6 +56,7 @@ class EvalData:
     bundle_currents: list[np.ndarray]  # every run's current in bundle order (heating history)
     bundle_dt_s: list[float]
     sample_rate_hz: float
+    run_start_s: dict[str, float] = field(default_factory=dict)  # every run's start time in the bundle
     cache: dict[Any, Any] = field(default_factory=dict)
 
     def concat(self, arrays: Sequence[np.ndarray]) -> np.ndarray:
@@ -92,8 +93,15 @@ def noise_floor(bundle: Bundle, friction: Any = None) -> float:
     diffs = []
     for r in runs:
         y = r.torque - (friction(r.theta) if friction is not None else 0.0)
-        if y.size > 2:
-            diffs.append(np.diff(y))
+        u = r.current
+        # Only pairs of samples at one held current (the off-state body, the holds of a step run): the opening
+        # excursion's field torque changes from sample to sample.
+        held = (u[1:] == u[:-1]) & (np.abs(u[1:]) <= 1e-9 + 1e-3 * np.max(np.abs(u)))
+        if not held.any():
+            held = u[1:] == u[:-1]
+        d = np.diff(y)[held]
+        if d.size > 2:
+            diffs.append(d)
     if not diffs:
         raise BmrError("the bundle has no run long enough to estimate the noise floor")
     d = np.concatenate(diffs)
@@ -115,11 +123,17 @@ def prepare(bundle: Bundle, input_range: tuple[float, float], folds: int, fricti
     t0 = 0.0
     out: list[EvalRun] = []
     currents, dts = [], []
+    starts: dict[str, float] = {}
     evaluation = {r.name for r in bundle.evaluation_runs()}
     for index, r in enumerate(bundle.runs):
         dt = _run_dt(r, 1.0 / fs)
         t = r.t
+        # The run's start in the actuator's time when the bundle records it, else runs back to back.
+        start = r.meta.get("start_s") if isinstance(r.meta, dict) else None
+        if isinstance(start, (int, float)) and np.isfinite(start):
+            t0 = float(start)
         t_abs = t0 + (t - t[0])
+        starts[r.name] = t0
         t0 = float(t_abs[-1]) + dt if t.size else t0
         currents.append(r.current)
         dts.append(dt)
@@ -136,7 +150,7 @@ def prepare(bundle: Bundle, input_range: tuple[float, float], folds: int, fricti
         raise BmrError("the bundle has no evaluation run (multi_step, triangle, multipeak, tracking or custom) "
                        f"with at least {2 * folds} samples after its first saturation; nothing to diagnose")
     full = max(abs(lo), abs(hi))
-    return EvalData(out, int(folds), full, noise_floor(bundle, friction), currents, dts, fs)
+    return EvalData(out, int(folds), full, noise_floor(bundle, friction), currents, dts, fs, starts)
 
 
 def reversal_order(u: np.ndarray, lo: float, hi: float, deadband_a: float | None = None) -> np.ndarray:

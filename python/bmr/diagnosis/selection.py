@@ -8,8 +8,9 @@ without it is compared on the test block. An effect is **accepted** when
 
 * its held-out gain ``(rms_before − rms_after)/rms_before`` is positive in most folds, and
 * the t interval (95 %, over folds) of the gain excludes zero, and
-* the mean gain is at least :data:`MIN_GAIN` (so that a statistically sure but negligible improvement does not
-  name a physical effect).
+* the mean gain is at least :data:`MIN_GAIN` and the effect explains at least :data:`MIN_EXCESS` of the
+  held-out residual variance above the noise floor (so that a statistically sure but negligible improvement —
+  fitting the last table errors of noise-free data, say — does not name a physical effect).
 
 The best accepted candidate joins the model (its parameters refitted on all evaluation data), and the round
 repeats until nothing is accepted or the held-out RMS is within :data:`NOISE_MARGIN` of the noise floor.
@@ -31,6 +32,7 @@ from bmr.diagnosis.residuals import EvalData
 __all__ = ["Configuration", "Fitter", "Candidate", "forward_selection", "MIN_GAIN", "NOISE_MARGIN"]
 
 MIN_GAIN = 0.02
+MIN_EXCESS = 0.25
 NOISE_MARGIN = 1.03
 # Two-sided 95 % Student t quantiles by degrees of freedom.
 _T975 = {1: 12.706, 2: 4.303, 3: 3.182, 4: 2.776, 5: 2.571, 6: 2.447, 7: 2.365, 8: 2.306, 9: 2.262, 10: 2.228}
@@ -110,6 +112,7 @@ class Candidate:
     rms_before: float
     rms_after: float
     values: list[Any]
+    noise_nmm: float = 0.0
 
     @property
     def mean_gain(self) -> float:
@@ -127,15 +130,25 @@ class Candidate:
         return float(np.mean(g) - half), float(np.mean(g) + half)
 
     @property
+    def excess_explained(self) -> float:
+        """Fraction of the held-out residual variance above the noise floor that the effect removes."""
+        excess = self.rms_before ** 2 - self.noise_nmm ** 2
+        if excess <= 0:
+            return 0.0
+        return float((self.rms_before ** 2 - self.rms_after ** 2) / excess)
+
+    @property
     def accepted(self) -> bool:
         lo, _ = self.interval
-        return self.folds_positive * 2 > self.fold_gains.size and lo > 0 and self.mean_gain >= MIN_GAIN
+        return (self.folds_positive * 2 > self.fold_gains.size and lo > 0 and self.mean_gain >= MIN_GAIN
+                and self.excess_explained >= MIN_EXCESS)
 
     def row(self) -> dict[str, Any]:
         lo, hi = self.interval
         return {"name": self.effect.name, "gain": self.mean_gain, "folds_positive": self.folds_positive,
                 "gain_interval": [lo, hi], "heldout_rms_before_nmm": self.rms_before,
-                "heldout_rms_after_nmm": self.rms_after, "fold_gains": [float(v) for v in self.fold_gains]}
+                "heldout_rms_after_nmm": self.rms_after, "fold_gains": [float(v) for v in self.fold_gains],
+                "excess_explained": self.excess_explained}
 
 
 def _rms(x: np.ndarray) -> float:
@@ -147,6 +160,25 @@ def _with(config: Configuration, eff: Effect, value: Any, data: EvalData, train:
     if eff.field:
         return eff.apply(config.path, value, data, train), list(config.linear)
     return config.path, list(config.linear) + [(eff, value)]
+
+
+def _fit_with(fitter: Fitter, config: Configuration, eff: Effect, value: Any, train: np.ndarray | None
+              ) -> tuple[np.ndarray, np.ndarray, FieldPath, list[tuple[Effect, Any]]]:
+    """Fit ``config`` plus ``eff`` at ``value`` on ``train``; effects that also bend the identification data
+    alternate fit and re-identification twice."""
+    data = fitter.data
+    path, linear = _with(config, eff, value, data, train)
+    r, beta = fitter.fit(path, linear, train)
+    if not eff.field:
+        y = fitter.field(path)
+        start = 1 + sum(e.columns(data, v, y, fitter.model).shape[1] for e, v in config.linear)
+        for _ in range(2):
+            new = eff.update_path(path, beta[start:])
+            if new is None:
+                break
+            path = new
+            r, beta = fitter.fit(path, linear, train)
+    return r, beta, path, linear
 
 
 def evaluate(fitter: Fitter, config: Configuration, eff: Effect, before: list[np.ndarray]) -> Candidate:
@@ -163,8 +195,7 @@ def evaluate(fitter: Fitter, config: Configuration, eff: Effect, before: list[np
         train = ~test
         best = None
         for v in grid:
-            path, linear = _with(config, eff, v, data, train)
-            r, _ = fitter.fit(path, linear, train)
+            r, _, _, _ = _fit_with(fitter, config, eff, v, train)
             sse = float(np.sum(r[train] ** 2))
             if best is None or sse < best[0]:
                 best = (sse, r, v)
@@ -177,7 +208,7 @@ def evaluate(fitter: Fitter, config: Configuration, eff: Effect, before: list[np
         before_all.append(rb)
         values.append(best[2])
     return Candidate(eff, np.asarray(gains), _rms(np.concatenate(before_all)), _rms(np.concatenate(after_all)),
-                     values)
+                     values, data.noise_floor_nmm)
 
 
 def heldout_residuals(fitter: Fitter, config: Configuration) -> list[np.ndarray]:
@@ -213,8 +244,7 @@ def refit(fitter: Fitter, config: Configuration, eff: Effect) -> tuple[Configura
     grid = eff.grid(data)
 
     def sse(v: Any) -> float:
-        path, linear = _with(config, eff, v, data, None)
-        r, _ = fitter.fit(path, linear, None)
+        r, _, _, _ = _fit_with(fitter, config, eff, v, None)
         return float(np.sum(r * r))
 
     scores = [sse(v) for v in grid]
@@ -231,8 +261,7 @@ def refit(fitter: Fitter, config: Configuration, eff: Effect) -> tuple[Configura
             cand = _golden(sse, float(lo_v), float(hi_v))
         if sse(cand) < scores[i]:
             best = cand
-    path, linear = _with(config, eff, best, data, None)
-    _, beta = fitter.fit(path, linear, None)
+    _, beta, path, linear = _fit_with(fitter, config, eff, best, None)
     new = Configuration(path, linear, beta)
     # The effect's own linear parameters follow the constant and the earlier effects' columns.
     start = 1 + sum(e.columns(data, v, fitter.field(path), fitter.model).shape[1] for e, v in config.linear)
@@ -287,6 +316,7 @@ def forward_selection(fitter: Fitter, *, library: Sequence[Effect] = LIBRARY, ma
                 progress.update(1)
         for c in cands:
             last[c.effect.name] = c
+            c.round = rounds
         ok = [c for c in cands if c.accepted]
         if not ok:
             if candidates[0].name == "table_resolution":
@@ -312,6 +342,14 @@ def forward_selection(fitter: Fitter, *, library: Sequence[Effect] = LIBRARY, ma
                              "non_congruent": {"curvature": path.curvature, "scale_nmm": path.scale_nmm}
                              }[row["name"]]
     names = {r["name"] for r in accepted}
-    rejected = [c.row() for name, c in last.items() if name not in names]
+    rejected = []
+    for name, c in last.items():
+        if name in names:
+            continue
+        row = c.row()
+        row["round"] = getattr(c, "round", 0)
+        row["reason"] = ("not accepted" if not c.accepted else
+                         "accepted but another effect explained more; not needed afterwards")
+        rejected.append(row)
     return {"config": config, "accepted": accepted, "rejected": rejected, "nominal_heldout_rms_nmm": nominal_rms,
             "final_heldout_rms_nmm": _rms(np.concatenate(before)), "heldout_residual": before}
