@@ -14,7 +14,7 @@ from bmr._core import BmrError
 from bmr.bundle import Run
 from bmr.experiments import FULL_CURRENT_A, OPENING_RATE_A_PER_S, _record, _with_opening, ramp_path
 
-__all__ = ["minor_loop_vertices", "minor_loops"]
+__all__ = ["minor_loop_vertices", "minor_loops", "diagnosis_bundle"]
 
 
 def minor_loop_vertices(full_a: float = FULL_CURRENT_A, *, centres: int = 7, depth: int = 3,
@@ -50,3 +50,21 @@ def minor_loops(actuator: Any, *, rate_a_per_s: float = 1.0, name: str = "minor_
     body = ramp_path(0.0, vertices, rate_a_per_s / actuator.sample_rate_hz)
     cur, k = _with_opening(actuator, body, opening_rate_a_per_s, full_a)
     return _record(actuator, name, "custom", cur, k, {"vertices_a": vertices, "rate_a_per_s": float(rate_a_per_s)})
+
+
+def diagnosis_bundle(preset: str = "rig_preisach", *, effects: Any = None, seed: int = 0, quick: bool = True,
+                     sample_rate_hz: float = 500.0) -> Any:
+    """The paper's experiment set (:func:`bmr.experiments.simulate_bundle`) plus one :func:`minor_loops` run,
+    all on one virtual actuator (``preset`` with ``effects``, ``seed``): the bundle the diagnosis is calibrated
+    on."""
+    from bmr import VirtualActuator
+    from bmr.bundle import Bundle
+    from bmr.experiments import _plan
+
+    actuator = VirtualActuator(preset, seed=seed, sample_rate_hz=sample_rate_hz, effects=effects)
+    runs = [fn(actuator) for _name, fn in _plan(bool(quick), None, actuator.sample_rate_hz)]
+    runs.append(minor_loops(actuator, opening_rate_a_per_s=2.5 if quick else OPENING_RATE_A_PER_S))
+    meta = {"simulator": {"preset": preset, "seed": int(seed), "quick": bool(quick),
+                          "effects": {k: dict(v) for k, v in actuator.effects.items()},
+                          "noise_nmm": actuator.noise_nmm}}
+    return Bundle(actuator=actuator.name, sample_rate_hz=actuator.sample_rate_hz, runs=runs, meta=meta)
