@@ -49,7 +49,7 @@ class Effect:
     def params(self, value: Any, beta: np.ndarray, path: FieldPath) -> dict[str, float]:
         raise NotImplementedError
 
-    def update_path(self, path: FieldPath, own_beta: np.ndarray) -> FieldPath | None:
+    def update_path(self, path: FieldPath, value: Any, own_beta: np.ndarray) -> FieldPath | None:
         """The field path re-identified with this effect's fitted parameters removed from the protocol runs
         (None: the effect leaves the tables alone)."""
         return None
@@ -191,6 +191,16 @@ class FrictionCurrent(Effect):
             data.cache[key] = (np.abs(cur) * f)[:, None]
         return data.cache[key]
 
+    needs_reidentify = True
+
+    def update_path(self, path, value, own_beta):
+        return path.with_correction(self.name, value, own_beta)
+
+    @staticmethod
+    def remove(y, value, beta, run, t0_s, model):
+        f = model.friction_torque(run.theta) - (model.friction.c0 if model.friction is not None else 0.0)
+        return y - beta[0] * np.abs(run.current) * f
+
     def params(self, value, beta, path):
         return {"gain_per_a": float(beta[0])}
 
@@ -206,6 +216,16 @@ class FrictionHarmonics(Effect):
         th = data.concat(data.eval_slice("theta_rad"))
         return np.column_stack([np.sin(value * th), np.cos(value * th)])
 
+    needs_reidentify = True
+
+    def update_path(self, path, value, own_beta):
+        return path.with_correction(self.name, value, own_beta)
+
+    @staticmethod
+    def remove(y, value, beta, run, t0_s, model):
+        th = run.theta
+        return y - beta[0] * np.sin(value * th) - beta[1] * np.cos(value * th)
+
     def params(self, value, beta, path):
         return {"order": float(value), "amplitude_nmm": float(math.hypot(beta[0], beta[1])),
                 "phase_rad": float(math.atan2(beta[1], beta[0]))}
@@ -218,6 +238,16 @@ class TorqueRipple(Effect):
     def columns(self, data, value, y_field, model):
         th = data.concat(data.eval_slice("theta_rad"))
         return np.column_stack([y_field * np.cos(th), y_field * np.sin(th)])
+
+    needs_reidentify = True
+
+    def update_path(self, path, value, own_beta):
+        return path.with_correction(self.name, value, own_beta)
+
+    @staticmethod
+    def remove(y, value, beta, run, t0_s, model):
+        th = run.theta
+        return y / np.maximum(1.0 + beta[0] * np.cos(th) + beta[1] * np.sin(th), 1e-3)
 
     def params(self, value, beta, path):
         return {"eps": float(math.hypot(beta[0], beta[1])), "phase_rad": float(math.atan2(-beta[1], beta[0]))}
@@ -232,9 +262,13 @@ class SensorDrift(Effect):
     def columns(self, data, value, y_field, model):
         return data.concat(data.eval_slice("t_abs_s"))[:, None]
 
-    def update_path(self, path, own_beta):
+    def update_path(self, path, value, own_beta):
         # The drift also bent the protocol runs the tables come from: identify them again without it.
-        return path.with_(drift_nmm_per_s=float(own_beta[0]), reidentify=True)
+        return path.with_correction(self.name, value, own_beta)
+
+    @staticmethod
+    def remove(y, value, beta, run, t0_s, model):
+        return y - beta[0] * (t0_s + run.t - run.t[0])
 
     def params(self, value, beta, path):
         return {"rate_nmm_per_s": float(beta[0])}
@@ -243,6 +277,16 @@ class SensorDrift(Effect):
 LIBRARY: tuple[Effect, ...] = (CoilLag(), ThermalDrift(), FrictionCurrent(), FrictionHarmonics(), TorqueRipple(),
                                SensorDrift(), TimeDelay(), NonCongruent(), TableResolution())
 PHYSICAL = tuple(e.name for e in LIBRARY if e.name != "table_resolution")
+
+
+def remove_from_protocol(corrections: Sequence[tuple[str, Any, tuple]], y: np.ndarray, run: Any, t0_s: float,
+                         model: Any) -> np.ndarray:
+    """Protocol-run field torque ``y`` (N·mm, friction removed) with fitted effects removed (additive effects
+    first, then multiplicative ones)."""
+    order = {"sensor_drift": 0, "friction_harmonics": 0, "friction_current": 0, "torque_ripple": 1}
+    for name, value, beta in sorted(corrections, key=lambda c: order.get(c[0], 2)):
+        y = by_name(name).remove(y, value, np.asarray(beta), run, t0_s, model)  # type: ignore[attr-defined]
+    return y
 
 
 def by_name(name: str) -> Effect:

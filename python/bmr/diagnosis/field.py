@@ -97,7 +97,8 @@ class FieldPath:
     tables: Any = None
     scale_nmm: float = 600.0
     protocol: tuple = ()  # identification runs for re-identification: (bmr.Run, start time in the bundle (s))
-    drift_nmm_per_s: float = 0.0  # sensor drift removed from the protocol torque before re-identification
+    # Fitted effects removed from the protocol torque before re-identification: ((name, value, beta), ...).
+    corrections: tuple = ()
     reidentify: bool = False  # core tables by least squares on the protocol runs under this path
 
     @staticmethod
@@ -110,14 +111,14 @@ class FieldPath:
 
     def key(self) -> tuple:
         return (self.lag_tau_s, self.delay_s, self.curvature, id(self.tables), self.reidentify,
-                self.drift_nmm_per_s)
+                self.corrections)
 
     def core_curves(self) -> Curves:
         """First-order curves of the Preisach core (the model's, mapped through ``g⁻¹``, or the refined ones)."""
         if self.tables is not None:
             return self.tables
         if self.reidentify and self.protocol:
-            key = (id(self.protocol), self.lag_tau_s, self.delay_s, self.curvature, self.drift_nmm_per_s)
+            key = (id(self.protocol), self.lag_tau_s, self.delay_s, self.curvature, self.corrections)
             if key not in _REIDENTIFIED:
                 if len(_REIDENTIFIED) > 256:
                     _REIDENTIFIED.clear()
@@ -145,7 +146,11 @@ class FieldPath:
         for r, t0_s in self.protocol:
             u = r.current
             dt = float(np.median(np.diff(r.t))) if u.size > 1 else 1.0
-            y = r.torque - self.model.friction_torque(r.theta) - self.drift_nmm_per_s * (t0_s + r.t - r.t[0])
+            y = r.torque - self.model.friction_torque(r.theta)
+            if self.corrections:
+                from bmr.diagnosis.effects import remove_from_protocol
+
+                y = remove_from_protocol(self.corrections, y, r, t0_s, self.model)
             y = output_map_inverse(y, self.curvature, self.scale_nmm)
             # The state is known from the *commanded* current's saturations (a lagged current never quite
             # reaches them), plus five time constants for the lag to settle.
@@ -194,6 +199,12 @@ class FieldPath:
             core = np.asarray(h.run(np.ascontiguousarray(self.core_input(r.current_a, r.dt_s))), dtype=float)
             out.append(output_map(core, self.curvature, self.scale_nmm))
         return out
+
+    def with_correction(self, name: str, value: Any, beta: Sequence[float]) -> "FieldPath":
+        """This path re-identified with effect ``name`` (nonlinear ``value``, linear ``beta``) removed from the
+        protocol runs (replacing an earlier correction of the same effect)."""
+        kept = tuple(c for c in self.corrections if c[0] != name)
+        return self.with_(corrections=kept + ((name, value, tuple(float(b) for b in beta)),), reidentify=True)
 
     def params(self) -> dict[str, float]:
         return {"lag_tau_s": self.lag_tau_s, "delay_s": self.delay_s, "curvature": self.curvature,

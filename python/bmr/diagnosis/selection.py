@@ -173,7 +173,7 @@ def _fit_with(fitter: Fitter, config: Configuration, eff: Effect, value: Any, tr
         y = fitter.field(path)
         start = 1 + sum(e.columns(data, v, y, fitter.model).shape[1] for e, v in config.linear)
         for _ in range(2):
-            new = eff.update_path(path, beta[start:])
+            new = eff.update_path(path, value, beta[start:start + (beta.size - start)])
             if new is None:
                 break
             path = new
@@ -195,11 +195,15 @@ def evaluate(fitter: Fitter, config: Configuration, eff: Effect, before: list[np
         train = ~test
         best = None
         for v in grid:
-            r, _, _, _ = _fit_with(fitter, config, eff, v, train)
+            path, linear = _with(config, eff, v, data, train)
+            r, _ = fitter.fit(path, linear, train)
             sse = float(np.sum(r[train] ** 2))
             if best is None or sse < best[0]:
                 best = (sse, r, v)
         assert best is not None
+        if type(eff).update_path is not Effect.update_path:
+            r, _, _, _ = _fit_with(fitter, config, eff, best[2], train)
+            best = (best[0], r, best[2])
         rb = before[k]
         ra = best[1][test]
         b, a = _rms(rb), _rms(ra)
@@ -244,7 +248,8 @@ def refit(fitter: Fitter, config: Configuration, eff: Effect) -> tuple[Configura
     grid = eff.grid(data)
 
     def sse(v: Any) -> float:
-        r, _, _, _ = _fit_with(fitter, config, eff, v, None)
+        path, linear = _with(config, eff, v, data, None)
+        r, _ = fitter.fit(path, linear, None)
         return float(np.sum(r * r))
 
     scores = [sse(v) for v in grid]
