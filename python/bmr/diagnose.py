@@ -13,7 +13,8 @@ held-out gain; ``bmr diagnose`` on the command line.
 5. When the bundle records the simulator that made it, the closed-loop gain is measured too: tracking error of
    the extended compensator vs the nominal one on that same plant.
 
-JSON (``bmr-diagnosis/1``): ``cause``, ``effects`` (accepted in order: ``name``, ``params``,
+JSON (``bmr-diagnosis/1``): ``cause`` (the accepted physical effect that removed the most held-out RMS;
+``table_resolution`` when only the tables were at fault; ``"none"``), ``effects`` (accepted in order: ``name``, ``params``,
 ``heldout_rms_before_nmm``, ``heldout_rms_after_nmm``, ``gain``, ``folds_positive``), ``rejected``,
 ``noise_floor_nmm``, ``residual_rms_nmm`` (held-out RMS of the extended model), ``unexplained`` (``signal``,
 ``strength`` in N·mm RMS) and more detail (per-run RMS, nominal held-out RMS, closed loop, timing).
@@ -195,10 +196,13 @@ def diagnose(bundle: Bundle | str | Path, model: Any = None, *, folds: int = 5, 
         g = np.asarray(row["fold_gains"])
         boots = g[rng.integers(0, g.size, size=(2000, g.size))].mean(axis=1)
         row["gain_interval_bootstrap"] = [float(np.quantile(boots, 0.025)), float(np.quantile(boots, 0.975))]
-    # The cause: the accepted effect that removed the most held-out RMS.
+    # The cause: the accepted physical effect that removed the most held-out RMS; table_resolution (not physics)
+    # only when it is all that was found.
     cause = "none"
-    if accepted:
-        cause = max(accepted, key=lambda e: e["heldout_rms_before_nmm"] - e["heldout_rms_after_nmm"])["name"]
+    ranked = sorted(accepted, key=lambda e: (e["name"] in PHYSICAL,
+                                            e["heldout_rms_before_nmm"] - e["heldout_rms_after_nmm"]))
+    if ranked:
+        cause = ranked[-1]["name"]
 
     # Residuals on all data (nominal with its offset, extended) for the figures and the structure study.
     r_nom, _ = fitter.fit(FieldPath.nominal(model), [], None)
