@@ -172,3 +172,15 @@ def test_bad_input_is_a_clear_error(tmp_path: Path) -> None:
         diagnose(bundle, tmp_path / "missing.json", progress=False)
     with pytest.raises(bmr.BmrError):
         diagnose(42, progress=False)  # type: ignore[arg-type]
+
+
+def test_rig_preisach_preset_is_the_ideal_field_path_with_the_rig_friction_and_sensor() -> None:
+    rig = bmr.VirtualActuator(PRESET, seed=0)
+    honest = bmr.VirtualActuator("bmr2013", seed=0)
+    ideal = bmr.VirtualActuator("ideal", seed=0)
+    th = np.linspace(0, 2 * np.pi, 50)
+    assert np.allclose(rig.true_friction(th), honest.true_friction(th))
+    assert rig.noise_nmm == honest.noise_nmm > 0 and rig.effects == {}
+    u = np.concatenate([np.linspace(0, 1.25, 300), np.linspace(1.25, -0.4, 400), np.linspace(-0.4, 0.7, 300)])
+    a, b = rig.run(u), ideal.run(u)
+    assert np.allclose(a["field_torque_nmm"], b["field_torque_nmm"], atol=1e-9)

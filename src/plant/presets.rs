@@ -113,7 +113,8 @@ pub fn ideal() -> ActuatorConfig {
 pub fn rig_preisach() -> ActuatorConfig {
     let rig = bmr2013();
     ActuatorConfig {
-        name: "rig_preisach virtual actuator (Preisach field path, rig friction and sensor)".to_string(),
+        name: "rig_preisach virtual actuator (Preisach field path, rig friction and sensor)"
+            .to_string(),
         drive: rig.drive,
         friction: rig.friction,
         sensor: rig.sensor,

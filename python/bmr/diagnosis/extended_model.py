@@ -23,7 +23,6 @@ import math
 from typing import Any, Sequence
 
 import numpy as np
-from scipy.signal import lfilter
 
 from bmr._core import BmrError
 from bmr.diagnosis.field import FieldPath, delay, lead, output_map_inverse
@@ -89,6 +88,8 @@ class ExtendedModel:
         u = np.asarray(current_a, float)
         if not p:
             return np.zeros(u.size)
+        from scipy.signal import lfilter
+
         a = math.exp(-dt_s / p["tau_s"])
         x, _ = lfilter([1.0 - a], [1.0, -a], (u / self.full_current_a) ** 2, zi=[a * x0])
         return x

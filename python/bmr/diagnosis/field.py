@@ -14,7 +14,6 @@ from dataclasses import dataclass, replace
 from typing import Any, Sequence
 
 import numpy as np
-from scipy.signal import lfilter
 
 from bmr._core import BmrError
 
@@ -33,6 +32,8 @@ def lag(x: np.ndarray, tau_s: float, dt_s: float) -> np.ndarray:
     x = np.asarray(x, dtype=float)
     if tau_s <= 0.0 or x.size == 0:
         return x.copy()
+    from scipy.signal import lfilter
+
     p = math.exp(-dt_s / tau_s)
     y, _ = lfilter([1.0 - p], [1.0, -p], x, zi=[p * x[0]])
     return y
