@@ -14,8 +14,8 @@ held-out gain; ``bmr diagnose`` on the command line.
    the extended compensator vs the nominal one on that same plant.
 
 JSON (``bmr-diagnosis/1``): ``cause`` (the accepted physical effect that removed the most held-out RMS;
-``table_resolution`` when only the tables were at fault; ``"none"``), ``effects`` (accepted in order: ``name``, ``params``,
-``heldout_rms_before_nmm``, ``heldout_rms_after_nmm``, ``gain``, ``folds_positive``), ``rejected``,
+``table_resolution`` when only the tables were at fault; ``"none"``), ``effects`` (accepted in order: ``name``,
+``params``, ``heldout_rms_before_nmm``, ``heldout_rms_after_nmm``, ``gain``, ``folds_positive``), ``rejected``,
 ``noise_floor_nmm``, ``residual_rms_nmm`` (held-out RMS of the extended model), ``unexplained`` (``signal``,
 ``strength`` in N·mm RMS) and more detail (per-run RMS, nominal held-out RMS, closed loop, timing).
 """
@@ -32,7 +32,7 @@ import numpy as np
 
 from bmr._core import BmrError
 from bmr.bundle import Bundle, read_bundle
-from bmr.diagnosis.effects import LIBRARY, PHYSICAL
+from bmr.diagnosis.effects import PHYSICAL
 from bmr.diagnosis.field import FieldPath
 from bmr.diagnosis.extended_model import ExtendedModel, extensions_from_selection, with_extensions
 from bmr.diagnosis.residuals import prepare, structure
@@ -181,7 +181,7 @@ def diagnose(bundle: Bundle | str | Path, model: Any = None, *, folds: int = 5, 
     lo, hi = model.hysteresis.input_range
     data = prepare(bundle, (lo, hi), folds, friction=model.friction)
     fitter = Fitter(data, model)
-    bar = tqdm(total=len(LIBRARY), file=sys.stderr, desc="bmr diagnose", unit="test", disable=not progress,
+    bar = tqdm(total=0, file=sys.stderr, desc="bmr diagnose", unit="test", disable=not progress,
                leave=False)
     try:
         sel = forward_selection(fitter, progress=bar,

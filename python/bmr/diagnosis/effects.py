@@ -20,7 +20,7 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from bmr.diagnosis.field import FieldPath, lag
+from bmr.diagnosis.field import FieldPath
 from bmr.diagnosis.residuals import EvalData
 
 __all__ = ["Effect", "LIBRARY", "PHYSICAL", "by_name", "thermal_state"]
@@ -295,6 +295,3 @@ def by_name(name: str) -> Effect:
             return e
     raise KeyError(name)
 
-
-def effect_names(items: Sequence[Any]) -> list[str]:
-    return [getattr(i, "name", str(i)) for i in items]

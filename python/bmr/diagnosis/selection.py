@@ -97,11 +97,6 @@ class Fitter:
         beta = beta_s / scale
         return target - x @ beta, beta
 
-    def predict_parts(self, config: Configuration) -> tuple[np.ndarray, np.ndarray]:
-        """Field torque and the linear correction of a fitted configuration over the evaluated spans."""
-        x, y = self.design(config.path, config.linear)
-        return y, x @ config.beta
-
 
 @dataclass
 class Candidate:
@@ -312,6 +307,9 @@ def forward_selection(fitter: Fitter, *, library: Sequence[Effect] = LIBRARY, ma
             tables = []
         else:
             rounds += 1
+        if progress is not None:
+            progress.total = (progress.total or 0) + len(candidates)
+            progress.refresh()
         cands = []
         for eff in candidates:
             if progress is not None:
