@@ -184,3 +184,12 @@ def test_rig_preisach_preset_is_the_ideal_field_path_with_the_rig_friction_and_s
     u = np.concatenate([np.linspace(0, 1.25, 300), np.linspace(1.25, -0.4, 400), np.linspace(-0.4, 0.7, 300)])
     a, b = rig.run(u), ideal.run(u)
     assert np.allclose(a["field_torque_nmm"], b["field_torque_nmm"], atol=1e-9)
+
+
+def test_unknown_extension_in_a_model_file_is_a_clear_error(lag_diagnosis: Diagnosis) -> None:
+    from bmr.diagnosis.extended_model import ExtendedModel
+
+    m = lag_diagnosis.extended_model
+    bad = bmr.Model.from_dict({**m.to_dict(), "extensions": [{"name": "flux_capacitor", "params": {}}]})
+    with pytest.raises(bmr.BmrError, match="flux_capacitor"):
+        ExtendedModel(bad)

@@ -111,9 +111,20 @@ def html_section(d: Any) -> str:
               f"{r['heldout_rms_before_nmm']:.3f} → {r['heldout_rms_after_nmm']:.3f}", ""] for r in d.rejected]
     parts.append("<h3>Selection</h3>" + _table(rows, ["effect", "decision", "held-out gain", "folds positive",
                                                       "held-out RMS (N·mm)", "parameters"]))
+    where = [[sig, f"{d.structure_nominal.get(sig, 0.0):.3f}", f"{d.structure_extended.get(sig, 0.0):.3f}"]
+             for sig in d.structure_nominal]
+    parts.append("<h3>What the nominal model gets wrong, by signal</h3><p>RMS (N·mm) of the residual's conditional "
+                 "mean against each signal (noise share removed).</p>"
+                 + _table(where, ["signal", "nominal", "extended"]))
     per_run = [[name, f"{b:.3f}", f"{a:.3f}"] for name, (b, a) in d.per_run_rms.items()]
     parts.append("<h3>Before / after per run</h3>" + _table(per_run, ["run", "nominal RMS (N·mm)",
                                                                      "extended RMS (N·mm)"]))
+    if d.closed_loop and "ratio" in d.closed_loop:
+        c = d.closed_loop
+        parts.append(f"<p><b>Closed loop</b> on the simulated plant ({html.escape(str(c['preset']))}, "
+                     f"{html.escape(str(c['reference']))} reference, {c['duration_s']:g} s): tracking RMS "
+                     f"{c['nominal_rms_nmm']:.2f} N·mm (nominal compensator) → {c['extended_rms_nmm']:.2f} N·mm "
+                     f"(extended), ratio {c['ratio']:.2f}.</p>")
     if d.unexplained:
         rows = [[u["signal"], f"{u['strength']:.3f}"] for u in d.unexplained]
         parts.append("<h3>Structure no effect explains</h3>" + _table(rows, ["signal", "strength (N·mm RMS)"]))
