@@ -49,7 +49,8 @@ class Effect:
     def params(self, value: Any, beta: np.ndarray, path: FieldPath) -> dict[str, float]:
         raise NotImplementedError
 
-    def update_path(self, path: FieldPath, value: Any, own_beta: np.ndarray) -> FieldPath | None:
+    def update_path(self, path: FieldPath, value: Any, own_beta: np.ndarray, data: EvalData
+                    ) -> FieldPath | None:
         """The field path re-identified with this effect's fitted parameters removed from the protocol runs
         (None: the effect leaves the tables alone)."""
         return None
@@ -139,10 +140,15 @@ class TableResolution(Effect):
 
 
 # ----------------------------------------------------------------------------------------------- linear effects
-def thermal_state(data: EvalData, tau_s: float) -> np.ndarray:
-    """Coil heating state (1 = steady full current) over the evaluated spans: ``x' = ((I/I_full)² − x)/tau``
-    integrated over every run of the bundle in order (the actuator's state carries over)."""
-    key = ("thermal", tau_s)
+_PROTOCOL_HEAT: dict[tuple[float, str], np.ndarray] = {}
+
+
+def bundle_thermal_state(data: EvalData, tau_s: float) -> list[np.ndarray]:
+    """Coil heating state (1 = steady full current) of every run of the bundle, in bundle order:
+    ``x' = ((I/I_full)² − x)/tau`` integrated over the runs in order (the actuator's state carries over)."""
+    from scipy.signal import lfilter
+
+    key = ("thermal_all", tau_s)
     if key in data.cache:
         return data.cache[key]
     states = []
@@ -150,11 +156,22 @@ def thermal_state(data: EvalData, tau_s: float) -> np.ndarray:
     for u, dt in zip(data.bundle_currents, data.bundle_dt_s):
         heat = (np.asarray(u, float) / data.full_current_a) ** 2
         p = math.exp(-dt / tau_s)
-        from scipy.signal import lfilter
-
         x, _ = lfilter([1.0 - p], [1.0, -p], heat, zi=[p * x0])
         states.append(x)
         x0 = float(x[-1]) if x.size else x0
+    if len(_PROTOCOL_HEAT) > 512:
+        _PROTOCOL_HEAT.clear()
+    data.cache[key] = states
+    return states
+
+
+def thermal_state(data: EvalData, tau_s: float) -> np.ndarray:
+    """Coil heating state (1 = steady full current) over the evaluated spans: ``x' = ((I/I_full)² − x)/tau``
+    integrated over every run of the bundle in order (the actuator's state carries over)."""
+    key = ("thermal", tau_s)
+    if key in data.cache:
+        return data.cache[key]
+    states = bundle_thermal_state(data, tau_s)
     out = data.concat([states[r.thermal_index][r.start:] for r in data.runs])
     data.cache[key] = out
     return out
@@ -167,9 +184,25 @@ class ThermalDrift(Effect):
     def grid(self, data: EvalData) -> list[Any]:
         return [float(v) for v in np.geomspace(3.0, 3000.0, 16)]
 
+    needs_reidentify = True
+
     def columns(self, data, value, y_field, model):
         x = thermal_state(data, float(value))
         return np.column_stack([-x * y_field, y_field])
+
+    def update_path(self, path, value, own_beta, data):
+        # Heating also changed the gain along the protocol runs: identify the tables again without it.
+        names = list(data.run_start_s)
+        for r, _ in path.protocol:
+            key = (float(value), r.name)
+            if key not in _PROTOCOL_HEAT:
+                _PROTOCOL_HEAT[key] = bundle_thermal_state(data, float(value))[names.index(r.name)]
+        return path.with_correction(self.name, float(value), own_beta)
+
+    @staticmethod
+    def remove(y, value, beta, run, t0_s, model):
+        x = _PROTOCOL_HEAT[(float(value), run.name)]
+        return y / np.maximum(1.0 + beta[1] - beta[0] * x, 1e-3)
 
     def params(self, value, beta, path):
         return {"gain_loss": float(beta[0] / (1.0 + beta[1])), "tau_s": float(value)}
@@ -193,7 +226,7 @@ class FrictionCurrent(Effect):
 
     needs_reidentify = True
 
-    def update_path(self, path, value, own_beta):
+    def update_path(self, path, value, own_beta, data):
         return path.with_correction(self.name, value, own_beta)
 
     @staticmethod
@@ -218,7 +251,7 @@ class FrictionHarmonics(Effect):
 
     needs_reidentify = True
 
-    def update_path(self, path, value, own_beta):
+    def update_path(self, path, value, own_beta, data):
         return path.with_correction(self.name, value, own_beta)
 
     @staticmethod
@@ -241,7 +274,7 @@ class TorqueRipple(Effect):
 
     needs_reidentify = True
 
-    def update_path(self, path, value, own_beta):
+    def update_path(self, path, value, own_beta, data):
         return path.with_correction(self.name, value, own_beta)
 
     @staticmethod
@@ -262,7 +295,7 @@ class SensorDrift(Effect):
     def columns(self, data, value, y_field, model):
         return data.concat(data.eval_slice("t_abs_s"))[:, None]
 
-    def update_path(self, path, value, own_beta):
+    def update_path(self, path, value, own_beta, data):
         # The drift also bent the protocol runs the tables come from: identify them again without it.
         return path.with_correction(self.name, value, own_beta)
 
@@ -283,7 +316,8 @@ def remove_from_protocol(corrections: Sequence[tuple[str, Any, tuple]], y: np.nd
                          model: Any) -> np.ndarray:
     """Protocol-run field torque ``y`` (N·mm, friction removed) with fitted effects removed (additive effects
     first, then multiplicative ones)."""
-    order = {"sensor_drift": 0, "friction_harmonics": 0, "friction_current": 0, "torque_ripple": 1}
+    order = {"sensor_drift": 0, "friction_harmonics": 0, "friction_current": 0, "torque_ripple": 1,
+             "thermal_drift": 1}
     for name, value, beta in sorted(corrections, key=lambda c: order.get(c[0], 2)):
         y = by_name(name).remove(y, value, np.asarray(beta), run, t0_s, model)  # type: ignore[attr-defined]
     return y

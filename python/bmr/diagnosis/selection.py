@@ -168,7 +168,7 @@ def _fit_with(fitter: Fitter, config: Configuration, eff: Effect, value: Any, tr
         y = fitter.field(path)
         start = 1 + sum(e.columns(data, v, y, fitter.model).shape[1] for e, v in config.linear)
         for _ in range(2):
-            new = eff.update_path(path, value, beta[start:start + (beta.size - start)])
+            new = eff.update_path(path, value, beta[start:], data)
             if new is None:
                 break
             path = new
