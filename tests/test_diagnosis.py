@@ -30,7 +30,7 @@ def _draw(name: str, rng: np.random.Generator) -> dict[str, float]:
         "torque_ripple": lambda: {"eps": u(0.03, 0.08), "phase_rad": u(-3.0, 3.0)},
         "sensor_drift": lambda: {"rate_nmm_per_s": u(0.05, 0.1) * rng.choice([-1.0, 1.0])},
         "time_delay": lambda: {"delay_s": 0.002 * int(rng.integers(5, 21))},
-        "non_congruent": lambda: {"curvature": u(1.5, 3.0)},
+        "non_congruent": lambda: {"curvature": u(2.5, 4.0)},
     }[name]()
 
 
