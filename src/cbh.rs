@@ -224,8 +224,7 @@ impl<S: AsRef<[f64]>, const N: usize> Hysteresis<S, N> {
 
     /// The direction changes at the current point: remember it, unless we never left the newest reversal.
     pub(crate) fn turn(&mut self) {
-        let top = *self.state.history.top();
-        if self.state.u == top.u && self.state.history.len() > 1 {
+        if self.state.u == self.state.history.top().u && self.state.history.len() > 1 {
             self.state.history.pop(1);
         } else {
             self.push_reversal();
@@ -252,60 +251,68 @@ impl<S: AsRef<[f64]>, const N: usize> Hysteresis<S, N> {
 
     /// Push the current point as a reversal (a maximum if rising until now, else a minimum).
     pub(crate) fn push_reversal(&mut self) {
-        if self.state.history.is_full() {
-            let (asc, desc) = (&self.asc, &self.desc);
-            self.state
-                .history
-                .make_room(|entry, old, new| second_piece(asc, desc, entry, old, new));
-        }
-        let (u, y) = (self.state.u, self.state.y);
-        let below = *self.state.history.top();
-        let becomes_max = self.state.history.rising();
-        let r = if becomes_max {
-            let strip = self.desc.strip(-u);
-            let e = self.desc.everett(&strip, -below.u, &mut self.state.hint_d);
-            Reversal {
-                u,
-                y,
-                k: branch_scale(y - below.y, e),
-                strip,
-                via: None,
-            }
-        } else {
-            let strip = self.asc.strip(u);
-            let e = self.asc.everett(&strip, below.u, &mut self.state.hint_a);
-            Reversal {
-                u,
-                y,
-                k: branch_scale(below.y - y, e),
-                strip,
-                via: None,
-            }
-        };
-        self.state.history.push(r);
+        push_reversal(&self.asc, &self.desc, &mut self.state);
     }
 
     /// Output on the branch leaving the newest reversal, at input `u` (inside its range).
     #[inline]
     pub(crate) fn branch_output(&mut self, u: f64) -> f64 {
-        let top = *self.state.history.top();
-        if self.state.history.rising() {
-            if u >= self.hi && self.state.history.len() == 1 {
+        let st = &mut self.state;
+        let rising = st.history.rising();
+        let top = st.history.top();
+        if rising {
+            if u >= self.hi && st.history.len() == 1 {
                 return self.y_hi; // positive saturation is exact, like the negative one
             }
-            let e = self.asc.everett(&top.strip, u, &mut self.state.hint_a);
+            let e = self.asc.everett(&top.strip, u, &mut st.hint_a);
             match top.via {
                 Some(v) if u > v.u => v.y + v.k * (e - v.e),
                 _ => top.y + top.k * e,
             }
         } else {
-            let e = self.desc.everett(&top.strip, -u, &mut self.state.hint_d);
+            let e = self.desc.everett(&top.strip, -u, &mut st.hint_d);
             match top.via {
                 Some(v) if u < v.u => v.y - v.k * (e - v.e),
                 _ => top.y - top.k * e,
             }
         }
     }
+}
+
+/// Push the state's current point as a reversal, merging first when the memory is full.
+pub(crate) fn push_reversal<S: AsRef<[f64]>, const N: usize>(
+    asc: &Family<S>,
+    desc: &Family<S>,
+    st: &mut State<N>,
+) {
+    if st.history.is_full() {
+        st.history
+            .make_room(|entry, old, new| second_piece(asc, desc, entry, old, new));
+    }
+    let (u, y) = (st.u, st.y);
+    let below = *st.history.top();
+    let r = if st.history.rising() {
+        let strip = desc.strip(-u);
+        let e = desc.everett(&strip, -below.u, &mut st.hint_d);
+        Reversal {
+            u,
+            y,
+            k: branch_scale(y - below.y, e),
+            strip,
+            via: None,
+        }
+    } else {
+        let strip = asc.strip(u);
+        let e = asc.everett(&strip, below.u, &mut st.hint_a);
+        Reversal {
+            u,
+            y,
+            k: branch_scale(below.y - y, e),
+            strip,
+            via: None,
+        }
+    };
+    st.history.push(r);
 }
 
 /// Branch scale that makes an increment `e` produce the output change `dy`; 1 when undefined.

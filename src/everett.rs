@@ -31,6 +31,12 @@ pub struct Strip {
     pub lambda: f64,
     /// `E_j(r_next)`: the strip triangle's total increment.
     pub t_j: f64,
+    /// Grid node index of `r_j`.
+    pub k_j: usize,
+    /// Grid node index of `r_next`.
+    pub k_next: usize,
+    /// Offset of row `j` in the table storage (row `j + 1` follows it).
+    pub row_j: usize,
 }
 
 impl Strip {
@@ -42,6 +48,9 @@ impl Strip {
         r_next: 0.0,
         lambda: 0.0,
         t_j: 0.0,
+        k_j: 0,
+        k_next: 0,
+        row_j: 0,
     };
 }
 
@@ -209,6 +218,7 @@ impl<S: AsRef<[f64]>> Family<S> {
     pub fn strip(&self, m: f64) -> Strip {
         let m = m.clamp(self.lo(), self.hi());
         let r = self.reversals();
+        let g = self.grid();
         let j = r.partition_point(|&x| x <= m).max(1) - 1;
         let r_j = r[j];
         let r_next = if j + 1 < self.curves {
@@ -217,9 +227,11 @@ impl<S: AsRef<[f64]>> Family<S> {
             self.hi()
         };
         let lambda = ((m - r_j) / (r_next - r_j)).clamp(0.0, 1.0);
-        let mut hint = 0;
-        let k = self.locate(r_next, &mut hint);
-        let t_j = self.row_at(j, k, r_next);
+        // Reversals and the range end are exact grid nodes (validated).
+        let k_j = g.partition_point(|&x| x < r_j);
+        let k_next = g.partition_point(|&x| x < r_next);
+        let t_j = self.row(j)[k_next];
+        let row_j = self.nodes + self.curves + j * self.nodes;
         Strip {
             m,
             j,
@@ -227,6 +239,9 @@ impl<S: AsRef<[f64]>> Family<S> {
             r_next,
             lambda,
             t_j,
+            k_j,
+            k_next,
+            row_j,
         }
     }
 
@@ -240,8 +255,9 @@ impl<S: AsRef<[f64]>> Family<S> {
         if u <= s.r_next {
             // Inside the strip's triangle: the measured curve j, squeezed onto [m, r_next].
             let v = s.r_j + (s.r_next - s.r_j) * (u - s.m) / (s.r_next - s.m);
-            let mut h = 0;
-            let k = self.locate(v, &mut h);
+            // Only the strip's own cells [k_j, k_next] can hold v.
+            let g = &self.grid()[s.k_j..=s.k_next];
+            let k = s.k_j + g.partition_point(|&x| x <= v).clamp(1, g.len() - 1) - 1;
             return one_l * one_l * self.row_at(s.j, k, v);
         }
         let k = self.locate(u, hint);
@@ -255,12 +271,13 @@ impl<S: AsRef<[f64]>> Family<S> {
     /// The strip combination `(1-λ)E_j + λE_{j+1} - λ(1-λ)T_j` at grid node `k` (only for nodes at or above r_next).
     #[inline]
     fn combined_node(&self, s: &Strip, k: usize) -> f64 {
-        let one_l = 1.0 - s.lambda;
-        let a = self.row(s.j)[k];
+        let d = self.data.as_ref();
+        let a = d[s.row_j + k];
         if s.lambda == 0.0 {
             return a;
         }
-        let b = self.row(s.j + 1)[k];
+        let b = d[s.row_j + self.nodes + k];
+        let one_l = 1.0 - s.lambda;
         one_l * a + s.lambda * b - s.lambda * one_l * s.t_j
     }
 
@@ -271,8 +288,9 @@ impl<S: AsRef<[f64]>> Family<S> {
     }
 
     /// Smallest input `u >= s.m` with `E(m, u) = e`, for `0 <= e <= everett_max(s)`; `e` beyond the range clamps
-    /// to `s.m` or `hi`. Closed form inside one cell after an `O(log nodes)` search.
-    pub fn everett_inverse(&self, s: &Strip, e: f64) -> f64 {
+    /// to `s.m` or `hi`. Closed form inside one cell; the cell is found by galloping from `hint` (the cell of a
+    /// nearby input), so slowly varying targets cost O(1) and any hint gives the same answer.
+    pub fn everett_inverse(&self, s: &Strip, e: f64, hint: usize) -> f64 {
         if e <= 0.0 || s.m >= self.hi() {
             return s.m;
         }
@@ -283,45 +301,90 @@ impl<S: AsRef<[f64]>> Family<S> {
             // Invert E_j on [r_j, r_next], then map back onto [m, r_next].
             let target = e / (one_l * one_l);
             let row = self.row(s.j);
-            let v = invert_monotone(g, |k| row[k], target, s.r_j);
+            let v = invert_monotone(g, |k| row[k], target, s.k_j, s.k_next, s.k_j);
             return s.m + (v - s.r_j) * (s.r_next - s.m) / (s.r_next - s.r_j);
         }
         if s.j + 1 >= self.curves {
             return self.hi();
         }
-        let u = invert_monotone(g, |k| self.combined_node(s, k), e, s.r_next);
+        let u = invert_monotone(
+            g,
+            |k| self.combined_node(s, k),
+            e,
+            s.k_next,
+            self.nodes - 1,
+            hint,
+        );
         u.max(s.r_next)
     }
 }
 
-/// Smallest `u >= from` where the piecewise-linear function with node values `f(k)` on `grid` reaches `target`.
-/// `f` must be non-decreasing from the cell holding `from` on. Returns the last node if `target` is never reached.
-fn invert_monotone(grid: &[f64], f: impl Fn(usize) -> f64, target: f64, from: f64) -> f64 {
-    let n = grid.len();
-    let start = grid.partition_point(|&x| x <= from).clamp(1, n) - 1;
-    // First node at or after `start` whose value reaches the target.
-    let (mut lo, mut hi) = (start, n);
-    while lo < hi {
+/// Input where the piecewise-linear function with node values `f(k)` on `grid` first reaches `target`, searching
+/// nodes `start..=end` (`f` non-decreasing there). Returns `grid[end]` if `target` is never reached. The answer
+/// does not depend on `hint`; a hint near the answer makes the search O(1).
+#[inline]
+fn invert_monotone(
+    grid: &[f64],
+    f: impl Fn(usize) -> f64,
+    target: f64,
+    start: usize,
+    end: usize,
+    hint: usize,
+) -> f64 {
+    let cell = |lo: usize, hi: usize, f0: f64, f1: f64| {
+        let t = if f1 > f0 {
+            (target - f0) / (f1 - f0)
+        } else {
+            1.0
+        };
+        grid[lo] + t.clamp(0.0, 1.0) * (grid[hi] - grid[lo])
+    };
+    let h = hint.clamp(start, end - 1);
+    // Fast path: the hinted cell holds the answer (f(h) < target <= f(h+1) makes h+1 the first node reaching it).
+    let (fh, fh1) = (f(h), f(h + 1));
+    if fh < target && target <= fh1 {
+        return cell(h, h + 1, fh, fh1);
+    }
+    // Gallop away from the hint to bracket the answer: f(lo) < target <= f(hi).
+    let (mut lo, mut hi);
+    if fh1 < target {
+        lo = h + 1;
+        let mut step = 1;
+        loop {
+            if lo == end {
+                return grid[end]; // never reached
+            }
+            let probe = (lo + step).min(end);
+            if f(probe) >= target {
+                hi = probe;
+                break;
+            }
+            lo = probe;
+            step *= 2;
+        }
+    } else {
+        hi = h;
+        let mut step = 1;
+        loop {
+            if hi == start {
+                return grid[start]; // reached at the start
+            }
+            let probe = hi.saturating_sub(step).max(start);
+            if f(probe) < target {
+                lo = probe;
+                break;
+            }
+            hi = probe;
+            step *= 2;
+        }
+    }
+    while hi - lo > 1 {
         let mid = lo + (hi - lo) / 2;
         if f(mid) >= target {
             hi = mid;
         } else {
-            lo = mid + 1;
+            lo = mid;
         }
     }
-    if lo >= n {
-        return grid[n - 1];
-    }
-    if lo == start {
-        return grid[start].max(from);
-    }
-    let (k0, k1) = (lo - 1, lo);
-    let (f0, f1) = (f(k0), f(k1));
-    let t = if f1 > f0 {
-        (target - f0) / (f1 - f0)
-    } else {
-        1.0
-    };
-    let u = grid[k0] + t.clamp(0.0, 1.0) * (grid[k1] - grid[k0]);
-    u.max(from)
+    cell(lo, hi, f(lo), f(hi))
 }

@@ -10,12 +10,11 @@ pub const MAX_ORDER: usize = 12;
 /// Friction model with up to `K` harmonics, fixed-size (no allocation).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Friction<const K: usize> {
-    /// Constant term (N·mm).
-    pub c0: f64,
-    /// Sine coefficients of harmonics 1..=K (N·mm).
-    pub a: SVector<f64, K>,
-    /// Cosine coefficients of harmonics 1..=K (N·mm).
-    pub b: SVector<f64, K>,
+    c0: f64,
+    a: SVector<f64, K>,
+    b: SVector<f64, K>,
+    /// Highest non-zero harmonic: `eval` stops there.
+    order: usize,
 }
 
 impl<const K: usize> Friction<K> {
@@ -25,6 +24,7 @@ impl<const K: usize> Friction<K> {
             c0: 0.0,
             a: SVector::zeros(),
             b: SVector::zeros(),
+            order: 0,
         }
     }
 
@@ -42,6 +42,10 @@ impl<const K: usize> Friction<K> {
         f.c0 = c0;
         f.a.as_mut_slice()[..a.len()].copy_from_slice(a);
         f.b.as_mut_slice()[..b.len()].copy_from_slice(b);
+        f.order = (0..K)
+            .rev()
+            .find(|&k| f.a[k] != 0.0 || f.b[k] != 0.0)
+            .map_or(0, |k| k + 1);
         Some(f)
     }
 
@@ -67,20 +71,32 @@ impl<const K: usize> Friction<K> {
 
     /// Highest harmonic with a non-zero coefficient.
     pub fn order(&self) -> usize {
-        (0..K)
-            .rev()
-            .find(|&k| self.a[k] != 0.0 || self.b[k] != 0.0)
-            .map_or(0, |k| k + 1)
+        self.order
+    }
+    /// Constant term (N·mm).
+    pub fn c0(&self) -> f64 {
+        self.c0
+    }
+    /// Sine coefficients of harmonics 1..=K (N·mm).
+    pub fn a(&self) -> &SVector<f64, K> {
+        &self.a
+    }
+    /// Cosine coefficients of harmonics 1..=K (N·mm).
+    pub fn b(&self) -> &SVector<f64, K> {
+        &self.b
     }
 
-    /// Friction torque at rotor angle `theta` (rad). One sine and one cosine call; higher harmonics by the
-    /// angle-addition recurrence. NaN in, NaN out.
+    /// Friction torque at rotor angle `theta` (rad). One `sincos` call; higher harmonics by the angle-addition
+    /// recurrence. NaN in, NaN out.
     #[inline]
     pub fn eval(&self, theta: f64) -> f64 {
-        let (s1, c1) = (libm::sin(theta), libm::cos(theta));
+        if self.order == 0 {
+            return self.c0;
+        }
+        let (s1, c1) = libm::sincos(theta);
         let (mut s, mut c) = (s1, c1);
         let mut t = self.c0;
-        for k in 0..K {
+        for k in 0..self.order.min(K) {
             t += self.a[k] * s + self.b[k] * c;
             let s_next = s * c1 + c * s1;
             c = c * c1 - s * s1;

@@ -9,6 +9,7 @@
 extern crate alloc;
 
 pub mod cbh;
+pub mod compensator;
 pub mod congruency;
 pub mod error;
 pub mod everett;
@@ -16,18 +17,26 @@ pub mod friction;
 #[cfg(feature = "alloc")]
 pub mod from_curves;
 pub mod history;
+pub mod inverse;
+#[cfg(feature = "alloc")]
+pub mod paper_inverse;
 #[cfg(feature = "std")]
 pub mod plant;
 #[cfg(feature = "alloc")]
 pub mod table_builder;
 
 pub use cbh::{Hysteresis, Initial, State};
+pub use compensator::{Command, Compensator, CompensatorError, CompensatorState, InverseKind};
 pub use congruency::{Congruency, congruency};
 pub use error::{FamilyKind, TableError};
 pub use everett::{Family, Strip};
 pub use friction::Friction;
+pub use inverse::InverseInput;
 #[cfg(feature = "alloc")]
 pub use table_builder::{BuildOptions, MeasuredCurve, build_tables};
 
 #[cfg(feature = "python")]
 mod python;
+
+#[cfg(feature = "lstsq")]
+pub mod identification;

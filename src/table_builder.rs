@@ -335,7 +335,8 @@ fn build_family(
     for x in grid {
         match merged.last_mut() {
             Some(last) if x - *last <= eps => {
-                if reversals.binary_search_by(|r| r.total_cmp(&x)).is_ok() {
+                // Reversals and the range ends must stay exact nodes.
+                if x == hi || reversals.binary_search_by(|r| r.total_cmp(&x)).is_ok() {
                     *last = x;
                 }
             }

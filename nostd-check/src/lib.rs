@@ -1,9 +1,9 @@
 //! Links the bmr real-time core into a `#![no_std]` static library with no global allocator: a CBH operator on
-//! static tables, stepped, plus the friction model. If anything in that path needed `std` or `alloc`, this would
+//! static tables, stepped, and a compensator (exact inverse + friction) on it. If anything in that path needed `std` or `alloc`, this would
 //! not build.
 #![no_std]
 
-use bmr::{Family, FamilyKind, Friction, Hysteresis, Initial};
+use bmr::{Compensator, Family, FamilyKind, Friction, Hysteresis, Initial, InverseKind};
 use core::panic::PanicInfo;
 
 #[panic_handler]
@@ -38,5 +38,9 @@ pub unsafe extern "C" fn bmr_nostd_demo(inputs: *const f64, n: usize, theta: f64
         y = h.step(u);
     }
     let f = Friction::<12>::from_coefficients(1.0, &[0.5], &[0.25]).unwrap_or(Friction::zero());
-    y + f.eval(theta)
+    let Ok(mut c) = Compensator::new(h, InverseKind::Exact, f, 0.125, 1.25) else {
+        return f64::NAN;
+    };
+    let cmd = c.step(0.5, theta);
+    y + cmd.current_a + cmd.volt2_v
 }

@@ -1,35 +1,60 @@
 """bmr: accurate torque control of bi-directional magneto-rheological actuators.
 
-Core (Rust): ``Hysteresis`` (CBH operator), ``Friction`` (angle-periodic seal friction), ``VirtualActuator``
-(a physical simulator of the rig; ``EFFECTS`` names its switchable effects, ``effect_parameters()`` documents
-them). Experiment protocols and bundles of them: ``bmr.experiments``.
+Core (Rust): ``Hysteresis`` (CBH operator), ``Friction`` (angle-periodic seal friction), ``Compensator``
+(exact or paper inverse + friction feedforward, coil split, current limit), ``VirtualActuator`` (a physical
+simulator of the rig; ``EFFECTS`` names its switchable effects, ``effect_parameters()`` documents them).
+Experiment protocols and bundles of them: ``bmr.experiments``.
+Identification: ``identify`` (friction + CBH tables from a bundle) giving a ``Model`` (``bmr-model/1`` files),
+``fit_friction``, ``extract_first_order_curves``, ``fit_tables_lstsq`` / ``EverettModel`` (least-squares
+Preisach tables). Lab readers: ``read_table``, ``bundle_from_files``.
 Units: current in A (nominal current spans both coils: negative = coil 1, positive = coil 2), torque in N·mm,
-angles in rad, time in s.
+angles in rad, time in s, converter voltages in V.
 """
 from bmr._core import (
     EFFECTS,
     PRESETS,
     BmrError,
+    Command,
+    Compensator,
+    CompensatorState,
+    EverettModel,
     Friction,
     Hysteresis,
     HysteresisState,
     VirtualActuator,
     effect_parameters,
+    fit_everett,
 )
 from bmr.bundle import Bundle, Run, read_bundle, write_bundle
+from bmr.identify import FrictionFit, extract_first_order_curves, fit_friction, fit_tables_lstsq, identify
+from bmr.io import bundle_from_files, read_table
+from bmr.model import Model
 
 __all__ = [
     "EFFECTS",
     "PRESETS",
     "BmrError",
     "Bundle",
+    "Command",
+    "Compensator",
+    "CompensatorState",
+    "EverettModel",
     "Friction",
+    "FrictionFit",
     "Hysteresis",
     "HysteresisState",
+    "Model",
     "Run",
     "VirtualActuator",
+    "bundle_from_files",
     "effect_parameters",
+    "extract_first_order_curves",
+    "fit_everett",
+    "fit_friction",
+    "fit_tables_lstsq",
+    "identify",
     "read_bundle",
+    "read_table",
     "write_bundle",
 ]
 __version__ = "0.1.0"

@@ -70,6 +70,36 @@ class Friction:
     def order(self) -> int: ...
     def amplitude_phase(self) -> tuple[np.ndarray, np.ndarray]: ...
 
+# --- identification (least squares, faer) ---
+def fit_friction_order(theta_rad: np.ndarray, torque_nmm: np.ndarray, order: int) -> dict:
+    """Friction c0 + Σ a_k sin kθ + b_k cos kθ of one order: c0, a, b, *_stderr, covariance, rss, n, order."""
+
+class EverettModel:
+    """Preisach model with a tabulated Everett function E(β, α) on an input grid (nonnegative cell masses)."""
+    def __init__(self, grid: np.ndarray, masses: np.ndarray, offset: float) -> None: ...
+    @property
+    def grid(self) -> np.ndarray: ...
+    @property
+    def masses(self) -> np.ndarray: ...
+    @property
+    def offset(self) -> float: ...
+    def everett(self, beta: float, alpha: float) -> float: ...
+    def everett_table(self) -> np.ndarray: ...
+    def simulate(self, u: np.ndarray, offset: float | None = None) -> np.ndarray: ...
+    def first_order_curves(
+        self,
+    ) -> tuple[list[tuple[np.ndarray, np.ndarray]], list[tuple[np.ndarray, np.ndarray]]]: ...
+
+def fit_everett(
+    grid: np.ndarray,
+    runs: Sequence[tuple[np.ndarray, np.ndarray, np.ndarray, int]],
+    n_offsets: int = 1,
+    *,
+    smoothing: float = 1e-4,
+    ridge: float = 1e-9,
+    max_iter: int = 500,
+) -> dict:
+    """Regularised NNLS Everett table: model, offsets, rss, rms, n_rows, iterations."""
 EFFECTS: tuple[str, ...]
 """Names of the virtual actuator's switchable effects (the diagnosis vocabulary)."""
 PRESETS: tuple[str, ...]
@@ -115,3 +145,45 @@ class VirtualActuator:
     def resolution_nmm(self) -> float: ...
     @property
     def converter_gain_a_per_v(self) -> float: ...
+class Command:
+    """One control-period command."""
+    current_a: float
+    coil1_a: float
+    coil2_a: float
+    volt1_v: float
+    volt2_v: float
+    saturated: bool
+    fault: bool
+
+class CompensatorState:
+    """Opaque snapshot of a Compensator's memory."""
+
+class Compensator:
+    """Open-loop torque compensator: I = H⁻¹[T_ref − T_f(θ)], coil split, current limit, converter voltages."""
+    def __init__(
+        self,
+        hysteresis: Hysteresis,
+        friction: Friction | None = None,
+        *,
+        inverse: str = "exact",
+        converter_gain: float = 0.125,
+        current_limit: float = 1.25,
+        initial: Initial | None = None,
+    ) -> None: ...
+    def step(self, torque_ref_nmm: float, theta_rad: float) -> Command: ...
+    def run(self, torque_ref_nmm: ArrayLike, theta_rad: ArrayLike) -> dict[str, np.ndarray]: ...
+    def reset(self, initial: Initial | None = None) -> None: ...
+    def snapshot(self) -> CompensatorState: ...
+    def restore(self, state: CompensatorState) -> None: ...
+    @property
+    def inverse(self) -> str: ...
+    @property
+    def converter_gain(self) -> float: ...
+    @property
+    def current_limit(self) -> float: ...
+    @property
+    def predicted_torque_nmm(self) -> float: ...
+    @property
+    def hysteresis(self) -> Hysteresis: ...
+    @property
+    def friction(self) -> Friction: ...

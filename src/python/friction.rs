@@ -70,17 +70,17 @@ impl PyFriction {
 
     #[getter]
     fn c0(&self) -> f64 {
-        self.f.c0
+        self.f.c0()
     }
     /// Sine coefficients of harmonics 1..order.
     #[getter]
     fn a(&self) -> Vec<f64> {
-        self.f.a.as_slice()[..self.f.order()].to_vec()
+        self.f.a().as_slice()[..self.f.order()].to_vec()
     }
     /// Cosine coefficients of harmonics 1..order.
     #[getter]
     fn b(&self) -> Vec<f64> {
-        self.f.b.as_slice()[..self.f.order()].to_vec()
+        self.f.b().as_slice()[..self.f.order()].to_vec()
     }
     /// Highest harmonic with a non-zero coefficient.
     #[getter]
@@ -100,7 +100,7 @@ impl PyFriction {
     fn __repr__(&self) -> String {
         format!(
             "Friction(c0={}, a={:?}, b={:?})",
-            self.f.c0,
+            self.f.c0(),
             self.a(),
             self.b()
         )

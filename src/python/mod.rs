@@ -2,8 +2,10 @@
 use pyo3::prelude::*;
 
 mod arrays;
+mod compensator;
 mod friction;
 mod hysteresis;
+mod identification;
 mod virtual_actuator;
 
 pyo3::create_exception!(
@@ -23,6 +25,8 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("BmrError", m.py().get_type::<BmrError>())?;
     hysteresis::register(m)?;
     friction::register(m)?;
+    identification::register(m)?;
     virtual_actuator::register(m)?;
+    compensator::register(m)?;
     Ok(())
 }

@@ -1,0 +1,118 @@
+"""Per-step cost of bmr from Python next to the peers a user would otherwise reach for, measured in one process.
+
+    python benches/python_peers.py            (needs: pip install -e ".[bench]")
+
+Peers: python-control's `friction_backlash_nonlinearity` (one play operator), a 20-operator Prandtl-Ishlinskii
+sum built from it, and a numpy discrete Preisach model with ~5000 hysterons. bmr: `Hysteresis.step`,
+`Compensator.step` (exact and paper inverse) and `Compensator.run` throughput. Ratios are peer / bmr.
+"""
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
+import bmr  # noqa: E402
+from preisach_plant import first_order_curves  # noqa: E402
+
+
+def per_call_us(fn, args_seq, repeat: int = 5) -> float:
+    """Best-of-`repeat` mean time per call (µs) over the argument sequence."""
+    best = float("inf")
+    for _ in range(repeat):
+        t0 = time.perf_counter()
+        for a in args_seq:
+            fn(*a)
+        best = min(best, (time.perf_counter() - t0) / len(args_seq))
+    return best * 1e6
+
+
+def multipeak(n: int, seed: int = 0, amp: float = 280.0) -> np.ndarray:
+    rng = np.random.default_rng(seed)
+    knots = rng.uniform(-amp, amp, n // 500 + 2)
+    x = np.linspace(0, len(knots) - 1, n)
+    return np.interp(x, np.arange(len(knots)), knots)
+
+
+class NumpyPreisach:
+    """Discrete Preisach model: relays on a triangular threshold grid, vectorised numpy update."""
+
+    def __init__(self, per_axis: int = 100):
+        t = np.linspace(-1, 1, per_axis)
+        a, b = np.meshgrid(t, t, indexing="ij")
+        keep = b <= a
+        self.alpha, self.beta = a[keep], b[keep]
+        self.w = np.exp(-(((self.alpha - self.beta) / 2 - 0.25) / 0.2) ** 2) / keep.sum()
+        self.s = -np.ones_like(self.alpha)
+
+    def step(self, u: float) -> float:
+        self.s[self.alpha <= u] = 1.0
+        self.s[self.beta >= u] = -1.0
+        return float(self.w @ self.s)
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--steps", type=int, default=20000)
+    args = ap.parse_args()
+    n = args.steps
+    asc, desc = first_order_curves(200, 21)
+    scale = lambda fam: [(1.25 * u, y) for u, y in fam]  # noqa: E731
+    h = bmr.Hysteresis.from_curves(scale(asc), scale(desc))
+    f = bmr.Friction.from_amplitude_phase(12.0, [25.0, 8.0, 4.0], [0.3, 1.1, -0.7])
+    ref = multipeak(n)
+    theta = np.linspace(0, 0.002 * n, n)
+    cur = ref / 240.0
+    ref_l, th_l, cur_l = ref.tolist(), theta.tolist(), cur.tolist()
+
+    results: dict[str, float] = {}
+    results["bmr Hysteresis.step"] = per_call_us(h.step, [(u,) for u in cur_l])
+    for inv in ("exact", "paper"):
+        c = bmr.Compensator(h, f, inverse=inv)
+        results[f"bmr Compensator.step ({inv})"] = per_call_us(c.step, list(zip(ref_l, th_l)))
+    c = bmr.Compensator(h, f)
+    big_ref, big_th = multipeak(2_000_000, 1), np.linspace(0, 4000, 2_000_000)
+    t0 = time.perf_counter()
+    c.run(big_ref, big_th)
+    run_rate = big_ref.size / (time.perf_counter() - t0)
+    h2 = bmr.Hysteresis.from_curves(scale(asc), scale(desc))
+    big_cur = big_ref / 240.0
+    t0 = time.perf_counter()
+    h2.run(big_cur)
+    hrun_rate = big_cur.size / (time.perf_counter() - t0)
+
+    peers: dict[str, float] = {}
+    try:
+        import control as ct
+
+        play = ct.friction_backlash_nonlinearity(0.05)
+        peers["python-control play operator"] = per_call_us(play, [(u,) for u in cur_l])
+        plays = [ct.friction_backlash_nonlinearity(r) for r in np.linspace(0.0, 1.0, 20)]
+        weights = np.linspace(1.0, 0.1, 20).tolist()
+
+        def pi_sum(u):
+            return sum(w * p(u) for w, p in zip(weights, plays))
+
+        peers["python-control 20-operator Prandtl-Ishlinskii"] = per_call_us(pi_sum, [(u,) for u in cur_l])
+    except ImportError:
+        print("python-control not installed (pip install control): its peers are skipped")
+    pre = NumpyPreisach(100)
+    peers[f"numpy discrete Preisach ({pre.alpha.size} hysterons)"] = per_call_us(pre.step, [(u,) for u in cur_l[:5000]])
+
+    ref_step = results["bmr Compensator.step (exact)"]
+    print(f"per-call cost from Python ({n} calls, best of 5):")
+    for name, us in results.items():
+        print(f"  {name:52s} {us:8.3f} µs")
+    for name, us in peers.items():
+        print(f"  {name:52s} {us:8.3f} µs   = {us / ref_step:6.1f} × bmr Compensator.step (exact)")
+    print(f"  {'bmr Compensator.run throughput':52s} {run_rate / 1e6:8.1f} M samples/s")
+    print(f"  {'bmr Hysteresis.run throughput':52s} {hrun_rate / 1e6:8.1f} M samples/s")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

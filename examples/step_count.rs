@@ -1,0 +1,31 @@
+//! Runs `N` compensator steps (exact inverse) on a random multi-peak reference: a fixed workload for counting
+//! instructions per step with callgrind (`benches/callgrind.sh`). Usage: `step_count N [hysteresis|compensator]`.
+#[path = "../benches/workload.rs"]
+mod workload;
+
+use bmr::{Compensator, InverseKind};
+use std::hint::black_box;
+
+fn main() {
+    let mut args = std::env::args().skip(1);
+    let n: usize = args.next().and_then(|a| a.parse().ok()).unwrap_or(100_000);
+    let what = args.next().unwrap_or_else(|| "compensator".into());
+    let h = workload::operator();
+    let refs = workload::multipeak_reference(200_000, 3);
+    let f = workload::friction();
+    let mut acc = 0.0;
+    if what == "hysteresis" {
+        let mut op = h;
+        for i in 0..n {
+            acc += op.step(black_box(refs[i % refs.len()] / 240.0));
+        }
+    } else {
+        let mut c = Compensator::new(h, InverseKind::Exact, f, 0.125, 1.25).unwrap();
+        for i in 0..n {
+            acc += c
+                .step(black_box(refs[i % refs.len()]), black_box(i as f64 * 0.002))
+                .current_a;
+        }
+    }
+    println!("{acc}");
+}

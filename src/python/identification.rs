@@ -1,0 +1,219 @@
+//! Python bindings of the identification least squares: `fit_friction_order`, `EverettModel`, `fit_everett`.
+use numpy::{PyArray1, PyArray2, PyArrayMethods, PyReadonlyArray1};
+use pyo3::prelude::*;
+use pyo3::types::{PyDict, PyList, PyTuple};
+
+use crate::identification::{
+    EverettFitOptions, EverettGrid, EverettModel, EverettRun, fit_everett as fit_everett_rs,
+    fit_friction,
+};
+use crate::python::BmrError;
+
+/// One training run as passed from Python: input, output, row weights, offset column.
+type RunArrays<'py> = (
+    PyReadonlyArray1<'py, f64>,
+    PyReadonlyArray1<'py, f64>,
+    PyReadonlyArray1<'py, f64>,
+    usize,
+);
+/// The same run copied out of Python (so the fit can run without the interpreter lock).
+type RunData = (Vec<f64>, Vec<f64>, Vec<f64>, usize);
+
+fn to_vec(a: &PyReadonlyArray1<'_, f64>) -> Vec<f64> {
+    a.as_array().iter().copied().collect()
+}
+
+/// Least-squares friction fit of one harmonic order: returns a dict with c0, a, b, their standard errors,
+/// covariance (p × p), rss, n and order. Raises BmrError on bad input or rank deficiency.
+#[pyfunction]
+#[pyo3(signature = (theta_rad, torque_nmm, order))]
+fn fit_friction_order<'py>(
+    py: Python<'py>,
+    theta_rad: PyReadonlyArray1<'py, f64>,
+    torque_nmm: PyReadonlyArray1<'py, f64>,
+    order: usize,
+) -> PyResult<Bound<'py, PyDict>> {
+    let theta = to_vec(&theta_rad);
+    let torque = to_vec(&torque_nmm);
+    let fit = py
+        .detach(|| fit_friction(&theta, &torque, order))
+        .map_err(|e| BmrError::new_err(format!("friction fit: {e}")))?;
+    let p = fit.n_params();
+    let d = PyDict::new(py);
+    d.set_item("order", fit.order)?;
+    d.set_item("c0", fit.c0)?;
+    d.set_item("a", PyArray1::from_slice(py, &fit.a))?;
+    d.set_item("b", PyArray1::from_slice(py, &fit.b))?;
+    d.set_item("c0_stderr", fit.c0_stderr)?;
+    d.set_item("a_stderr", PyArray1::from_slice(py, &fit.a_stderr))?;
+    d.set_item("b_stderr", PyArray1::from_slice(py, &fit.b_stderr))?;
+    d.set_item(
+        "covariance",
+        PyArray1::from_slice(py, &fit.covariance).reshape([p, p])?,
+    )?;
+    d.set_item("rss", fit.rss)?;
+    d.set_item("n", fit.n)?;
+    Ok(d)
+}
+
+/// A Preisach model with a tabulated Everett function `E(β, α)` on an input grid (see the Rust docs of
+/// `identification::everett_regressors`). The ascending first-order curve from reversal m is
+/// `y(m) + E(m, u)`, the descending one from M is `y(M) − E(u, M)`.
+#[pyclass(name = "EverettModel", module = "bmr._core", frozen)]
+pub struct PyEverettModel {
+    inner: EverettModel,
+}
+
+#[pymethods]
+impl PyEverettModel {
+    /// Build from grid nodes (strictly increasing), packed nonnegative cell masses and the negative-saturation
+    /// output `offset`.
+    #[new]
+    #[pyo3(signature = (grid, masses, offset))]
+    fn new(
+        grid: PyReadonlyArray1<'_, f64>,
+        masses: PyReadonlyArray1<'_, f64>,
+        offset: f64,
+    ) -> PyResult<Self> {
+        let grid = EverettGrid::new(to_vec(&grid)).map_err(BmrError::new_err)?;
+        let inner = EverettModel::new(grid, to_vec(&masses), offset).map_err(BmrError::new_err)?;
+        Ok(Self { inner })
+    }
+
+    /// Input grid nodes.
+    #[getter]
+    fn grid<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
+        PyArray1::from_slice(py, self.inner.grid().nodes())
+    }
+
+    /// Packed cell masses.
+    #[getter]
+    fn masses<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
+        PyArray1::from_slice(py, self.inner.masses())
+    }
+
+    /// Output at negative saturation.
+    #[getter]
+    fn offset(&self) -> f64 {
+        self.inner.offset()
+    }
+
+    /// `E(β, α)` (0 when β ≥ α).
+    fn everett(&self, beta: f64, alpha: f64) -> f64 {
+        self.inner.everett(beta, alpha)
+    }
+
+    /// The Everett table at the nodes as an (N+1) × (N+1) array `E[i, j] = E(g_i, g_j)` (NaN below the
+    /// diagonal).
+    fn everett_table<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<f64>>> {
+        let g = self.inner.grid().nodes();
+        let n = g.len();
+        let mut out = vec![f64::NAN; n * n];
+        for i in 0..n {
+            for j in i..n {
+                out[i * n + j] = self.inner.everett(g[i], g[j]);
+            }
+        }
+        PyArray1::from_vec(py, out).reshape([n, n])
+    }
+
+    /// Output along input `u` starting from negative saturation; `offset` overrides the model's offset.
+    #[pyo3(signature = (u, offset=None))]
+    fn simulate<'py>(
+        &self,
+        py: Python<'py>,
+        u: PyReadonlyArray1<'py, f64>,
+        offset: Option<f64>,
+    ) -> PyResult<Bound<'py, PyArray1<f64>>> {
+        let u = to_vec(&u);
+        if let Some(i) = u.iter().position(|v| !v.is_finite()) {
+            return Err(BmrError::new_err(format!(
+                "input sample {i} is not finite ({})",
+                u[i]
+            )));
+        }
+        let y = py.detach(|| self.inner.simulate(&u, offset));
+        Ok(PyArray1::from_vec(py, y))
+    }
+
+    /// First-order curves at every grid node, `(ascending, descending)`, each a list of `(u, y)` arrays in
+    /// traversal order; the first curve of each family is the major branch.
+    fn first_order_curves<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyTuple>> {
+        let (asc, desc) = self.inner.first_order_curves();
+        let conv = |fam: Vec<(Vec<f64>, Vec<f64>)>| -> PyResult<Bound<'py, PyList>> {
+            let items: Vec<Bound<'py, PyTuple>> = fam
+                .into_iter()
+                .map(|(u, y)| {
+                    PyTuple::new(py, [PyArray1::from_vec(py, u), PyArray1::from_vec(py, y)])
+                })
+                .collect::<PyResult<_>>()?;
+            PyList::new(py, items)
+        };
+        PyTuple::new(py, [conv(asc)?, conv(desc)?])
+    }
+
+    fn __repr__(&self) -> String {
+        format!(
+            "EverettModel(intervals={}, range=[{}, {}], offset={})",
+            self.inner.grid().n_intervals(),
+            self.inner.grid().lo(),
+            self.inner.grid().hi(),
+            self.inner.offset()
+        )
+    }
+}
+
+/// Regularised nonnegative least squares for an Everett table on `grid` from `runs`, a list of
+/// `(u, y, weight, offset_col)` (weight 0 keeps a sample out of the fit while it drives the memory).
+/// Returns a dict: model (EverettModel), offsets, rss, rms, n_rows, iterations.
+#[pyfunction]
+#[pyo3(signature = (grid, runs, n_offsets=1, *, smoothing=1e-4, ridge=1e-9, max_iter=500))]
+fn fit_everett<'py>(
+    py: Python<'py>,
+    grid: PyReadonlyArray1<'py, f64>,
+    runs: Vec<RunArrays<'py>>,
+    n_offsets: usize,
+    smoothing: f64,
+    ridge: f64,
+    max_iter: usize,
+) -> PyResult<Bound<'py, PyDict>> {
+    let grid = EverettGrid::new(to_vec(&grid)).map_err(BmrError::new_err)?;
+    let data: Vec<RunData> = runs
+        .iter()
+        .map(|(u, y, w, o)| (to_vec(u), to_vec(y), to_vec(w), *o))
+        .collect();
+    let options = EverettFitOptions {
+        smoothing,
+        ridge,
+        max_iter,
+    };
+    let fit = py
+        .detach(|| {
+            let views: Vec<EverettRun<'_>> = data
+                .iter()
+                .map(|(u, y, w, o)| EverettRun {
+                    u,
+                    y,
+                    weight: w,
+                    offset_col: *o,
+                })
+                .collect();
+            fit_everett_rs(&grid, &views, n_offsets, options)
+        })
+        .map_err(|e| BmrError::new_err(format!("Everett table fit: {e}")))?;
+    let d = PyDict::new(py);
+    d.set_item("offsets", PyArray1::from_slice(py, &fit.offsets))?;
+    d.set_item("rss", fit.rss)?;
+    d.set_item("rms", fit.rms)?;
+    d.set_item("n_rows", fit.n_rows)?;
+    d.set_item("iterations", fit.iterations)?;
+    d.set_item("model", Py::new(py, PyEverettModel { inner: fit.model })?)?;
+    Ok(d)
+}
+
+pub(crate) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_function(wrap_pyfunction!(fit_friction_order, m)?)?;
+    m.add_function(wrap_pyfunction!(fit_everett, m)?)?;
+    m.add_class::<PyEverettModel>()?;
+    Ok(())
+}
