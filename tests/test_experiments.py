@@ -258,3 +258,16 @@ def test_bad_bundle_non_monotonic_time(written, tmp_path):
     df.to_csv(b / "off_state.csv", index=False)
     with pytest.raises(bmr.BmrError, match="'off_state'.*strictly increase.*row 50"):
         bmr.read_bundle(b)
+
+
+def test_tracking_with_the_identified_compensator_opens_from_saturation():
+    from bmr.identify import identify
+
+    model = identify(ex.simulate_bundle(quick=True))
+    act = _act()
+    ref = ex.reference_multipeak(ex.MULTIPEAK_SEED, amplitude_nmm=450.0, duration_s=20.0, sample_rate_hz=FS)
+    run = ex.tracking(act, model.compensator(), ref, opening_duration_s=4.0)
+    _assert_opening(run)
+    err = _body(run).torque_nmm.to_numpy() - ref
+    # Paper fig 25: about ±60 N·mm with both compensations.
+    assert np.max(np.abs(err)) < 60.0
