@@ -137,3 +137,16 @@ def test_run_releases_the_gil():
         t.join()
     # Holding the GIL for the ~0.5 s run would let the other thread count only around the call's edges.
     assert during > 20_000
+
+
+def test_step_matches_run_and_flags_non_finite_commands():
+    cmd = _cmd(50)
+    whole = bmr.VirtualActuator("bmr2013", seed=8).run(cmd)
+    act = bmr.VirtualActuator("bmr2013", seed=8)
+    steps = [act.step(float(c)) for c in cmd]
+    for k in whole:
+        np.testing.assert_array_equal(whole[k], [s[k] for s in steps], err_msg=k)
+    assert all(s["command_valid"] for s in steps)
+    s = act.step(float("nan"))
+    assert s["command_valid"] is False and s["current_a"] == 0.0 and s["coil1_a"] == s["coil2_a"] == 0.0
+    assert np.isfinite(s["torque_nmm"])

@@ -142,6 +142,32 @@ impl PyVirtualActuator {
         Ok(out)
     }
 
+    /// Advance one sample with commanded nominal current ``current_a`` (A); returns a dict of floats with the same
+    /// keys as ``run`` plus ``command_valid`` (a non-finite command applies the safe 0 A and is flagged False).
+    fn step<'py>(&mut self, py: Python<'py>, current_a: f64) -> PyResult<Bound<'py, PyDict>> {
+        let s = self.inner.step(current_a);
+        let out = PyDict::new(py);
+        let items: [(&str, f64); 12] = [
+            ("t_s", s.t_s),
+            ("current_a", s.current_cmd_a),
+            ("coil1_a", s.coil1_a),
+            ("coil2_a", s.coil2_a),
+            ("theta_rad", s.theta_rad),
+            ("speed_rad_s", s.speed_rad_s),
+            ("torque_nmm", s.torque_nmm),
+            ("b1_t", s.b1_t),
+            ("b2_t", s.b2_t),
+            ("field_torque_nmm", s.field_torque_nmm),
+            ("friction_nmm", s.friction_nmm),
+            ("torque_true_nmm", s.torque_true_nmm),
+        ];
+        for (k, v) in items {
+            out.set_item(k, v)?;
+        }
+        out.set_item("command_valid", s.command_valid)?;
+        Ok(out)
+    }
+
     /// Back to the state right after construction (demagnetised, cold, t = 0, same noise stream).
     fn reset(&mut self) {
         self.inner.reset();
