@@ -39,18 +39,22 @@ MULTIPEAK_SEED = 2013
 __all__ = [
     "BUNDLE_SAMPLE_RATE_HZ",
     "FULL_CURRENT_A",
+    "MULTIPEAK_SEED",
+    "OPENING_RATE_A_PER_S",
     "first_order_ascending",
     "first_order_descending",
     "multi_step",
     "multipeak",
     "off_state",
     "opening_path",
+    "ramp_path",
     "reference_multipeak",
     "reference_triangle",
     "run_cli",
     "simulate_bundle",
     "tracking",
     "triangle",
+    "triangle_path",
 ]
 
 
