@@ -271,3 +271,18 @@ def test_tracking_with_the_identified_compensator_opens_from_saturation():
     err = _body(run).torque_nmm.to_numpy() - ref
     # Paper fig 25: about ±60 N·mm with both compensations.
     assert np.max(np.abs(err)) < 60.0
+
+
+def test_custom_run_and_parameters():
+    act = _act()
+    run = ex.custom(act, np.linspace(0.0, 0.7, 300), name="ramp")
+    assert run.kind == "custom" and run.name == "ramp"
+    _assert_opening(run)
+    np.testing.assert_array_equal(_body(run).current_a, np.linspace(0.0, 0.7, 300))
+    with pytest.raises(bmr.BmrError, match=r"current_a\[1\]"):
+        ex.custom(act, [0.0, np.inf])
+    p = act.parameters
+    assert p["converter"]["gain_a_per_v"] == 0.125
+    assert p["fluid"]["yield_stress"] == "MRF-132DG cubic"
+    assert len(p["friction"]["amplitude_nmm"]) == 3
+    assert p["steel1"]["saturation_t"] < p["steel2"]["saturation_t"]

@@ -142,6 +142,9 @@ class VirtualActuator:
     @property
     def time_s(self) -> float: ...
     @property
+    def parameters(self) -> dict[str, object]:
+        """Physical parameters of every stage (converter, steel1/2, fluid, geometry, drive, friction, sensor)."""
+    @property
     def noise_nmm(self) -> float: ...
     @property
     def resolution_nmm(self) -> float: ...

@@ -39,6 +39,7 @@ MULTIPEAK_SEED = 2013
 __all__ = [
     "BUNDLE_SAMPLE_RATE_HZ",
     "FULL_CURRENT_A",
+    "custom",
     "MULTIPEAK_SEED",
     "OPENING_RATE_A_PER_S",
     "first_order_ascending",
@@ -334,6 +335,19 @@ def multipeak(actuator: VirtualActuator, *, seed: int = MULTIPEAK_SEED, duration
     cur, k = _with_opening(actuator, body, opening_rate_a_per_s, full_a)
     return _record(actuator, name, "multipeak", cur, k,
                    {"excitation_seed": int(seed), "rate_range_a_per_s": [float(r) for r in rate_range_a_per_s]})
+
+
+def custom(actuator: VirtualActuator, current_a: Sequence[float] | np.ndarray, *, name: str = "custom",
+           full_a: float = FULL_CURRENT_A, opening_rate_a_per_s: float = OPENING_RATE_A_PER_S) -> Run:
+    """Any excitation (kind ``custom``): the opening excursion, then ``current_a`` (A) sample by sample."""
+    body = np.asarray(current_a, dtype=float)
+    if body.ndim != 1 or body.size == 0:
+        raise BmrError("current_a must be a non-empty 1-D array of currents (A)")
+    bad = np.flatnonzero(~np.isfinite(body))
+    if bad.size:
+        raise BmrError(f"current_a[{int(bad[0])}] = {body[bad[0]]!r} is not finite")
+    cur, k = _with_opening(actuator, body, opening_rate_a_per_s, full_a)
+    return _record(actuator, name, "custom", cur, k)
 
 
 def tracking(actuator: VirtualActuator, compensator: Any, reference_nmm: np.ndarray, *, name: str = "tracking",

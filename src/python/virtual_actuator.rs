@@ -1,6 +1,7 @@
 //! Python binding of the virtual BMR actuator (`bmr.VirtualActuator`, `bmr.EFFECTS`, `bmr.effect_parameters`).
 use crate::plant::VirtualActuator;
 use crate::plant::effects::{Effect, EffectKind, EffectSet};
+use crate::plant::mr_fluid::YieldStress;
 use crate::plant::presets::{DEFAULT_SAMPLE_RATE_HZ, PRESETS, preset as preset_config};
 use crate::python::arrays::{extract_f64_array, to_numpy};
 use crate::python::{BmrError, bmr_err};
@@ -231,6 +232,72 @@ impl PyVirtualActuator {
     #[getter]
     fn time_s(&self) -> f64 {
         self.inner.time_s()
+    }
+
+    /// The physical parameters of every stage (units in the names), for reports and ground-truth studies.
+    #[getter]
+    fn parameters<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let c = self.inner.config();
+        let out = PyDict::new(py);
+        let conv = PyDict::new(py);
+        conv.set_item("gain_a_per_v", c.converter.gain_a_per_v)?;
+        conv.set_item("limit_a", c.converter.limit_a)?;
+        conv.set_item("bandwidth_hz", c.converter.bandwidth_hz)?;
+        out.set_item("converter", conv)?;
+        for (name, st) in [("steel1", &c.steel1), ("steel2", &c.steel2)] {
+            let d = PyDict::new(py);
+            d.set_item("saturation_t", st.saturation_t)?;
+            d.set_item("coercivity_a", st.coercivity_a)?;
+            d.set_item("coercivity_width_a", st.coercivity_width_a)?;
+            d.set_item("interaction_width_a", st.interaction_width_a)?;
+            d.set_item("reversible_fraction", st.reversible_fraction)?;
+            d.set_item("reversible_width_a", st.reversible_width_a)?;
+            d.set_item("range_a", st.range_a)?;
+            d.set_item("grid", st.grid)?;
+            out.set_item(name, d)?;
+        }
+        let fluid = PyDict::new(py);
+        match c.fluid.yield_stress {
+            YieldStress::Mrf132dg => fluid.set_item("yield_stress", "MRF-132DG cubic")?,
+            YieldStress::Linear { kpa_per_t } => {
+                fluid.set_item("yield_stress", "linear")?;
+                fluid.set_item("kpa_per_t", kpa_per_t)?;
+            }
+        }
+        fluid.set_item("viscosity_pa_s", c.fluid.viscosity_pa_s)?;
+        out.set_item("fluid", fluid)?;
+        let g = PyDict::new(py);
+        g.set_item("shaft_radius_mm", c.geometry.shaft_radius_mm)?;
+        g.set_item("disc_radius_mm", c.geometry.disc_radius_mm)?;
+        g.set_item("drum_width_mm", c.geometry.drum_width_mm)?;
+        g.set_item("gap_mm", c.geometry.gap_mm)?;
+        out.set_item("geometry", g)?;
+        let d = PyDict::new(py);
+        d.set_item("speed_rad_s", c.drive.speed_rad_s)?;
+        d.set_item("speed_ripple", c.drive.speed_ripple)?;
+        d.set_item("theta0_rad", c.drive.theta0_rad)?;
+        out.set_item("drive", d)?;
+        let f = PyDict::new(py);
+        f.set_item("offset_nmm", c.friction.offset_nmm)?;
+        f.set_item(
+            "amplitude_nmm",
+            c.friction.harmonics.iter().map(|h| h.0).collect::<Vec<_>>(),
+        )?;
+        f.set_item(
+            "phase_rad",
+            c.friction.harmonics.iter().map(|h| h.1).collect::<Vec<_>>(),
+        )?;
+        out.set_item("friction", f)?;
+        let s = PyDict::new(py);
+        s.set_item("lever_mm", c.sensor.lever_mm)?;
+        s.set_item("noise_n", c.sensor.noise_n)?;
+        s.set_item("resolution_n", c.sensor.resolution_n)?;
+        s.set_item("range_n", c.sensor.range_n)?;
+        s.set_item("offset_n", c.sensor.offset_n)?;
+        out.set_item("sensor", s)?;
+        out.set_item("full_current_a", c.full_current_a)?;
+        out.set_item("full_torque_nmm", c.full_torque_nmm)?;
+        Ok(out)
     }
 
     /// Standard deviation of the torque sensor noise, N·mm.
