@@ -490,12 +490,15 @@ def fit_tables_lstsq(
     per_run_offset: bool = False,
     max_rows: int = 200_000,
     start_at_saturation: bool = True,
+    curve_subdivisions: int = 4,
 ) -> LstsqTables:
     """Identify an Everett table (Preisach model) from any runs by regularised nonnegative least squares.
 
     The memory of each run starts at negative saturation; rows before the run's first saturation are left out
     (``start_at_saturation``). Rows are thinned uniformly to at most ``max_rows``. ``per_run_offset`` fits one
-    free output offset per run (sensor offsets, unknown remanence) instead of one shared offset.
+    free output offset per run (sensor offsets, unknown remanence) instead of one shared offset. The returned
+    first-order curves start at every grid node and at ``curve_subdivisions − 1`` points inside each interval, so a
+    CBH operator built from them follows the table between grid reversals too.
     """
     runs = list(runs)
     if not runs:
@@ -520,7 +523,7 @@ def fit_tables_lstsq(
         packed.append((np.ascontiguousarray(u), np.ascontiguousarray(y), w, k if per_run_offset else 0))
     res = _core.fit_everett(grid, packed, len(runs) if per_run_offset else 1, smoothing=smoothing, ridge=ridge)
     model = res["model"]
-    asc, desc = model.first_order_curves()
+    asc, desc = model.first_order_curves(subdivisions=curve_subdivisions)
     return LstsqTables(everett=model, offsets=np.asarray(res["offsets"]), rms=float(res["rms"]),
                        n_rows=int(res["n_rows"]), iterations=int(res["iterations"]),
                        ascending=[(np.asarray(u), np.asarray(y)) for u, y in asc],
