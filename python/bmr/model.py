@@ -135,7 +135,7 @@ class Model:
 
         return {
             "format": FORMAT,
-            "friction": self.friction.to_dict() if self.friction is not None else None,
+            "friction": _jsonable(self.friction.to_dict()) if self.friction is not None else None,
             "hysteresis": {"ascending": fam(asc), "descending": fam(desc), "initial": "negative"},
             "limits": self.limits,
             "converter_gain_a_per_v": self.converter_gain_a_per_v,
@@ -256,17 +256,27 @@ def _friction(value: Any, source: str) -> FrictionFit | None:
     se = value.get("stderr")
     if isinstance(se, dict):
         try:
-            fit.c0_stderr = float(se.get("c0", float("nan")))
-            fit.a_stderr = np.asarray(se.get("a", fit.a_stderr), dtype=float)
-            fit.b_stderr = np.asarray(se.get("b", fit.b_stderr), dtype=float)
+            # Unknown uncertainties are stored as null.
+            fit.c0_stderr = _num(se.get("c0"))
+            fit.a_stderr = np.array([_num(v) for v in se.get("a", fit.a_stderr)], dtype=float)
+            fit.b_stderr = np.array([_num(v) for v in se.get("b", fit.b_stderr)], dtype=float)
         except (TypeError, ValueError):
             raise BmrError(f"{source}: friction.stderr must hold numbers") from None
-    for key in ("residual_rms_nmm", "n", "criterion"):
-        if key in value:
-            setattr(fit, key, value[key])
+        if fit.a_stderr.shape != fit.a.shape or fit.b_stderr.shape != fit.b.shape:
+            raise BmrError(f"{source}: friction.stderr must have one entry per coefficient")
+    if "residual_rms_nmm" in value:
+        fit.residual_rms_nmm = _num(value["residual_rms_nmm"])
+    if isinstance(value.get("n"), int):
+        fit.n = value["n"]
+    if isinstance(value.get("criterion"), str):
+        fit.criterion = value["criterion"]
     if isinstance(value.get("scores"), dict):
         fit.scores = {int(k): float(v) for k, v in value["scores"].items()}
     return fit
+
+
+def _num(v: Any) -> float:
+    return float("nan") if v is None else float(v)
 
 
 def _jsonable(x: Any) -> Any:
