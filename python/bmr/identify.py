@@ -31,7 +31,6 @@ __all__ = [
     "fit_friction",
     "find_reversals",
     "extract_first_order_curves",
-    "first_order_curves_from_runs",
     "paper_current_curves",
     "fit_tables_lstsq",
     "evaluation_start",
@@ -387,9 +386,8 @@ def extract_first_order_curves(
     dead-band (``deadband_a``, default: the larger of 1 % of the current span and 10 × the current's sample noise);
     a rising segment from a minimum that followed positive saturation (or from negative saturation) up to
     positive saturation is an ascending first-order curve, and symmetrically for descending ones. Curves whose
-    reversals lie within a few noise sigmas of each other are pooled (repeated branches average their noise). Each
-    curve
-    is fitted monotonically on about ``n_nodes`` nodes per full input span.
+    reversals lie within a few noise sigmas of each other are pooled (repeated branches average their noise).
+    Each curve is fitted monotonically on about ``n_nodes`` nodes per full input span.
     """
     runs = _as_runs(run)
     if not runs:
@@ -446,11 +444,6 @@ def extract_first_order_curves(
         raise BmrError(f"runs {names}: found {len(ascending)} ascending and {len(descending)} descending "
                        f"first-order curves (dead-band {db:.4g} A); both families need at least the major branch")
     return FirstOrderCurves(ascending, descending, (lo, hi))
-
-
-def first_order_curves_from_runs(runs: Iterable[Run], friction: Any = None, **kwargs: Any) -> FirstOrderCurves:
-    """``extract_first_order_curves`` over all given runs (pooled)."""
-    return extract_first_order_curves(list(runs), friction, **kwargs)
 
 
 def paper_current_curves(ascending: Sequence[Curve], descending: Sequence[Curve]
