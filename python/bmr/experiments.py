@@ -333,15 +333,16 @@ def multipeak(actuator: VirtualActuator, *, seed: int = MULTIPEAK_SEED, duration
 
 
 def tracking(actuator: VirtualActuator, compensator: Any, reference_nmm: np.ndarray, *, name: str = "tracking",
-             opening_reach: float = 1.5, opening_duration_s: float = 10.0) -> Run:
+             opening_reference_nmm: float | None = None, opening_duration_s: float = 10.0) -> Run:
     """Open-loop torque tracking (figs 21-25): ``reference_nmm`` (N·mm, one value per sample) is driven through
     ``compensator`` in the loop and the commanded current goes to the actuator.
 
     ``compensator.run(torque_ref_nmm, theta_rad)`` must return a dict with ``"current_a"``; it is given the
     encoder angles of the very samples it commands (the rotor angle does not depend on the current). The run
-    opens with a torque reference excursion to ``±opening_reach × max|reference|`` and back to the first
-    reference value — beyond reach, so the compensator saturates the current both ways and starts, like the
-    plant, from a known state. ``reference_nmm`` is logged for every sample, opening included.
+    opens with a torque reference excursion to ``±opening_reference_nmm`` (default ``max(1000, 2.5 ×
+    max|reference|)``) and back to the first reference value — beyond reach, so the compensator saturates the
+    current both ways and starts, like the plant, from a known state. ``reference_nmm`` is logged for every
+    sample, opening included.
     """
     ref = np.asarray(reference_nmm, dtype=float)
     if ref.ndim != 1 or ref.size < 2:
@@ -349,10 +350,10 @@ def tracking(actuator: VirtualActuator, compensator: Any, reference_nmm: np.ndar
     bad = np.flatnonzero(~np.isfinite(ref))
     if bad.size:
         raise BmrError(f"reference_nmm[{int(bad[0])}] = {ref[bad[0]]!r} is not finite")
-    _check_positive("opening_reach", opening_reach)
     _check_positive("opening_duration_s", opening_duration_s)
     fs = actuator.sample_rate_hz
-    reach = opening_reach * max(float(np.max(np.abs(ref))), 1.0)
+    reach = max(1000.0, 2.5 * float(np.max(np.abs(ref)))) if opening_reference_nmm is None else opening_reference_nmm
+    _check_positive("opening_reference_nmm", reach)
     rate = 4.0 * reach / opening_duration_s
     opening = ramp_path(0.0, [reach, -reach, ref[0]], rate / fs)
     full_ref = np.concatenate([opening, ref])

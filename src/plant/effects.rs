@@ -209,7 +209,7 @@ const TIME_DELAY: &[ParamSpec] = &[p("delay_s", "s", 0.01, 0.0, 1.0, "command-to
 const NON_CONGRUENT: &[ParamSpec] = &[p(
     "curvature",
     "1",
-    0.3,
+    1.0,
     -0.45,
     5.0,
     "output nonlinearity strength (0 = off; >0 convex, <0 concave)",

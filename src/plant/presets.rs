@@ -36,11 +36,11 @@ pub fn preset(name: &str) -> Result<ActuatorConfig, PlantError> {
 
 fn bmr2013_steel() -> SteelParams {
     SteelParams {
-        saturation_t: 0.518,
-        coercivity_a: 0.07,
-        coercivity_width_a: 0.035,
+        saturation_t: 0.53,
+        coercivity_a: 0.05,
+        coercivity_width_a: 0.1,
         interaction_width_a: 0.9,
-        reversible_fraction: 0.25,
+        reversible_fraction: 0.35,
         reversible_width_a: 1.0,
         range_a: 3.0,
         grid: 241,
