@@ -8,6 +8,12 @@ run's own offset is estimated from its first sample only (at 0 A, before any rev
 baseline. The congruency check compares runs 4 and 6, which reach the same 40 %/60 % extremes in opposite order:
 a Preisach model predicts identical branch increments from the same reversal points.
 
+Initial state: the table spans 0 A to the largest current, so every run starts at the bottom of the input range,
+where a Preisach model's memory is empty whatever came before; what differs from run to run (remanence left by
+earlier excitation beyond this range, drift) is a constant output offset, fitted per training run and taken from
+the first sample of a held-out run. ``rms_over_sigma`` divides the held-out RMS error by the RMS of the reported
+measurement sigmas of the same samples.
+
 Usage: python examples/slac_magnet.py [--data DIR] [--json OUT] [--intervals N] [--smoothing S]
 The data are not part of the repository (see the data folder's README); DIR defaults to ../shared/data/... .
 """
