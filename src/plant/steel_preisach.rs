@@ -279,7 +279,7 @@ impl PreisachSteel {
             return self.output;
         }
         let mut n = self.extrema.len() - 1;
-        let mut rising = n % 2 == 0;
+        let mut rising = n.is_multiple_of(2);
         if (rising && u < self.input_a) || (!rising && u > self.input_a) {
             // Reversal at the previous input: it becomes a new extremum.
             let contribution = self.segment(self.extrema[n], self.input_a, rising);

@@ -2,7 +2,8 @@
 //!
 //! Per sample: (time delay) → coil split and converters → (coil lag) → steel Preisach per coil → yield and
 //! viscous stress → rotor torques (non-congruent output map) → `T = T2 − T1` (thermal gain, torque ripple) →
-//! + seal friction at the encoder angle (current-dependent growth, extra harmonic) → torque sensor (drift).
+//! plus seal friction at the encoder angle (current-dependent growth, extra harmonic) → torque sensor (drift).
+//!
 //! Positive nominal current excites coil 2 and gives positive torque.
 
 use super::converter::{Converter, ConverterParams, coil_split};
