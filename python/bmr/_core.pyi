@@ -104,6 +104,8 @@ EFFECTS: tuple[str, ...]
 """Names of the virtual actuator's switchable effects (the diagnosis vocabulary)."""
 PRESETS: tuple[str, ...]
 """Names of the virtual actuator presets."""
+ACTUATOR_PARAMETERS: tuple[str, ...]
+"""Dotted names of the physical parameters ``VirtualActuator(overrides=...)`` can change."""
 
 def effect_parameters() -> dict[str, dict[str, object]]:
     """Every effect: ``{name: {"doc": str, "params": {param: {"unit", "default", "min", "max", "doc"}}}}``."""
@@ -120,6 +122,7 @@ class VirtualActuator:
         seed: int | None = 0,
         sample_rate_hz: float = 1000.0,
         effects: EffectsSpec = None,
+        overrides: dict[str, float] | None = None,
     ) -> None: ...
     def run(self, current_a: ArrayLike) -> dict[str, np.ndarray]:
         """Commanded nominal currents (A) → ``t_s, current_a, coil1_a, coil2_a, theta_rad, speed_rad_s,

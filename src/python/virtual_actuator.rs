@@ -1,8 +1,8 @@
 //! Python binding of the virtual BMR actuator (`bmr.VirtualActuator`, `bmr.EFFECTS`, `bmr.effect_parameters`).
-use crate::plant::VirtualActuator;
 use crate::plant::effects::{Effect, EffectKind, EffectSet};
 use crate::plant::mr_fluid::YieldStress;
 use crate::plant::presets::{DEFAULT_SAMPLE_RATE_HZ, PRESETS, preset as preset_config};
+use crate::plant::{SETTABLE, VirtualActuator};
 use crate::python::arrays::{extract_f64_array, to_numpy};
 use crate::python::{BmrError, bmr_err};
 use numpy::PyArray1;
@@ -69,8 +69,10 @@ fn apply_effects(set: &mut EffectSet, spec: &Bound<'_, PyAny>) -> PyResult<()> {
 
 /// The virtual BMR actuator: a seeded physical simulator of the paper's rig.
 ///
-/// ``VirtualActuator(preset="bmr2013", *, seed=0, sample_rate_hz=1000.0, effects=None)``; ``effects`` adds to
-/// (or, with ``None`` / ``"name:off"``, removes from) the preset's effects.
+/// ``VirtualActuator(preset="bmr2013", *, seed=0, sample_rate_hz=1000.0, effects=None, overrides=None)``;
+/// ``effects`` adds to (or, with ``None`` / ``"name:off"``, removes from) the preset's effects; ``overrides``
+/// changes physical parameters by dotted name, e.g. ``{"sensor.noise_n": 0.0, "friction.scale": 0.5}``
+/// (``bmr.ACTUATOR_PARAMETERS`` lists them).
 #[pyclass(name = "VirtualActuator", module = "bmr._core")]
 pub struct PyVirtualActuator {
     inner: VirtualActuator,
@@ -80,12 +82,14 @@ pub struct PyVirtualActuator {
 #[pymethods]
 impl PyVirtualActuator {
     #[new]
-    #[pyo3(signature = (preset = "bmr2013", *, seed = None, sample_rate_hz = DEFAULT_SAMPLE_RATE_HZ, effects = None))]
+    #[pyo3(signature = (preset = "bmr2013", *, seed = None, sample_rate_hz = DEFAULT_SAMPLE_RATE_HZ, effects = None,
+                        overrides = None))]
     fn new(
         preset: &str,
         seed: Option<&Bound<'_, PyAny>>,
         sample_rate_hz: f64,
         effects: Option<&Bound<'_, PyAny>>,
+        overrides: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<Self> {
         let seed: u64 = match seed {
             None => 0,
@@ -97,6 +101,22 @@ impl PyVirtualActuator {
         config.sample_rate_hz = sample_rate_hz;
         if let Some(spec) = effects {
             apply_effects(&mut config.effects, spec)?;
+        }
+        if let Some(over) = overrides.filter(|o| !o.is_none()) {
+            let over = over.cast::<PyDict>().map_err(|_| {
+                BmrError::new_err("overrides must be a dict {\"group.parameter\": value}")
+            })?;
+            for (k, v) in over.iter() {
+                let k: String = k.extract().map_err(|_| {
+                    BmrError::new_err(format!(
+                        "overrides: parameter names must be strings, got {k}"
+                    ))
+                })?;
+                let v: f64 = v.extract().map_err(|_| {
+                    BmrError::new_err(format!("overrides: {k} = {v} is not a number"))
+                })?;
+                config.set(&k, v).map_err(bmr_err)?;
+            }
         }
         let inner = VirtualActuator::new(config, seed).map_err(bmr_err)?;
         Ok(PyVirtualActuator {
@@ -369,5 +389,6 @@ pub(crate) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
         PyTuple::new(m.py(), EffectKind::ALL.map(|k| k.name()))?,
     )?;
     m.add("PRESETS", PyTuple::new(m.py(), PRESETS)?)?;
+    m.add("ACTUATOR_PARAMETERS", PyTuple::new(m.py(), SETTABLE)?)?;
     Ok(())
 }
