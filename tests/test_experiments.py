@@ -286,3 +286,13 @@ def test_custom_run_and_parameters():
     assert p["fluid"]["yield_stress"] == "MRF-132DG cubic"
     assert len(p["friction"]["amplitude_nmm"]) == 3
     assert p["steel1"]["saturation_t"] < p["steel2"]["saturation_t"]
+
+
+def test_simulate_bundle_with_overrides_records_them():
+    b = ex.simulate_bundle(quick=True, overrides={"sensor.noise_n": 0.0})
+    assert b.meta["simulator"]["overrides"] == {"sensor.noise_n": 0.0}
+    assert b.meta["simulator"]["noise_nmm"] == 0.0
+    off = _body(b.run("off_state")).iloc[50:]  # after the coil field lag has settled
+    q = bmr.VirtualActuator().resolution_nmm
+    truth = bmr.VirtualActuator().true_friction(off.theta_rad.to_numpy())
+    assert np.max(np.abs(off.torque_nmm.to_numpy() - truth)) < 2.0 + q

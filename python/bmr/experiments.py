@@ -433,7 +433,8 @@ def _plan(quick: bool, compensator: Any, fs: float) -> list[tuple[str, Callable[
 def simulate_bundle(preset: str = "bmr2013", *, effects: Mapping[str, Any] | Sequence[str] | None = None,
                     seed: int = 0, quick: bool = False, compensator: Any = None,
                     sample_rate_hz: float = BUNDLE_SAMPLE_RATE_HZ,
-                    on_run: Callable[[Run], Any] | None = None) -> Bundle:
+                    on_run: Callable[[Run], Any] | None = None,
+                    overrides: Mapping[str, float] | None = None) -> Bundle:
     """The paper's experiment set on a fresh virtual actuator, as a :class:`bmr.bundle.Bundle`.
 
     Runs, in order, on one actuator (its thermal state and sensor drift carry over; each run's opening
@@ -444,8 +445,10 @@ def simulate_bundle(preset: str = "bmr2013", *, effects: Mapping[str, Any] | Seq
     ``seed`` fixes the sensor noise only: every excitation is the same for every seed. The manifest records the
     simulator's preset, seed and active effects under ``"simulator"`` (ground truth for calibration studies).
     ``on_run(run)`` is called after each run (progress reporting). Logged at ``sample_rate_hz`` (500 Hz).
+    ``overrides`` changes physical parameters by dotted name (``bmr.ACTUATOR_PARAMETERS``), e.g. the noise level.
     """
-    actuator = VirtualActuator(preset, seed=seed, sample_rate_hz=sample_rate_hz, effects=effects)
+    actuator = VirtualActuator(preset, seed=seed, sample_rate_hz=sample_rate_hz, effects=effects,
+                               overrides=dict(overrides) if overrides else None)
     plan = _plan(bool(quick), compensator, actuator.sample_rate_hz)
     runs: list[Run] = []
     for _name, fn in plan:
@@ -454,7 +457,8 @@ def simulate_bundle(preset: str = "bmr2013", *, effects: Mapping[str, Any] | Seq
             on_run(runs[-1])
     meta = {"simulator": {"preset": preset, "seed": int(seed), "quick": bool(quick),
                           "effects": {k: dict(v) for k, v in actuator.effects.items()},
-                          "noise_nmm": actuator.noise_nmm}}
+                          "noise_nmm": actuator.noise_nmm,
+                          "overrides": {k: float(v) for k, v in (overrides or {}).items()}}}
     return Bundle(actuator=actuator.name, sample_rate_hz=actuator.sample_rate_hz, runs=runs, meta=meta)
 
 
