@@ -97,16 +97,8 @@ fn noisy_triangles_identify_the_plant_and_the_cbh_agrees() {
 
     // The CBH operator from the identified first-order curves reproduces the identified model at grid reversals.
     let (asc, desc) = fit.model.first_order_curves();
-    let a_ref: Vec<_> = asc
-        .iter()
-        .map(|(u, y)| (u.as_slice(), y.as_slice()))
-        .collect();
-    let d_ref: Vec<_> = desc
-        .iter()
-        .map(|(u, y)| (u.as_slice(), y.as_slice()))
-        .collect();
     let mut h =
-        H::from_curves(&a_ref, &d_ref, &BuildOptions::default(), Initial::Negative).unwrap();
+        H::from_curve_data(&asc, &desc, &BuildOptions::default(), Initial::Negative).unwrap();
     let nodes = grid.nodes();
     let on_grid: Vec<f64> = [16, 3, 12, 6, 10, 8, 16, 0, 5]
         .iter()
