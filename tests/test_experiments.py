@@ -296,3 +296,14 @@ def test_simulate_bundle_with_overrides_records_them():
     q = bmr.VirtualActuator().resolution_nmm
     truth = bmr.VirtualActuator().true_friction(off.theta_rad.to_numpy())
     assert np.max(np.abs(off.torque_nmm.to_numpy() - truth)) < 2.0 + q
+
+
+def test_simulate_cli_overrides(tmp_path):
+    import json
+
+    from bmr.cli import main
+
+    assert main(["simulate", "--quick", "--override", "sensor.noise_n=0", "-o", str(tmp_path / "b")]) == 0
+    manifest = json.loads((tmp_path / "b" / "manifest.json").read_text())
+    assert manifest["simulator"]["overrides"] == {"sensor.noise_n": 0.0}
+    assert main(["simulate", "--quick", "--override", "junk", "-o", str(tmp_path / "c")]) == 2

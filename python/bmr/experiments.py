@@ -462,6 +462,20 @@ def simulate_bundle(preset: str = "bmr2013", *, effects: Mapping[str, Any] | Seq
     return Bundle(actuator=actuator.name, sample_rate_hz=actuator.sample_rate_hz, runs=runs, meta=meta)
 
 
+def _parse_overrides(items: Sequence[str]) -> dict[str, float]:
+    """``["sensor.noise_n=0", ...]`` → ``{"sensor.noise_n": 0.0}``, with a clear error for malformed items."""
+    out: dict[str, float] = {}
+    for item in items:
+        name, sep, value = item.partition("=")
+        try:
+            if not sep or not name.strip():
+                raise ValueError
+            out[name.strip()] = float(value)
+        except ValueError:
+            raise BmrError(f"--override {item!r}: expected GROUP.PARAM=NUMBER, e.g. sensor.noise_n=0") from None
+    return out
+
+
 def run_cli(args: Any) -> int:
     """``bmr simulate``: write the experiment set as a bundle, with a progress bar on stderr (simulation and
     writing of each run)."""
@@ -469,10 +483,12 @@ def run_cli(args: Any) -> int:
 
     t0 = time.perf_counter()
     effects = list(args.effect or [])
+    overrides = _parse_overrides(getattr(args, "override", None) or [])
     # Plan length: the set without a compensator.
     n_runs = len(_plan(bool(args.quick), None, BUNDLE_SAMPLE_RATE_HZ))
     with tqdm(total=2 * n_runs, file=sys.stderr, unit="step", desc="bmr simulate") as bar:
         bundle = simulate_bundle(args.preset, effects=effects, seed=args.seed, quick=args.quick,
+                                 overrides=overrides or None,
                                  on_run=lambda run: (bar.set_postfix_str(f"simulated {run.name}"), bar.update(1)))
         out = write_bundle(bundle, Path(args.out), fmt=args.format,
                            on_run_written=lambda run: (bar.set_postfix_str(f"wrote {run.name}"), bar.update(1)))
