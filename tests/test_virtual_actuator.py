@@ -88,7 +88,7 @@ def test_properties_and_repr():
     assert "bmr2013" in act.name
     assert act.noise_nmm == pytest.approx(1.5)
     assert "sensor_drift:rate_nmm_per_s=0.02" in repr(act)
-    assert bmr.PRESETS == ("bmr2013", "ideal")
+    assert bmr.PRESETS == ("bmr2013", "ideal", "rig_preisach")
 
 
 @pytest.mark.parametrize("kwargs, message", [

@@ -7,6 +7,8 @@ Experiment protocols and bundles of them: ``bmr.experiments``.
 Identification: ``identify`` (friction + CBH tables from a bundle) giving a ``Model`` (``bmr-model/1`` files),
 ``fit_friction``, ``extract_first_order_curves``, ``fit_tables_lstsq`` / ``EverettModel`` (least-squares
 Preisach tables). Lab readers: ``read_table``, ``bundle_from_files``.
+Diagnosis: ``diagnose`` (what the model gets wrong, the named cause, the extended model, the held-out gain) giving a
+``Diagnosis`` (``bmr-diagnosis/1`` JSON, HTML report).
 Units: current in A (nominal current spans both coils: negative = coil 1, positive = coil 2), torque in N·mm,
 angles in rad, time in s, converter voltages in V.
 """
@@ -27,6 +29,7 @@ from bmr._core import (
     fit_everett,
 )
 from bmr.bundle import Bundle, Run, read_bundle, write_bundle
+from bmr.diagnose import Diagnosis, diagnose
 from bmr.identify import FrictionFit, extract_first_order_curves, fit_friction, fit_tables_lstsq, identify
 from bmr.io import bundle_from_files, read_table
 from bmr.model import Model
@@ -40,6 +43,7 @@ __all__ = [
     "Command",
     "Compensator",
     "CompensatorState",
+    "Diagnosis",
     "EverettModel",
     "Friction",
     "FrictionFit",
@@ -49,6 +53,7 @@ __all__ = [
     "Run",
     "VirtualActuator",
     "bundle_from_files",
+    "diagnose",
     "effect_parameters",
     "extract_first_order_curves",
     "fit_everett",

@@ -9,6 +9,9 @@
 //!   0.19 N·mm steps; rotors at 1 rev/s with 1 % speed ripple.
 //! - `ideal`: exactly Preisach in the nominal current — torque linear in B, no viscous drag, no friction, no
 //!   lag, a perfect sensor. The CBH model built from its first-order curves reproduces it to round-off.
+//! - `rig_preisach`: the `ideal` field path (exactly Preisach, no lag) with the rig's seal friction, speed ripple
+//!   and torque sensor: the paper's model is exactly right up to sensor noise, so any effect switched on is the
+//!   only thing the model misses (the reference plant of diagnosis studies).
 
 use super::PlantError;
 use super::converter::ConverterParams;
@@ -22,7 +25,7 @@ use super::torque_sensor::SensorParams;
 use super::virtual_actuator::ActuatorConfig;
 
 /// Names accepted by [`preset`].
-pub const PRESETS: [&str; 2] = ["bmr2013", "ideal"];
+pub const PRESETS: [&str; 3] = ["bmr2013", "ideal", "rig_preisach"];
 
 /// Default sample rate of the presets, Hz.
 pub const DEFAULT_SAMPLE_RATE_HZ: f64 = 1000.0;
@@ -32,6 +35,7 @@ pub fn preset(name: &str) -> Result<ActuatorConfig, PlantError> {
     match name {
         "bmr2013" => Ok(bmr2013()),
         "ideal" => Ok(ideal()),
+        "rig_preisach" => Ok(rig_preisach()),
         _ => Err(PlantError::UnknownPreset(name.to_string())),
     }
 }
@@ -104,5 +108,18 @@ pub fn ideal() -> ActuatorConfig {
         full_current_a: 1.25,
         full_torque_nmm: 600.0,
         effects: EffectSet::new(),
+    }
+}
+
+/// Exactly Preisach in the nominal current, with the rig's seal friction, drive and sensor.
+pub fn rig_preisach() -> ActuatorConfig {
+    let rig = bmr2013();
+    ActuatorConfig {
+        name: "rig_preisach virtual actuator (Preisach field path, rig friction and sensor)"
+            .to_string(),
+        drive: rig.drive,
+        friction: rig.friction,
+        sensor: rig.sensor,
+        ..ideal()
     }
 }

@@ -1,0 +1,297 @@
+"""The effect library: each effect of the DESIGN section 5 vocabulary (plus ``table_resolution``) as a parametric
+extension of the nominal model.
+
+Two families:
+
+* **field effects** change the field path (:class:`bmr.diagnosis.field.FieldPath`) through one nonlinear
+  parameter found by a 1-D search over a grid (``coil_lag``: time constant, ``time_delay``: delay,
+  ``non_congruent``: output-map curvature) or by a refit (``table_resolution``: least-squares tables);
+* **linear effects** add regressor columns, linear in their parameters given at most one nonlinear one
+  (``thermal_drift``: thermal time constant, ``friction_harmonics``: harmonic order; ``friction_current``,
+  ``torque_ripple``, ``sensor_drift`` have none).
+
+Every effect has a stable ``name`` and reports its parameters with units in their names; ``params`` follow the
+virtual actuator's parametrisation (``bmr.effect_parameters()``) so a simulated truth can be compared.
+"""
+from __future__ import annotations
+
+import math
+from typing import Any, Sequence
+
+import numpy as np
+
+from bmr.diagnosis.field import FieldPath
+from bmr.diagnosis.residuals import EvalData
+
+__all__ = ["Effect", "LIBRARY", "PHYSICAL", "by_name", "thermal_state"]
+
+
+class Effect:
+    """Base class: ``name``, ``field`` (True for field effects), ``grid(data)`` of the nonlinear parameter
+    (``[None]`` when there is none)."""
+
+    name = ""
+    field = False
+    doc = ""
+    needs_reidentify = False  # the effect needs least-squares core tables (compare against those)
+
+    def grid(self, data: EvalData) -> list[Any]:
+        return [None]
+
+    # field effects
+    def apply(self, path: FieldPath, value: Any, data: EvalData, train: np.ndarray | None) -> FieldPath:
+        raise NotImplementedError
+
+    # linear effects: columns over the evaluated spans, concatenated over runs (n_eval × p)
+    def columns(self, data: EvalData, value: Any, y_field: np.ndarray, model: Any) -> np.ndarray:
+        raise NotImplementedError
+
+    def params(self, value: Any, beta: np.ndarray, path: FieldPath) -> dict[str, float]:
+        raise NotImplementedError
+
+    def update_path(self, path: FieldPath, value: Any, own_beta: np.ndarray) -> FieldPath | None:
+        """The field path re-identified with this effect's fitted parameters removed from the protocol runs
+        (None: the effect leaves the tables alone)."""
+        return None
+
+    def refine(self) -> bool:
+        """Whether the nonlinear parameter is continuous (refined by a golden-section search)."""
+        return False
+
+
+# ------------------------------------------------------------------------------------------------ field effects
+class CoilLag(Effect):
+    name = "coil_lag"
+    field = True
+    doc = "field lags the commanded current: first-order lag of time constant tau_s"
+
+    def grid(self, data: EvalData) -> list[Any]:
+        return [float(v) for v in np.geomspace(5e-4, 2.0, 22)]
+
+    needs_reidentify = True
+
+    def apply(self, path, value, data, train):
+        # Tables cut from first-order curves of a lagged current are inconsistent; identify them by least squares.
+        return path.with_(lag_tau_s=float(value), reidentify=True)
+
+    def params(self, value, beta, path):
+        return {"tau_s": float(path.lag_tau_s)}
+
+    def refine(self) -> bool:
+        return True
+
+
+class TimeDelay(Effect):
+    name = "time_delay"
+    field = True
+    doc = "pure delay of delay_s between the command and the field"
+
+    def grid(self, data: EvalData) -> list[Any]:
+        dt = min(r.dt_s for r in data.runs)
+        # Every whole sample up to 40, then geometric up to 0.5 s.
+        samples = np.unique(np.concatenate([np.arange(1, 41),
+                                            np.round(np.geomspace(40, max(41.0, 0.5 / dt), 10))]).astype(int))
+        return [float(k * dt) for k in samples]
+
+    needs_reidentify = True
+
+    def apply(self, path, value, data, train):
+        return path.with_(delay_s=float(value), reidentify=True)
+
+    def params(self, value, beta, path):
+        return {"delay_s": float(path.delay_s)}
+
+
+class NonCongruent(Effect):
+    name = "non_congruent"
+    field = True
+    doc = "output nonlinearity after a Preisach core: T = S n (1 + curvature |n|)/(1 + curvature), n = B-torque/S"
+
+    def grid(self, data: EvalData) -> list[Any]:
+        return [-0.4, -0.3, -0.2, -0.12, -0.06, 0.06, 0.12, 0.2, 0.35, 0.5, 0.75, 1.0, 1.5, 2.2, 3.2, 4.5]
+
+    def apply(self, path, value, data, train):
+        return path.with_(curvature=float(value))
+
+    def params(self, value, beta, path):
+        return {"curvature": float(path.curvature), "scale_nmm": float(path.scale_nmm)}
+
+    def refine(self) -> bool:
+        return True
+
+
+class TableResolution(Effect):
+    """Not physics: the first-order curve tables are too coarse or too noisy. Fixed by identifying the tables
+    again from the same protocol runs by nonnegative, smoothness-regularised least squares (``fit_everett``):
+    the whole Preisach plane from every sample instead of interpolation between a few measured curves."""
+
+    name = "table_resolution"
+    field = True
+    doc = "first-order curve tables too coarse or noisy; least-squares refinement of the tables"
+
+    def apply(self, path, value, data, train):
+        return path.with_(reidentify=True)
+
+    def params(self, value, beta, path):
+        from bmr.diagnosis.field import REIDENTIFY_INTERVALS
+
+        return {"n_intervals": float(REIDENTIFY_INTERVALS)}
+
+
+# ----------------------------------------------------------------------------------------------- linear effects
+def thermal_state(data: EvalData, tau_s: float) -> np.ndarray:
+    """Coil heating state (1 = steady full current) over the evaluated spans: ``x' = ((I/I_full)² − x)/tau``
+    integrated over every run of the bundle in order (the actuator's state carries over)."""
+    key = ("thermal", tau_s)
+    if key in data.cache:
+        return data.cache[key]
+    states = []
+    x0 = 0.0
+    for u, dt in zip(data.bundle_currents, data.bundle_dt_s):
+        heat = (np.asarray(u, float) / data.full_current_a) ** 2
+        p = math.exp(-dt / tau_s)
+        from scipy.signal import lfilter
+
+        x, _ = lfilter([1.0 - p], [1.0, -p], heat, zi=[p * x0])
+        states.append(x)
+        x0 = float(x[-1]) if x.size else x0
+    out = data.concat([states[r.thermal_index][r.start:] for r in data.runs])
+    data.cache[key] = out
+    return out
+
+
+class ThermalDrift(Effect):
+    name = "thermal_drift"
+    doc = "coil heating lowers the torque gain: field × (1 − gain_loss·x), x the heating state of time constant tau_s"
+
+    def grid(self, data: EvalData) -> list[Any]:
+        return [float(v) for v in np.geomspace(3.0, 3000.0, 16)]
+
+    def columns(self, data, value, y_field, model):
+        x = thermal_state(data, float(value))
+        return np.column_stack([-x * y_field, y_field])
+
+    def params(self, value, beta, path):
+        return {"gain_loss": float(beta[0] / (1.0 + beta[1])), "tau_s": float(value)}
+
+    def refine(self) -> bool:
+        return True
+
+
+class FrictionCurrent(Effect):
+    name = "friction_current"
+    doc = "seal friction grows with current: angle-dependent friction × (1 + gain_per_a·|I|)"
+
+    def columns(self, data, value, y_field, model):
+        key = "friction_current_cols"
+        if key not in data.cache:
+            th = data.concat(data.eval_slice("theta_rad"))
+            cur = data.concat(data.eval_slice("current_a"))
+            f = model.friction_torque(th) - (model.friction.c0 if model.friction is not None else 0.0)
+            data.cache[key] = (np.abs(cur) * f)[:, None]
+        return data.cache[key]
+
+    needs_reidentify = True
+
+    def update_path(self, path, value, own_beta):
+        return path.with_correction(self.name, value, own_beta)
+
+    @staticmethod
+    def remove(y, value, beta, run, t0_s, model):
+        f = model.friction_torque(run.theta) - (model.friction.c0 if model.friction is not None else 0.0)
+        return y - beta[0] * np.abs(run.current) * f
+
+    def params(self, value, beta, path):
+        return {"gain_per_a": float(beta[0])}
+
+
+class FrictionHarmonics(Effect):
+    name = "friction_harmonics"
+    doc = "a friction harmonic above the 3rd: amplitude_nmm·sin(order·θ + phase_rad)"
+
+    def grid(self, data: EvalData) -> list[Any]:
+        return list(range(4, 13))
+
+    def columns(self, data, value, y_field, model):
+        th = data.concat(data.eval_slice("theta_rad"))
+        return np.column_stack([np.sin(value * th), np.cos(value * th)])
+
+    needs_reidentify = True
+
+    def update_path(self, path, value, own_beta):
+        return path.with_correction(self.name, value, own_beta)
+
+    @staticmethod
+    def remove(y, value, beta, run, t0_s, model):
+        th = run.theta
+        return y - beta[0] * np.sin(value * th) - beta[1] * np.cos(value * th)
+
+    def params(self, value, beta, path):
+        return {"order": float(value), "amplitude_nmm": float(math.hypot(beta[0], beta[1])),
+                "phase_rad": float(math.atan2(beta[1], beta[0]))}
+
+
+class TorqueRipple(Effect):
+    name = "torque_ripple"
+    doc = "eccentric gap: field × (1 + eps·cos(θ + phase_rad))"
+
+    def columns(self, data, value, y_field, model):
+        th = data.concat(data.eval_slice("theta_rad"))
+        return np.column_stack([y_field * np.cos(th), y_field * np.sin(th)])
+
+    needs_reidentify = True
+
+    def update_path(self, path, value, own_beta):
+        return path.with_correction(self.name, value, own_beta)
+
+    @staticmethod
+    def remove(y, value, beta, run, t0_s, model):
+        th = run.theta
+        return y / np.maximum(1.0 + beta[0] * np.cos(th) + beta[1] * np.sin(th), 1e-3)
+
+    def params(self, value, beta, path):
+        return {"eps": float(math.hypot(beta[0], beta[1])), "phase_rad": float(math.atan2(-beta[1], beta[0]))}
+
+
+class SensorDrift(Effect):
+    name = "sensor_drift"
+    doc = "torque sensor offset drifting linearly with time at rate_nmm_per_s"
+
+    needs_reidentify = True
+
+    def columns(self, data, value, y_field, model):
+        return data.concat(data.eval_slice("t_abs_s"))[:, None]
+
+    def update_path(self, path, value, own_beta):
+        # The drift also bent the protocol runs the tables come from: identify them again without it.
+        return path.with_correction(self.name, value, own_beta)
+
+    @staticmethod
+    def remove(y, value, beta, run, t0_s, model):
+        return y - beta[0] * (t0_s + run.t - run.t[0])
+
+    def params(self, value, beta, path):
+        return {"rate_nmm_per_s": float(beta[0])}
+
+
+LIBRARY: tuple[Effect, ...] = (CoilLag(), ThermalDrift(), FrictionCurrent(), FrictionHarmonics(), TorqueRipple(),
+                               SensorDrift(), TimeDelay(), NonCongruent(), TableResolution())
+PHYSICAL = tuple(e.name for e in LIBRARY if e.name != "table_resolution")
+
+
+def remove_from_protocol(corrections: Sequence[tuple[str, Any, tuple]], y: np.ndarray, run: Any, t0_s: float,
+                         model: Any) -> np.ndarray:
+    """Protocol-run field torque ``y`` (N·mm, friction removed) with fitted effects removed (additive effects
+    first, then multiplicative ones)."""
+    order = {"sensor_drift": 0, "friction_harmonics": 0, "friction_current": 0, "torque_ripple": 1}
+    for name, value, beta in sorted(corrections, key=lambda c: order.get(c[0], 2)):
+        y = by_name(name).remove(y, value, np.asarray(beta), run, t0_s, model)  # type: ignore[attr-defined]
+    return y
+
+
+def by_name(name: str) -> Effect:
+    for e in LIBRARY:
+        if e.name == name:
+            return e
+    raise KeyError(name)
+

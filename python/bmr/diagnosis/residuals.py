@@ -1,0 +1,240 @@
+"""The evaluation data of a bundle, the nominal model's residual on it, the noise floor and residual structure.
+
+Every evaluation run (``multi_step``, ``triangle``, ``tracking``, ``multipeak``, ``custom``) is simulated from the
+run's start (its opening excursion puts the steel in a known state) and judged from its *first saturation* on
+(:func:`bmr.identify.evaluation_start`). Each run's evaluated span is cut into ``folds`` contiguous time blocks;
+fold ``k`` holds block ``k`` of every run (blocked by run and time, never random samples).
+
+Units: torque N·mm, current A, angle rad, time s.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any, Sequence
+
+import numpy as np
+
+from bmr._core import BmrError
+from bmr.bundle import Bundle, Run
+from bmr.identify import SATURATION_TOL, evaluation_start
+
+__all__ = ["EvalRun", "EvalData", "prepare", "noise_floor", "reversal_order", "structure", "SIGNALS"]
+
+# Signals the residual structure is studied against.
+SIGNALS = ("angle", "time", "current_level", "current_rate", "reversal_order")
+
+
+@dataclass
+class EvalRun:
+    """One evaluation run: full-length signals (the simulation needs the opening) and its evaluated span."""
+
+    name: str
+    kind: str
+    current_a: np.ndarray
+    theta_rad: np.ndarray
+    torque_nmm: np.ndarray
+    t_abs_s: np.ndarray  # time since the bundle's first sample (runs are consecutive on one actuator)
+    dt_s: float
+    start: int  # first evaluated sample (first saturation)
+    block: np.ndarray  # fold index of each evaluated sample (len = n - start)
+    thermal_index: int  # index of the run in the bundle (for the thermal state)
+
+    @property
+    def n_eval(self) -> int:
+        return self.current_a.size - self.start
+
+
+@dataclass
+class EvalData:
+    """All the evaluation runs of a bundle plus what the effects need from the whole bundle."""
+
+    runs: list[EvalRun]
+    folds: int
+    full_current_a: float
+    noise_floor_nmm: float
+    bundle_currents: list[np.ndarray]  # every run's current in bundle order (heating history)
+    bundle_dt_s: list[float]
+    sample_rate_hz: float
+    run_start_s: dict[str, float] = field(default_factory=dict)  # every run's start time in the bundle
+    cache: dict[Any, Any] = field(default_factory=dict)
+
+    def concat(self, arrays: Sequence[np.ndarray]) -> np.ndarray:
+        return np.concatenate(list(arrays)) if arrays else np.zeros(0)
+
+    def eval_slice(self, name: str) -> list[np.ndarray]:
+        """A per-run signal restricted to the evaluated spans (``name``: an attribute of :class:`EvalRun`)."""
+        return [getattr(r, name)[r.start:] for r in self.runs]
+
+    def test_mask(self, fold: int) -> np.ndarray:
+        return self.concat([r.block == fold for r in self.runs])
+
+    @property
+    def n_eval(self) -> int:
+        return sum(r.n_eval for r in self.runs)
+
+
+def _run_dt(run: Run, fallback_s: float) -> float:
+    t = run.t
+    if t.size >= 2:
+        d = np.diff(t)
+        d = d[np.isfinite(d) & (d > 0)]
+        if d.size:
+            return float(np.median(d))
+    return fallback_s
+
+
+def noise_floor(bundle: Bundle, friction: Any = None) -> float:
+    """Sensor noise (N·mm, one standard deviation) estimated from the data: the robust spread (MAD) of the first
+    differences of the off-state torque after friction removal, divided by √2 (the friction and any slow structure
+    hardly change from one sample to the next). Without an off-state run, the same estimate on the evaluation
+    runs' torque."""
+    runs = bundle.by_kind("off_state") or bundle.evaluation_runs()
+    diffs = []
+    for r in runs:
+        y = r.torque - (friction(r.theta) if friction is not None else 0.0)
+        u = r.current
+        # Only pairs of samples at one held current (the off-state body, the holds of a step run): the opening
+        # excursion's field torque changes from sample to sample.
+        held = (u[1:] == u[:-1]) & (np.abs(u[1:]) <= 1e-9 + 1e-3 * np.max(np.abs(u)))
+        if not held.any():
+            held = u[1:] == u[:-1]
+        d = np.diff(y)[held]
+        if d.size > 2:
+            diffs.append(d)
+    if not diffs:
+        raise BmrError("the bundle has no run long enough to estimate the noise floor")
+    d = np.concatenate(diffs)
+    mad = float(np.median(np.abs(d - np.median(d))))
+    sigma = 1.4826 * mad / math.sqrt(2.0)
+    if sigma == 0.0:
+        # Quantised or noise-free data: fall back to the plain standard deviation of the differences.
+        sigma = float(np.std(d)) / math.sqrt(2.0)
+    return sigma
+
+
+def prepare(bundle: Bundle, input_range: tuple[float, float], folds: int, friction: Any = None) -> EvalData:
+    """Cut the bundle's evaluation runs into blocked folds; every run must reach a saturation end."""
+    if not (isinstance(folds, (int, np.integer)) and 2 <= folds <= 50):
+        raise BmrError(f"folds must be an integer in [2, 50], got {folds!r}")
+    lo, hi = input_range
+    tol = SATURATION_TOL * (hi - lo)
+    fs = float(bundle.sample_rate_hz)
+    t0 = 0.0
+    out: list[EvalRun] = []
+    currents, dts = [], []
+    starts: dict[str, float] = {}
+    evaluation = {r.name for r in bundle.evaluation_runs()}
+    for index, r in enumerate(bundle.runs):
+        dt = _run_dt(r, 1.0 / fs)
+        t = r.t
+        # The run's start in the actuator's time when the bundle records it, else runs back to back.
+        start = r.meta.get("start_s") if isinstance(r.meta, dict) else None
+        if isinstance(start, (int, float)) and np.isfinite(start):
+            t0 = float(start)
+        t_abs = t0 + (t - t[0])
+        starts[r.name] = t0
+        t0 = float(t_abs[-1]) + dt if t.size else t0
+        currents.append(r.current)
+        dts.append(dt)
+        if r.name not in evaluation:
+            continue
+        u = r.current
+        s = evaluation_start(u, lo, hi, tol)
+        n = u.size - s
+        if n < 2 * folds:
+            continue
+        block = np.minimum((np.arange(n) * folds) // n, folds - 1).astype(np.int64)
+        out.append(EvalRun(r.name, r.kind, u, r.theta, r.torque, t_abs, dt, s, block, index))
+    if not out:
+        raise BmrError("the bundle has no evaluation run (multi_step, triangle, multipeak, tracking or custom) "
+                       f"with at least {2 * folds} samples after its first saturation; nothing to diagnose")
+    full = max(abs(lo), abs(hi))
+    return EvalData(out, int(folds), full, noise_floor(bundle, friction), currents, dts, fs, starts)
+
+
+def reversal_order(u: np.ndarray, lo: float, hi: float, deadband_a: float | None = None) -> np.ndarray:
+    """Order of the reversal curve each sample lies on: 0 on the major loop (after a saturation), 1 on a
+    first-order curve, 2 after a further reversal, … (a simple dead-band reversal counter, reset at saturation)."""
+    u = np.asarray(u, dtype=float)
+    span = hi - lo
+    db = 0.01 * span if deadband_a is None else deadband_a
+    tol = SATURATION_TOL * span
+    order = np.zeros(u.size, dtype=np.int64)
+    k = 0
+    direction = 0
+    extreme = u[0] if u.size else 0.0
+    for i in range(u.size):
+        x = u[i]
+        if x >= hi - tol or x <= lo + tol:
+            k = 0
+            direction = 1 if x >= hi - tol else -1
+            extreme = x
+        elif direction >= 0:
+            if x > extreme:
+                extreme = x
+                direction = 1
+            elif extreme - x > db:
+                k += 1 if direction != 0 else 0
+                direction = -1
+                extreme = x
+        else:
+            if x < extreme:
+                extreme = x
+            elif x - extreme > db:
+                k += 1
+                direction = 1
+                extreme = x
+        order[i] = k
+    return order
+
+
+def _binned_strength(x: np.ndarray, r: np.ndarray, bins: int = 20, min_count: int = 20) -> float:
+    """RMS (N·mm) of the residual explained by its binned means against ``x`` (quantile bins)."""
+    if x.size < bins * min_count:
+        bins = max(2, x.size // min_count)
+    if bins < 2:
+        return 0.0
+    edges = np.unique(np.quantile(x, np.linspace(0, 1, bins + 1)))
+    if edges.size < 3:
+        return 0.0
+    idx = np.clip(np.searchsorted(edges, x, side="right") - 1, 0, edges.size - 2)
+    counts = np.bincount(idx, minlength=edges.size - 1)
+    sums = np.bincount(idx, weights=r, minlength=edges.size - 1)
+    means = np.where(counts > 0, sums / np.maximum(counts, 1), 0.0)
+    means -= np.sum(sums) / max(1, r.size)
+    # Remove the part binned means of pure noise would show (expected mean square σ²/count per bin).
+    var = float(np.sum(counts * means ** 2) / r.size)
+    noise_var = float(np.var(r)) * (edges.size - 2) / r.size
+    return math.sqrt(max(0.0, var - noise_var))
+
+
+def _angle_strength(theta: np.ndarray, r: np.ndarray, orders: int = 12) -> float:
+    cols = [np.ones_like(theta)]
+    for k in range(1, orders + 1):
+        cols += [np.sin(k * theta), np.cos(k * theta)]
+    x = np.column_stack(cols)
+    beta, *_ = np.linalg.lstsq(x, r, rcond=None)
+    fit = x @ beta - np.mean(r)
+    var = float(np.mean(fit ** 2))
+    noise_var = float(np.var(r)) * (x.shape[1] - 1) / r.size
+    return math.sqrt(max(0.0, var - noise_var))
+
+
+def structure(data: EvalData, residual: Sequence[np.ndarray], lo: float, hi: float) -> dict[str, float]:
+    """How much of the residual (per-run arrays over the evaluated spans) each signal explains: the RMS (N·mm)
+    of its conditional mean against angle (harmonics up to 12/rev), time, current level, current rate and
+    reversal order, with the part expected from noise alone removed."""
+    r = data.concat(residual)
+    theta = data.concat(data.eval_slice("theta_rad"))
+    t = data.concat(data.eval_slice("t_abs_s"))
+    cur = data.concat(data.eval_slice("current_a"))
+    rate = data.concat([np.gradient(run.current_a, run.dt_s)[run.start:] for run in data.runs])
+    order = data.concat([reversal_order(run.current_a, lo, hi)[run.start:] for run in data.runs])
+    return {
+        "angle": _angle_strength(theta, r),
+        "time": _binned_strength(t, r),
+        "current_level": _binned_strength(cur, r),
+        "current_rate": _binned_strength(rate, r),
+        "reversal_order": _binned_strength(np.minimum(order, 6).astype(float) + 1e-9 * cur, r, bins=7),
+    }
