@@ -140,6 +140,8 @@ def run_demo(out: str | Path = "bmr-demo", *, preset: str = "bmr2013", seed: int
     metrics = _metrics(preset, seed, quick, model, cases, full_scale, bundle)
     if diagnosis is not None:
         metrics["diagnosis"] = diagnosis.to_dict()
+        # Wall-clock time is the one thing a seed does not fix: keep it with the other timings.
+        metrics["timing_s"]["diagnosis"] = metrics["diagnosis"].pop("wall_time_s", None)
     metrics["timing_s"]["wall"] = round(time.perf_counter() - t_start, 3)
     (out / "metrics.json").write_text(json.dumps(metrics, indent=2) + "\n")
     from bmr.demo_report import write_report
