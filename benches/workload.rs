@@ -14,15 +14,7 @@ pub fn operator() -> Hysteresis<Vec<f64>, 64> {
             .collect()
     };
     let (a, d) = (scale(&a), scale(&d));
-    let ac: Vec<_> = a
-        .iter()
-        .map(|(u, y)| (u.as_slice(), y.as_slice()))
-        .collect();
-    let dc: Vec<_> = d
-        .iter()
-        .map(|(u, y)| (u.as_slice(), y.as_slice()))
-        .collect();
-    Hysteresis::from_curves(&ac, &dc, &BuildOptions::default(), Initial::Negative).unwrap()
+    Hysteresis::from_curve_data(&a, &d, &BuildOptions::default(), Initial::Negative).unwrap()
 }
 
 /// Random multi-peak torque reference (N·mm) sampled at 1 kHz: peaks every 0.2-2 s, ±280 N·mm.

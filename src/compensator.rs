@@ -161,6 +161,11 @@ impl<S: AsRef<[f64]>, const N: usize, const K: usize> Compensator<S, N, K> {
             }
         };
         let limited = input.clamp(-self.limit_a, self.limit_a);
+        if matches!(self.inverse, InverseKind::Exact) && !saturated && limited == input {
+            // The exact inverse already knows the output: commit without evaluating the branch again.
+            self.forward.commit(input, target);
+            return Command::from_current(input, self.gain_a_per_v, false, false);
+        }
         self.commit(limited, saturated || limited != input, false)
     }
 

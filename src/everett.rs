@@ -37,6 +37,8 @@ pub struct Strip {
     pub k_next: usize,
     /// Offset of row `j` in the table storage (row `j + 1` follows it).
     pub row_j: usize,
+    /// `λ(1-λ)T_j`, the strip combination's constant (precomputed for the per-step evaluation).
+    pub shift: f64,
 }
 
 impl Strip {
@@ -51,6 +53,7 @@ impl Strip {
         k_j: 0,
         k_next: 0,
         row_j: 0,
+        shift: 0.0,
     };
 }
 
@@ -232,6 +235,7 @@ impl<S: AsRef<[f64]>> Family<S> {
         let k_next = g.partition_point(|&x| x < r_next);
         let t_j = self.row(j)[k_next];
         let row_j = self.nodes + self.curves + j * self.nodes;
+        let shift = lambda * (1.0 - lambda) * t_j;
         Strip {
             m,
             j,
@@ -242,6 +246,7 @@ impl<S: AsRef<[f64]>> Family<S> {
             k_j,
             k_next,
             row_j,
+            shift,
         }
     }
 
@@ -274,11 +279,10 @@ impl<S: AsRef<[f64]>> Family<S> {
         let d = self.data.as_ref();
         let a = d[s.row_j + k];
         if s.lambda == 0.0 {
-            return a;
+            return a; // on a measured curve (row j + 1 may not exist)
         }
         let b = d[s.row_j + self.nodes + k];
-        let one_l = 1.0 - s.lambda;
-        one_l * a + s.lambda * b - s.lambda * one_l * s.t_j
+        (1.0 - s.lambda) * a + s.lambda * b - s.shift
     }
 
     /// `E(m, hi)`: the largest increment reachable from reversal `s.m`.
@@ -290,6 +294,7 @@ impl<S: AsRef<[f64]>> Family<S> {
     /// Smallest input `u >= s.m` with `E(m, u) = e`, for `0 <= e <= everett_max(s)`; `e` beyond the range clamps
     /// to `s.m` or `hi`. Closed form inside one cell; the cell is found by galloping from `hint` (the cell of a
     /// nearby input), so slowly varying targets cost O(1) and any hint gives the same answer.
+    #[inline]
     pub fn everett_inverse(&self, s: &Strip, e: f64, hint: usize) -> f64 {
         if e <= 0.0 || s.m >= self.hi() {
             return s.m;

@@ -93,7 +93,7 @@ impl<const K: usize> Friction<K> {
         if self.order == 0 {
             return self.c0;
         }
-        let (s1, c1) = libm::sincos(theta);
+        let (s1, c1) = crate::trig::sincos(theta);
         let (mut s, mut c) = (s1, c1);
         let mut t = self.c0;
         for k in 0..self.order.min(K) {

@@ -20,6 +20,24 @@ impl<const N: usize> Hysteresis<Vec<f64>, N> {
         Hysteresis::new(t.ascending, t.descending, t.y_lo, t.y_hi, initial)
     }
 
+    /// [`Self::from_curves`] for owned curves (`(inputs, outputs)` vectors).
+    pub fn from_curve_data(
+        ascending: &[CurveData],
+        descending: &[CurveData],
+        opts: &BuildOptions,
+        initial: Initial,
+    ) -> Result<Self, TableError> {
+        let a: Vec<MeasuredCurve<'_>> = ascending
+            .iter()
+            .map(|(u, y)| (u.as_slice(), y.as_slice()))
+            .collect();
+        let d: Vec<MeasuredCurve<'_>> = descending
+            .iter()
+            .map(|(u, y)| (u.as_slice(), y.as_slice()))
+            .collect();
+        Self::from_curves(&a, &d, opts, initial)
+    }
+
     /// The stored tables as first-order curves `(ascending, descending)` in [`Self::from_curves`] form: each
     /// ascending curve on the grid from its reversal up, starting on the descending major branch; each
     /// descending curve from its reversal down, starting on the ascending major branch.

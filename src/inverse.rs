@@ -151,12 +151,34 @@ impl<S: AsRef<[f64]>, const N: usize> Hysteresis<S, N> {
         }
     }
 
-    /// Drive the output to `target`: find the input with [`Self::inverse_input`] and commit it with `step`.
+    /// Drive the output to `target`: find the input with [`Self::inverse_input`] and commit it. A reachable target
+    /// becomes the output exactly (the branch is not evaluated again); a saturated one is stepped to.
     pub fn step_inverse(&mut self, target: f64) -> InverseInput {
         let inv = self.inverse_input(target);
-        if !inv.input.is_nan() {
-            self.step(inv.input);
+        if inv.saturated {
+            if !inv.input.is_nan() {
+                self.step(inv.input);
+            }
+        } else {
+            self.commit(inv.input, target);
         }
         inv
+    }
+
+    /// Apply input `u` whose output `y` is already known (from the exact inverse): the memory update of `step`
+    /// without evaluating the branch again.
+    #[inline]
+    pub(crate) fn commit(&mut self, u: f64, y: f64) {
+        let u = u.clamp(self.lo, self.hi);
+        self.advance(u);
+        // Keep the search hint on the input's cell: the next inverse starts there.
+        let st = &mut self.state;
+        if st.history.rising() {
+            self.asc.locate(u, &mut st.hint_a);
+        } else {
+            self.desc.locate(-u, &mut st.hint_d);
+        }
+        st.u = u;
+        st.y = y;
     }
 }

@@ -24,6 +24,7 @@ pub mod paper_inverse;
 pub mod plant;
 #[cfg(feature = "alloc")]
 pub mod table_builder;
+pub mod trig;
 
 pub use cbh::{Hysteresis, Initial, State};
 pub use compensator::{Command, Compensator, CompensatorError, CompensatorState, InverseKind};

@@ -16,21 +16,13 @@ impl<const N: usize> Hysteresis<Vec<f64>, N> {
         let (asc, desc) = self.curves();
         let asc = swap_family(asc, 1.0);
         let desc = swap_family(desc, -1.0);
-        let a: Vec<_> = asc
-            .iter()
-            .map(|(u, y)| (u.as_slice(), y.as_slice()))
-            .collect();
-        let d: Vec<_> = desc
-            .iter()
-            .map(|(u, y)| (u.as_slice(), y.as_slice()))
-            .collect();
         // Inverted curves end where the torque curves end; allow the table's closure slack.
         let opts = BuildOptions {
             reach_tolerance: 0.05,
             closure_tolerance: 0.1,
             ..BuildOptions::default()
         };
-        Hysteresis::from_curves(&a, &d, &opts, Initial::Negative)
+        Hysteresis::from_curve_data(&asc, &desc, &opts, Initial::Negative)
     }
 }
 

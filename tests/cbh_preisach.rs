@@ -9,15 +9,7 @@ type H = Hysteresis<Vec<f64>, 64>;
 
 fn build(curves: usize) -> H {
     let (asc, desc) = measure_first_order(N_THRESHOLDS, curves);
-    let a: Vec<_> = asc
-        .iter()
-        .map(|(u, y)| (u.as_slice(), y.as_slice()))
-        .collect();
-    let d: Vec<_> = desc
-        .iter()
-        .map(|(u, y)| (u.as_slice(), y.as_slice()))
-        .collect();
-    H::from_curves(&a, &d, &BuildOptions::default(), Initial::Negative)
+    H::from_curve_data(&asc, &desc, &BuildOptions::default(), Initial::Negative)
         .expect("plant curves are valid")
 }
 

@@ -15,15 +15,7 @@ fn table() -> &'static Table {
 
 fn build<const N: usize>() -> Hysteresis<Vec<f64>, N> {
     let (asc, desc) = table();
-    let a: Vec<_> = asc
-        .iter()
-        .map(|(u, y)| (u.as_slice(), y.as_slice()))
-        .collect();
-    let d: Vec<_> = desc
-        .iter()
-        .map(|(u, y)| (u.as_slice(), y.as_slice()))
-        .collect();
-    Hysteresis::from_curves(&a, &d, &BuildOptions::default(), Initial::Negative).unwrap()
+    Hysteresis::from_curve_data(asc, desc, &BuildOptions::default(), Initial::Negative).unwrap()
 }
 
 /// Steepest output slope of the tables (output units per input unit), for the continuity bound.
@@ -198,17 +190,9 @@ fn nan_input_returns_nan_and_keeps_memory() {
 fn snapshot_of_another_table_is_rejected() {
     let a = build::<64>();
     let (asc, desc) = common::measure_first_order(40, 5);
-    let ac: Vec<_> = asc
-        .iter()
-        .map(|(u, y)| (u.as_slice(), y.as_slice()))
-        .collect();
-    let dc: Vec<_> = desc
-        .iter()
-        .map(|(u, y)| (u.as_slice(), y.as_slice()))
-        .collect();
-    let mut other = Hysteresis::<Vec<f64>, 64>::from_curves(
-        &ac,
-        &dc,
+    let mut other = Hysteresis::<Vec<f64>, 64>::from_curve_data(
+        &asc,
+        &desc,
         &BuildOptions::default(),
         Initial::Negative,
     )

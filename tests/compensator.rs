@@ -22,15 +22,7 @@ fn forward() -> Hysteresis<Vec<f64>, 16> {
             .collect()
     };
     let (a, d) = (scale(a), scale(d));
-    let ac: Vec<_> = a
-        .iter()
-        .map(|(u, y)| (u.as_slice(), y.as_slice()))
-        .collect();
-    let dc: Vec<_> = d
-        .iter()
-        .map(|(u, y)| (u.as_slice(), y.as_slice()))
-        .collect();
-    Hysteresis::from_curves(&ac, &dc, &BuildOptions::default(), Initial::Negative).unwrap()
+    Hysteresis::from_curve_data(&a, &d, &BuildOptions::default(), Initial::Negative).unwrap()
 }
 
 fn compensator(paper: bool, limit: f64) -> Comp {

@@ -97,16 +97,8 @@ fn noisy_triangles_identify_the_plant_and_the_cbh_agrees() {
 
     // The CBH operator from the identified first-order curves reproduces the identified model at grid reversals.
     let (asc, desc) = fit.model.first_order_curves();
-    let a_ref: Vec<_> = asc
-        .iter()
-        .map(|(u, y)| (u.as_slice(), y.as_slice()))
-        .collect();
-    let d_ref: Vec<_> = desc
-        .iter()
-        .map(|(u, y)| (u.as_slice(), y.as_slice()))
-        .collect();
     let mut h =
-        H::from_curves(&a_ref, &d_ref, &BuildOptions::default(), Initial::Negative).unwrap();
+        H::from_curve_data(&asc, &desc, &BuildOptions::default(), Initial::Negative).unwrap();
     let nodes = grid.nodes();
     let on_grid: Vec<f64> = [16, 3, 12, 6, 10, 8, 16, 0, 5]
         .iter()
@@ -125,4 +117,65 @@ fn noisy_triangles_identify_the_plant_and_the_cbh_agrees() {
         .map(|(&x, &e)| (h.step(x) - e).abs())
         .fold(0.0, f64::max);
     assert!(max_err < 1e-9 * span, "CBH vs Everett model: {max_err}");
+}
+
+mod properties {
+    use bmr::identification::{EverettGrid, EverettModel, nnls_gram};
+    use proptest::prelude::*;
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(64))]
+
+        /// The NNLS solution satisfies the KKT conditions of `min ½xᵀQx − cᵀx, x ≥ 0`.
+        #[test]
+        fn nnls_meets_kkt(a in proptest::collection::vec(-1.0f64..1.0, 36), c in proptest::collection::vec(-1.0f64..1.0, 6)) {
+            let n = 6;
+            // Q = AᵀA + 0.1 I is symmetric positive definite.
+            let mut q = vec![0.0; n * n];
+            for i in 0..n {
+                for j in 0..n {
+                    q[i * n + j] = (0..n).map(|k| a[k * n + i] * a[k * n + j]).sum::<f64>()
+                        + if i == j { 0.1 } else { 0.0 };
+                }
+            }
+            let constrained = [true, true, true, true, false, false];
+            let sol = nnls_gram(&q, &c, &constrained, 200).unwrap();
+            for i in 0..n {
+                let g: f64 = (0..n).map(|j| q[i * n + j] * sol.x[j]).sum::<f64>() - c[i];
+                if constrained[i] {
+                    prop_assert!(sol.x[i] >= 0.0);
+                    prop_assert!(g >= -1e-9, "negative multiplier {g} at {i}");
+                    if sol.x[i] > 1e-12 {
+                        prop_assert!(g.abs() < 1e-9);
+                    }
+                } else {
+                    prop_assert!(g.abs() < 1e-9);
+                }
+            }
+        }
+
+        /// Nonnegative masses give a monotone, wiping-out Preisach model: rising input never lowers the output and
+        /// a closed minor loop returns to its starting output.
+        #[test]
+        fn everett_model_is_monotone_with_return_point_memory(
+            masses in proptest::collection::vec(0.0f64..1.0, 28),
+            path in proptest::collection::vec(-1.0f64..1.0, 2..30),
+        ) {
+            let grid = EverettGrid::uniform(-1.0, 1.0, 7).unwrap();
+            let model = EverettModel::new(grid, masses, 0.0).unwrap();
+            let mut u = vec![-1.0, 1.0];
+            u.extend(&path);
+            let y = model.simulate(&u, None);
+            for k in 1..u.len() {
+                prop_assert!((y[k] - y[k - 1]) * (u[k] - u[k - 1]) >= -1e-12);
+            }
+            // Go to a, reverse to b, return to a: the output at a is restored.
+            let (a, b) = (path[0], path[path.len() - 1]);
+            let mut loop_path = u.clone();
+            loop_path.extend([a, b, a]);
+            let yl = model.simulate(&loop_path, None);
+            let n = yl.len();
+            prop_assert!((yl[n - 1] - yl[n - 3]).abs() < 1e-9);
+        }
+    }
 }

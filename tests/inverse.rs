@@ -27,15 +27,7 @@ fn bent() -> &'static Table {
 }
 
 fn build<const N: usize>(t: &Table) -> Hysteresis<Vec<f64>, N> {
-    let a: Vec<_> =
-        t.0.iter()
-            .map(|(u, y)| (u.as_slice(), y.as_slice()))
-            .collect();
-    let d: Vec<_> =
-        t.1.iter()
-            .map(|(u, y)| (u.as_slice(), y.as_slice()))
-            .collect();
-    Hysteresis::from_curves(&a, &d, &BuildOptions::default(), Initial::Negative).unwrap()
+    Hysteresis::from_curve_data(&t.0, &t.1, &BuildOptions::default(), Initial::Negative).unwrap()
 }
 
 fn check_inverse<const N: usize>(

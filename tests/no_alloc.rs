@@ -31,17 +31,13 @@ static GLOBAL: Counting = Counting;
 #[test]
 fn hysteresis_step_does_not_allocate() {
     let (asc, desc) = common::measure_first_order(60, 13);
-    let a: Vec<_> = asc
-        .iter()
-        .map(|(u, y)| (u.as_slice(), y.as_slice()))
-        .collect();
-    let d: Vec<_> = desc
-        .iter()
-        .map(|(u, y)| (u.as_slice(), y.as_slice()))
-        .collect();
-    let mut h =
-        Hysteresis::<Vec<f64>, 8>::from_curves(&a, &d, &BuildOptions::default(), Initial::Negative)
-            .unwrap();
+    let mut h = Hysteresis::<Vec<f64>, 8>::from_curve_data(
+        &asc,
+        &desc,
+        &BuildOptions::default(),
+        Initial::Negative,
+    )
+    .unwrap();
     let inputs = common::random_history(&mut common::Rng(3), 2000, 9);
     WATCHED.with(|w| w.set(true));
     let before = ALLOCS.load(Ordering::SeqCst);
@@ -60,17 +56,13 @@ fn hysteresis_step_does_not_allocate() {
 #[test]
 fn compensator_step_does_not_allocate() {
     let (asc, desc) = common::measure_first_order(60, 13);
-    let a: Vec<_> = asc
-        .iter()
-        .map(|(u, y)| (u.as_slice(), y.as_slice()))
-        .collect();
-    let d: Vec<_> = desc
-        .iter()
-        .map(|(u, y)| (u.as_slice(), y.as_slice()))
-        .collect();
-    let fwd =
-        Hysteresis::<Vec<f64>, 8>::from_curves(&a, &d, &BuildOptions::default(), Initial::Negative)
-            .unwrap();
+    let fwd = Hysteresis::<Vec<f64>, 8>::from_curve_data(
+        &asc,
+        &desc,
+        &BuildOptions::default(),
+        Initial::Negative,
+    )
+    .unwrap();
     let paper = bmr::InverseKind::Paper(fwd.paper_inverse().unwrap());
     let f =
         bmr::Friction::<12>::from_coefficients(5.0, &[10.0, 3.0, 1.0], &[2.0, 1.0, 0.5]).unwrap();

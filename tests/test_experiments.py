@@ -258,3 +258,52 @@ def test_bad_bundle_non_monotonic_time(written, tmp_path):
     df.to_csv(b / "off_state.csv", index=False)
     with pytest.raises(bmr.BmrError, match="'off_state'.*strictly increase.*row 50"):
         bmr.read_bundle(b)
+
+
+def test_tracking_with_the_identified_compensator_opens_from_saturation():
+    from bmr.identify import identify
+
+    model = identify(ex.simulate_bundle(quick=True))
+    act = _act()
+    ref = ex.reference_multipeak(ex.MULTIPEAK_SEED, amplitude_nmm=450.0, duration_s=20.0, sample_rate_hz=FS)
+    run = ex.tracking(act, model.compensator(), ref, opening_duration_s=4.0)
+    _assert_opening(run)
+    err = _body(run).torque_nmm.to_numpy() - ref
+    # Paper fig 25: about ±60 N·mm with both compensations.
+    assert np.max(np.abs(err)) < 60.0
+
+
+def test_custom_run_and_parameters():
+    act = _act()
+    run = ex.custom(act, np.linspace(0.0, 0.7, 300), name="ramp")
+    assert run.kind == "custom" and run.name == "ramp"
+    _assert_opening(run)
+    np.testing.assert_array_equal(_body(run).current_a, np.linspace(0.0, 0.7, 300))
+    with pytest.raises(bmr.BmrError, match=r"current_a\[1\]"):
+        ex.custom(act, [0.0, np.inf])
+    p = act.parameters
+    assert p["converter"]["gain_a_per_v"] == 0.125
+    assert p["fluid"]["yield_stress"] == "MRF-132DG cubic"
+    assert len(p["friction"]["amplitude_nmm"]) == 3
+    assert p["steel1"]["saturation_t"] < p["steel2"]["saturation_t"]
+
+
+def test_simulate_bundle_with_overrides_records_them():
+    b = ex.simulate_bundle(quick=True, overrides={"sensor.noise_n": 0.0})
+    assert b.meta["simulator"]["overrides"] == {"sensor.noise_n": 0.0}
+    assert b.meta["simulator"]["noise_nmm"] == 0.0
+    off = _body(b.run("off_state")).iloc[50:]  # after the coil field lag has settled
+    q = bmr.VirtualActuator().resolution_nmm
+    truth = bmr.VirtualActuator().true_friction(off.theta_rad.to_numpy())
+    assert np.max(np.abs(off.torque_nmm.to_numpy() - truth)) < 2.0 + q
+
+
+def test_simulate_cli_overrides(tmp_path):
+    import json
+
+    from bmr.cli import main
+
+    assert main(["simulate", "--quick", "--override", "sensor.noise_n=0", "-o", str(tmp_path / "b")]) == 0
+    manifest = json.loads((tmp_path / "b" / "manifest.json").read_text())
+    assert manifest["simulator"]["overrides"] == {"sensor.noise_n": 0.0}
+    assert main(["simulate", "--quick", "--override", "junk", "-o", str(tmp_path / "c")]) == 2

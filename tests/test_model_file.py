@@ -88,3 +88,14 @@ def test_wrong_and_newer_formats_are_rejected(model, tmp_path):
         bmr.Model.load(_write(tmp_path / "none.json", content))
     with pytest.raises(bmr.BmrError, match="JSON object"):
         bmr.Model.load(_write(tmp_path / "list.json", [1, 2]))
+
+
+def test_model_with_given_friction_round_trips(model, tmp_path):
+    given = bmr.FrictionFit.from_coefficients(5.0, [1.0, 0.5], [0.0, -0.25])
+    m = bmr.Model(model.hysteresis, given, extensions=[{"name": "coil_lag", "params": {"tau_s": 0.008}}])
+    back = bmr.Model.load(m.save(tmp_path / "given.json"))
+    assert back.friction.c0 == 5.0 and np.isnan(back.friction.c0_stderr)
+    assert back.extensions == [{"name": "coil_lag", "params": {"tau_s": 0.008}}]
+    theta = np.linspace(0, 7, 50)
+    np.testing.assert_allclose(back.friction_torque(theta), given(theta))
+    np.testing.assert_allclose(back.friction.to_friction()(theta), given(theta), atol=1e-12)

@@ -137,3 +137,34 @@ def test_run_releases_the_gil():
         t.join()
     # Holding the GIL for the ~0.5 s run would let the other thread count only around the call's edges.
     assert during > 20_000
+
+
+def test_step_matches_run_and_flags_non_finite_commands():
+    cmd = _cmd(50)
+    whole = bmr.VirtualActuator("bmr2013", seed=8).run(cmd)
+    act = bmr.VirtualActuator("bmr2013", seed=8)
+    steps = [act.step(float(c)) for c in cmd]
+    for k in whole:
+        np.testing.assert_array_equal(whole[k], [s[k] for s in steps], err_msg=k)
+    assert all(s["command_valid"] for s in steps)
+    s = act.step(float("nan"))
+    assert s["command_valid"] is False and s["current_a"] == 0.0 and s["coil1_a"] == s["coil2_a"] == 0.0
+    assert np.isfinite(s["torque_nmm"])
+
+
+def test_overrides_change_physical_parameters_by_name():
+    quiet = bmr.VirtualActuator("bmr2013", seed=1, overrides={"sensor.noise_n": 0.0, "sensor.resolution_n": 0.0})
+    out = quiet.run(_cmd(2000))
+    np.testing.assert_allclose(out["torque_nmm"], out["torque_true_nmm"], atol=1e-9)
+    half = bmr.VirtualActuator("bmr2013", overrides={"friction.scale": 0.5, "friction.offset_nmm": 0.0})
+    th = np.linspace(0, 2 * np.pi, 40)
+    np.testing.assert_allclose(half.true_friction(th), 0.5 * (bmr.VirtualActuator("bmr2013").true_friction(th) - 20.0),
+                               atol=1e-9)
+    assert half.parameters["friction"]["offset_nmm"] == 0.0
+    assert "sensor.noise_n" in bmr.ACTUATOR_PARAMETERS
+    with pytest.raises(bmr.BmrError, match='unknown actuator parameter "sensor.noize_n"'):
+        bmr.VirtualActuator(overrides={"sensor.noize_n": 0.0})
+    with pytest.raises(bmr.BmrError, match="sensor.lever_mm"):
+        bmr.VirtualActuator(overrides={"sensor.lever_mm": -1.0})
+    with pytest.raises(bmr.BmrError, match="overrides must be a dict"):
+        bmr.VirtualActuator(overrides=[("sensor.noise_n", 0.0)])

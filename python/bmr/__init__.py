@@ -13,6 +13,7 @@ Units: current in A (nominal current spans both coils: negative = coil 1, positi
 angles in rad, time in s, converter voltages in V.
 """
 from bmr._core import (
+    ACTUATOR_PARAMETERS,
     EFFECTS,
     PRESETS,
     BmrError,
@@ -34,6 +35,7 @@ from bmr.io import bundle_from_files, read_table
 from bmr.model import Model
 
 __all__ = [
+    "ACTUATOR_PARAMETERS",
     "EFFECTS",
     "PRESETS",
     "BmrError",

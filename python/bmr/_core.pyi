@@ -87,7 +87,7 @@ class EverettModel:
     def everett_table(self) -> np.ndarray: ...
     def simulate(self, u: np.ndarray, offset: float | None = None) -> np.ndarray: ...
     def first_order_curves(
-        self,
+        self, subdivisions: int = 1
     ) -> tuple[list[tuple[np.ndarray, np.ndarray]], list[tuple[np.ndarray, np.ndarray]]]: ...
 
 def fit_everett(
@@ -104,6 +104,8 @@ EFFECTS: tuple[str, ...]
 """Names of the virtual actuator's switchable effects (the diagnosis vocabulary)."""
 PRESETS: tuple[str, ...]
 """Names of the virtual actuator presets."""
+ACTUATOR_PARAMETERS: tuple[str, ...]
+"""Dotted names of the physical parameters ``VirtualActuator(overrides=...)`` can change."""
 
 def effect_parameters() -> dict[str, dict[str, object]]:
     """Every effect: ``{name: {"doc": str, "params": {param: {"unit", "default", "min", "max", "doc"}}}}``."""
@@ -120,10 +122,13 @@ class VirtualActuator:
         seed: int | None = 0,
         sample_rate_hz: float = 1000.0,
         effects: EffectsSpec = None,
+        overrides: dict[str, float] | None = None,
     ) -> None: ...
     def run(self, current_a: ArrayLike) -> dict[str, np.ndarray]:
         """Commanded nominal currents (A) → ``t_s, current_a, coil1_a, coil2_a, theta_rad, speed_rad_s,
         torque_nmm`` and the hidden ``b1_t, b2_t, field_torque_nmm, friction_nmm, torque_true_nmm``."""
+    def step(self, current_a: float) -> dict[str, float | bool]:
+        """One sample: the keys of ``run`` as floats, plus ``command_valid`` (NaN applies 0 A, flagged)."""
     def reset(self) -> None: ...
     def true_friction(self, theta_rad: ArrayLike) -> np.ndarray: ...
     def theta_ahead(self, n: int) -> np.ndarray: ...
@@ -139,6 +144,9 @@ class VirtualActuator:
     def sample_rate_hz(self) -> float: ...
     @property
     def time_s(self) -> float: ...
+    @property
+    def parameters(self) -> dict[str, object]:
+        """Physical parameters of every stage (converter, steel1/2, fluid, geometry, drive, friction, sensor)."""
     @property
     def noise_nmm(self) -> float: ...
     @property

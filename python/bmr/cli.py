@@ -25,6 +25,8 @@ def _parser() -> argparse.ArgumentParser:
     s.add_argument("--preset", default="bmr2013")
     s.add_argument("--effect", action="append", default=[], metavar="NAME[:key=value,...]",
                    help="switch on an effect of the virtual actuator (repeatable)")
+    s.add_argument("--override", action="append", default=[], metavar="GROUP.PARAM=VALUE",
+                   help="change a physical parameter of the preset (repeatable; names in bmr.ACTUATOR_PARAMETERS)")
     s.add_argument("--seed", type=int, default=0)
     s.add_argument("--quick", action="store_true", help="shorter runs")
     s.add_argument("--format", choices=("csv", "parquet"), default="csv")

@@ -39,18 +39,23 @@ MULTIPEAK_SEED = 2013
 __all__ = [
     "BUNDLE_SAMPLE_RATE_HZ",
     "FULL_CURRENT_A",
+    "custom",
+    "MULTIPEAK_SEED",
+    "OPENING_RATE_A_PER_S",
     "first_order_ascending",
     "first_order_descending",
     "multi_step",
     "multipeak",
     "off_state",
     "opening_path",
+    "ramp_path",
     "reference_multipeak",
     "reference_triangle",
     "run_cli",
     "simulate_bundle",
     "tracking",
     "triangle",
+    "triangle_path",
 ]
 
 
@@ -332,6 +337,19 @@ def multipeak(actuator: VirtualActuator, *, seed: int = MULTIPEAK_SEED, duration
                    {"excitation_seed": int(seed), "rate_range_a_per_s": [float(r) for r in rate_range_a_per_s]})
 
 
+def custom(actuator: VirtualActuator, current_a: Sequence[float] | np.ndarray, *, name: str = "custom",
+           full_a: float = FULL_CURRENT_A, opening_rate_a_per_s: float = OPENING_RATE_A_PER_S) -> Run:
+    """Any excitation (kind ``custom``): the opening excursion, then ``current_a`` (A) sample by sample."""
+    body = np.asarray(current_a, dtype=float)
+    if body.ndim != 1 or body.size == 0:
+        raise BmrError("current_a must be a non-empty 1-D array of currents (A)")
+    bad = np.flatnonzero(~np.isfinite(body))
+    if bad.size:
+        raise BmrError(f"current_a[{int(bad[0])}] = {body[bad[0]]!r} is not finite")
+    cur, k = _with_opening(actuator, body, opening_rate_a_per_s, full_a)
+    return _record(actuator, name, "custom", cur, k)
+
+
 def tracking(actuator: VirtualActuator, compensator: Any, reference_nmm: np.ndarray, *, name: str = "tracking",
              opening_reference_nmm: float | None = None, opening_duration_s: float = 10.0) -> Run:
     """Open-loop torque tracking (figs 21-25): ``reference_nmm`` (N·mm, one value per sample) is driven through
@@ -415,7 +433,8 @@ def _plan(quick: bool, compensator: Any, fs: float) -> list[tuple[str, Callable[
 def simulate_bundle(preset: str = "bmr2013", *, effects: Mapping[str, Any] | Sequence[str] | None = None,
                     seed: int = 0, quick: bool = False, compensator: Any = None,
                     sample_rate_hz: float = BUNDLE_SAMPLE_RATE_HZ,
-                    on_run: Callable[[Run], Any] | None = None) -> Bundle:
+                    on_run: Callable[[Run], Any] | None = None,
+                    overrides: Mapping[str, float] | None = None) -> Bundle:
     """The paper's experiment set on a fresh virtual actuator, as a :class:`bmr.bundle.Bundle`.
 
     Runs, in order, on one actuator (its thermal state and sensor drift carry over; each run's opening
@@ -426,8 +445,10 @@ def simulate_bundle(preset: str = "bmr2013", *, effects: Mapping[str, Any] | Seq
     ``seed`` fixes the sensor noise only: every excitation is the same for every seed. The manifest records the
     simulator's preset, seed and active effects under ``"simulator"`` (ground truth for calibration studies).
     ``on_run(run)`` is called after each run (progress reporting). Logged at ``sample_rate_hz`` (500 Hz).
+    ``overrides`` changes physical parameters by dotted name (``bmr.ACTUATOR_PARAMETERS``), e.g. the noise level.
     """
-    actuator = VirtualActuator(preset, seed=seed, sample_rate_hz=sample_rate_hz, effects=effects)
+    actuator = VirtualActuator(preset, seed=seed, sample_rate_hz=sample_rate_hz, effects=effects,
+                               overrides=dict(overrides) if overrides else None)
     plan = _plan(bool(quick), compensator, actuator.sample_rate_hz)
     runs: list[Run] = []
     for _name, fn in plan:
@@ -436,8 +457,23 @@ def simulate_bundle(preset: str = "bmr2013", *, effects: Mapping[str, Any] | Seq
             on_run(runs[-1])
     meta = {"simulator": {"preset": preset, "seed": int(seed), "quick": bool(quick),
                           "effects": {k: dict(v) for k, v in actuator.effects.items()},
-                          "noise_nmm": actuator.noise_nmm}}
+                          "noise_nmm": actuator.noise_nmm,
+                          "overrides": {k: float(v) for k, v in (overrides or {}).items()}}}
     return Bundle(actuator=actuator.name, sample_rate_hz=actuator.sample_rate_hz, runs=runs, meta=meta)
+
+
+def _parse_overrides(items: Sequence[str]) -> dict[str, float]:
+    """``["sensor.noise_n=0", ...]`` → ``{"sensor.noise_n": 0.0}``, with a clear error for malformed items."""
+    out: dict[str, float] = {}
+    for item in items:
+        name, sep, value = item.partition("=")
+        try:
+            if not sep or not name.strip():
+                raise ValueError
+            out[name.strip()] = float(value)
+        except ValueError:
+            raise BmrError(f"--override {item!r}: expected GROUP.PARAM=NUMBER, e.g. sensor.noise_n=0") from None
+    return out
 
 
 def run_cli(args: Any) -> int:
@@ -447,10 +483,12 @@ def run_cli(args: Any) -> int:
 
     t0 = time.perf_counter()
     effects = list(args.effect or [])
+    overrides = _parse_overrides(getattr(args, "override", None) or [])
     # Plan length: the set without a compensator.
     n_runs = len(_plan(bool(args.quick), None, BUNDLE_SAMPLE_RATE_HZ))
     with tqdm(total=2 * n_runs, file=sys.stderr, unit="step", desc="bmr simulate") as bar:
         bundle = simulate_bundle(args.preset, effects=effects, seed=args.seed, quick=args.quick,
+                                 overrides=overrides or None,
                                  on_run=lambda run: (bar.set_postfix_str(f"simulated {run.name}"), bar.update(1)))
         out = write_bundle(bundle, Path(args.out), fmt=args.format,
                            on_run_written=lambda run: (bar.set_postfix_str(f"wrote {run.name}"), bar.update(1)))

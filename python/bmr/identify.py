@@ -31,10 +31,10 @@ __all__ = [
     "fit_friction",
     "find_reversals",
     "extract_first_order_curves",
-    "first_order_curves_from_runs",
     "paper_current_curves",
     "fit_tables_lstsq",
     "evaluation_start",
+    "input_range_of",
     "identify",
     "run_cli",
 ]
@@ -123,20 +123,22 @@ def _as_runs(runs: Bundle | Run | Iterable[Run]) -> list[Run]:
 
 
 def _off_state_samples(runs: list[Run], current_tol_a: float | None) -> tuple[np.ndarray, np.ndarray]:
+    """Angle and torque of the zero-current part of each off-state run: everything after the opening excursion
+    (the last sample above a quarter of the run's largest current), less 1 % settling, and without samples whose
+    current exceeds ``current_tol_a`` (default 5 % of the excursion; measured currents are noisy)."""
     thetas, torques = [], []
     for run in runs:
-        i_a = run.current
-        # Default: 1 % of the run's largest current (its opening excursion), above converter/measurement noise.
-        tol = current_tol_a if current_tol_a is not None else max(1e-9, 1e-2 * float(np.max(np.abs(i_a))))
-        # Zero-current samples after the last nonzero one: the opening excursion (if any) is over.
-        nonzero = np.flatnonzero(np.abs(i_a) > tol)
-        start = int(nonzero[-1]) + 1 if nonzero.size else 0
-        # Let a short settling time pass after the excursion (1 % of the remaining samples).
+        i_a = np.abs(run.current)
+        peak = float(np.max(i_a))
+        tol = current_tol_a if current_tol_a is not None else max(1e-9, 0.05 * peak)
+        excursion = np.flatnonzero(i_a > max(0.25 * peak, tol))
+        start = int(excursion[-1]) + 1 if excursion.size else 0
         start += (len(i_a) - start) // 100
         keep = np.arange(start, len(i_a))
-        keep = keep[np.abs(i_a[keep]) <= tol]
+        keep = keep[i_a[keep] <= tol]
         if keep.size == 0:
-            raise BmrError(f"run {run.name!r}: no zero-current samples for the friction fit")
+            raise BmrError(f"run {run.name!r}: no zero-current samples for the friction fit "
+                           f"(|current| ≤ {tol:.3g} A after the opening excursion)")
         thetas.append(run.theta[keep])
         torques.append(run.torque[keep])
     return np.concatenate(thetas), np.concatenate(torques)
@@ -267,10 +269,28 @@ def find_reversals(u: np.ndarray, deadband: float) -> np.ndarray:
     return np.asarray(out, dtype=int)
 
 
+def _sample_noise(u: np.ndarray) -> float:
+    """White-noise standard deviation of ``u`` from its second differences (zero on ramps and holds, ``σ√6`` for
+    white noise), with the median so that the corners of the protocol do not count."""
+    return float(np.median(np.abs(np.diff(u, 2)))) / (0.6745 * math.sqrt(6.0)) if u.size > 2 else 0.0
+
+
+def input_range_of(currents: Sequence[np.ndarray], window: int = 21) -> tuple[float, float]:
+    """The saturation ends reached by measured currents: the extremes of their ``window``-sample running mean
+    (a noisy signal's single extreme samples overshoot the commanded saturation by several sigmas; the running
+    mean of a ramp's apex stays within half a window of steps of it)."""
+    lo, hi = math.inf, -math.inf
+    for u in currents:
+        u = np.asarray(u, dtype=float)
+        w = max(1, min(window, u.size))
+        mean = np.convolve(u, np.full(w, 1.0 / w), mode="valid")
+        lo, hi = min(lo, float(mean.min())), max(hi, float(mean.max()))
+    return lo, hi
+
+
 def _default_deadband(u: np.ndarray) -> float:
-    span = float(np.ptp(u))
-    noise = float(np.median(np.abs(np.diff(u)))) if u.size > 1 else 0.0
-    return max(0.01 * span, 5.0 * noise, 1e-12)
+    """1 % of the input span, or 10 × the sample noise of ``u`` if larger."""
+    return max(0.01 * float(np.ptp(u)), 10.0 * _sample_noise(u), 1e-12)
 
 
 def _monotone_fit(u: np.ndarray, y: np.ndarray, nodes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -363,11 +383,11 @@ def extract_first_order_curves(
     """Cut and fit the first-order curves of one run (or several runs of one actuator).
 
     Friction ``friction(theta)`` (N·mm) is subtracted first. Reversals of the current are found with a
-    dead-band (``deadband_a``, default: the larger of 1 % of the current span and 5 × the median sample step);
+    dead-band (``deadband_a``, default: the larger of 1 % of the current span and 10 × the current's sample noise);
     a rising segment from a minimum that followed positive saturation (or from negative saturation) up to
     positive saturation is an ascending first-order curve, and symmetrically for descending ones. Curves whose
-    reversals lie within the dead-band of each other are pooled (repeated branches average their noise). Each curve
-    is fitted monotonically on about ``n_nodes`` nodes per full input span.
+    reversals lie within a few noise sigmas of each other are pooled (repeated branches average their noise).
+    Each curve is fitted monotonically on about ``n_nodes`` nodes per full input span.
     """
     runs = _as_runs(run)
     if not runs:
@@ -375,10 +395,12 @@ def extract_first_order_curves(
     if n_nodes < 4:
         raise BmrError(f"n_nodes must be at least 4, got {n_nodes}")
     all_u = np.concatenate([r.current for r in runs])
-    lo, hi = input_range if input_range is not None else (float(all_u.min()), float(all_u.max()))
+    lo, hi = input_range if input_range is not None else input_range_of([r.current for r in runs])
     if not hi > lo:
         raise BmrError(f"runs {', '.join(r.name for r in runs)}: the current never varies; no curves to extract")
     db = deadband_a if deadband_a is not None else _default_deadband(all_u)
+    # Repeats of one curve (e.g. the major branches of several runs) have reversals a few noise sigmas apart.
+    pool_tol = min(db, max(0.005 * (hi - lo), 4.0 * _sample_noise(all_u)))
     sat_tol = saturation_tol_a if saturation_tol_a is not None else max(2.0 * db, 0.02 * (hi - lo))
     pools: dict[str, list[tuple[float, list[np.ndarray], list[np.ndarray]]]] = {"asc": [], "desc": []}
     for r in runs:
@@ -393,7 +415,7 @@ def extract_first_order_curves(
                 if key == "desc" and rev >= hi - sat_tol:
                     rev = hi
                 for entry in pools[key]:
-                    if abs(entry[0] - rev) <= db:
+                    if abs(entry[0] - rev) <= pool_tol:
                         entry[1].append(u[a:b + 1])
                         entry[2].append(y[a:b + 1])
                         break
@@ -422,11 +444,6 @@ def extract_first_order_curves(
         raise BmrError(f"runs {names}: found {len(ascending)} ascending and {len(descending)} descending "
                        f"first-order curves (dead-band {db:.4g} A); both families need at least the major branch")
     return FirstOrderCurves(ascending, descending, (lo, hi))
-
-
-def first_order_curves_from_runs(runs: Iterable[Run], friction: Any = None, **kwargs: Any) -> FirstOrderCurves:
-    """``extract_first_order_curves`` over all given runs (pooled)."""
-    return extract_first_order_curves(list(runs), friction, **kwargs)
 
 
 def paper_current_curves(ascending: Sequence[Curve], descending: Sequence[Curve]
@@ -490,12 +507,15 @@ def fit_tables_lstsq(
     per_run_offset: bool = False,
     max_rows: int = 200_000,
     start_at_saturation: bool = True,
+    curve_subdivisions: int = 4,
 ) -> LstsqTables:
     """Identify an Everett table (Preisach model) from any runs by regularised nonnegative least squares.
 
     The memory of each run starts at negative saturation; rows before the run's first saturation are left out
     (``start_at_saturation``). Rows are thinned uniformly to at most ``max_rows``. ``per_run_offset`` fits one
-    free output offset per run (sensor offsets, unknown remanence) instead of one shared offset.
+    free output offset per run (sensor offsets, unknown remanence) instead of one shared offset. The returned
+    first-order curves start at every grid node and at ``curve_subdivisions − 1`` points inside each interval, so a
+    CBH operator built from them follows the table between grid reversals too.
     """
     runs = list(runs)
     if not runs:
@@ -505,7 +525,7 @@ def fit_tables_lstsq(
     us = [r.current for r in runs]
     ys = [r.torque - (friction(r.theta) if friction is not None else 0.0) for r in runs]
     all_u = np.concatenate(us)
-    lo, hi = input_range if input_range is not None else (float(all_u.min()), float(all_u.max()))
+    lo, hi = input_range if input_range is not None else input_range_of([r.current for r in runs])
     if not hi > lo:
         raise BmrError("the current never varies in the training runs; nothing to identify")
     grid = np.linspace(lo, hi, n_intervals + 1)
@@ -520,7 +540,7 @@ def fit_tables_lstsq(
         packed.append((np.ascontiguousarray(u), np.ascontiguousarray(y), w, k if per_run_offset else 0))
     res = _core.fit_everett(grid, packed, len(runs) if per_run_offset else 1, smoothing=smoothing, ridge=ridge)
     model = res["model"]
-    asc, desc = model.first_order_curves()
+    asc, desc = model.first_order_curves(subdivisions=curve_subdivisions)
     return LstsqTables(everett=model, offsets=np.asarray(res["offsets"]), rms=float(res["rms"]),
                        n_rows=int(res["n_rows"]), iterations=int(res["iterations"]),
                        ascending=[(np.asarray(u), np.asarray(y)) for u, y in asc],
@@ -569,8 +589,7 @@ def identify(
     t_friction = time.perf_counter() - t0
     protocol = bundle.by_kind("first_order_ascending", "first_order_descending")
     evaluation = bundle.evaluation_runs()
-    all_u = np.concatenate([r.current for r in bundle.runs if r.kind != "off_state"] or [np.zeros(1)])
-    lo, hi = float(all_u.min()), float(all_u.max())
+    lo, hi = input_range_of([r.current for r in bundle.runs if r.kind != "off_state"] or [np.zeros(2)])
     info: dict[str, Any] = {"method": method, "friction": friction.to_dict() if friction else None,
                             "time_s": {"friction": t_friction}, "heldout_rms_nmm": {}}
     candidates: dict[str, Model] = {}

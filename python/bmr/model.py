@@ -20,6 +20,7 @@ from __future__ import annotations
 import hashlib
 import json
 import math
+import re
 from pathlib import Path
 from typing import Any, Sequence
 
@@ -58,12 +59,16 @@ class Model:
         converter_gain_a_per_v: float = 0.125,
         extensions: Sequence[dict[str, Any]] | None = None,
         meta: dict[str, Any] | None = None,
+        curves: tuple[list[tuple[np.ndarray, np.ndarray]], list[tuple[np.ndarray, np.ndarray]]] | None = None,
     ) -> None:
         if not (isinstance(converter_gain_a_per_v, (int, float)) and math.isfinite(converter_gain_a_per_v)
                 and converter_gain_a_per_v > 0):
             raise BmrError(f"converter_gain_a_per_v must be positive and finite, got {converter_gain_a_per_v!r}")
         self.hysteresis = hysteresis
         self.friction = friction
+        # The first-order curves the hysteresis was built from (saved instead of its resampled tables: the build
+        # is deterministic, and the source curves are usually far smaller).
+        self._source_curves = curves
         self.converter_gain_a_per_v = float(converter_gain_a_per_v)
         self.extensions = [dict(e) for e in (extensions or [])]
         self.meta = dict(meta or {})
@@ -81,7 +86,7 @@ class Model:
 
         asc = [(np.asarray(u, float), np.asarray(y, float)) for u, y in ascending]
         desc = [(np.asarray(u, float), np.asarray(y, float)) for u, y in descending]
-        return cls(Hysteresis.from_curves(asc, desc, initial=initial), friction, **kwargs)
+        return cls(Hysteresis.from_curves(asc, desc, initial=initial), friction, curves=(asc, desc), **kwargs)
 
     # ------------------------------------------------------------------------------------------- use
     def friction_torque(self, theta_rad: Any) -> np.ndarray:
@@ -128,14 +133,14 @@ class Model:
     # --------------------------------------------------------------------------------------- files
     def to_dict(self) -> dict[str, Any]:
         """The ``bmr-model/1`` content (without the digest)."""
-        asc, desc = self.hysteresis.curves()
+        asc, desc = self._source_curves if self._source_curves is not None else self.hysteresis.curves()
 
         def fam(curves: Any) -> list[list[list[float]]]:
             return [[[float(v) for v in u], [float(v) for v in y]] for u, y in curves]
 
         return {
             "format": FORMAT,
-            "friction": self.friction.to_dict() if self.friction is not None else None,
+            "friction": _jsonable(self.friction.to_dict()) if self.friction is not None else None,
             "hysteresis": {"ascending": fam(asc), "descending": fam(desc), "initial": "negative"},
             "limits": self.limits,
             "converter_gain_a_per_v": self.converter_gain_a_per_v,
@@ -149,7 +154,7 @@ class Model:
         content["sha256"] = _digest(content)
         p = Path(path)
         try:
-            p.write_text(json.dumps(content, indent=1, allow_nan=False) + "\n")
+            p.write_text(_compact_number_lists(json.dumps(content, indent=1, allow_nan=False)) + "\n")
         except OSError as exc:
             raise BmrError(f"cannot write model file {str(p)!r}: {exc.strerror or exc}") from None
         return p
@@ -203,7 +208,7 @@ class Model:
         except BmrError as exc:
             raise BmrError(f"{source}: hysteresis tables rejected: {exc}") from None
         return cls(h, friction, limits=limits, converter_gain_a_per_v=gain, extensions=ext,
-                   meta=content.get("meta") or {})
+                   meta=content.get("meta") or {}, curves=(asc, desc))
 
     @classmethod
     def load(cls, path: str | Path) -> "Model":
@@ -256,17 +261,37 @@ def _friction(value: Any, source: str) -> FrictionFit | None:
     se = value.get("stderr")
     if isinstance(se, dict):
         try:
-            fit.c0_stderr = float(se.get("c0", float("nan")))
-            fit.a_stderr = np.asarray(se.get("a", fit.a_stderr), dtype=float)
-            fit.b_stderr = np.asarray(se.get("b", fit.b_stderr), dtype=float)
+            # Unknown uncertainties are stored as null.
+            fit.c0_stderr = _num(se.get("c0"))
+            fit.a_stderr = np.array([_num(v) for v in se.get("a", fit.a_stderr)], dtype=float)
+            fit.b_stderr = np.array([_num(v) for v in se.get("b", fit.b_stderr)], dtype=float)
         except (TypeError, ValueError):
             raise BmrError(f"{source}: friction.stderr must hold numbers") from None
-    for key in ("residual_rms_nmm", "n", "criterion"):
-        if key in value:
-            setattr(fit, key, value[key])
+        if fit.a_stderr.shape != fit.a.shape or fit.b_stderr.shape != fit.b.shape:
+            raise BmrError(f"{source}: friction.stderr must have one entry per coefficient")
+    if "residual_rms_nmm" in value:
+        fit.residual_rms_nmm = _num(value["residual_rms_nmm"])
+    if isinstance(value.get("n"), int):
+        fit.n = value["n"]
+    if isinstance(value.get("criterion"), str):
+        fit.criterion = value["criterion"]
     if isinstance(value.get("scores"), dict):
         fit.scores = {int(k): float(v) for k, v in value["scores"].items()}
     return fit
+
+
+# A list of numbers as indented by json.dumps: opening bracket, then a newline (JSON strings cannot hold raw
+# newlines, so only structural lists match), numbers and commas, closing bracket on its own line.
+_NUMBER_LIST = re.compile(r"\[\n\s*([-+0-9.eE,\s]+?)\n\s*\]")
+
+
+def _compact_number_lists(text: str) -> str:
+    """Put every list of plain numbers on one line (curve tables would otherwise take a line per value)."""
+    return _NUMBER_LIST.sub(lambda m: "[" + ", ".join(v.strip() for v in m.group(1).split(",")) + "]", text)
+
+
+def _num(v: Any) -> float:
+    return float("nan") if v is None else float(v)
 
 
 def _jsonable(x: Any) -> Any:

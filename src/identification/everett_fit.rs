@@ -95,25 +95,43 @@ impl EverettModel {
     /// positive saturation (`y(m) + E(m, u)`), descending from each reversal maximum `g_j` (j > 0) down to
     /// negative saturation (`y(M) − E(u, M)`), in traversal order. The first of each family is the major branch.
     pub fn first_order_curves(&self) -> (CurveFamily, CurveFamily) {
+        self.first_order_curves_subdivided(1)
+    }
+
+    /// As [`Self::first_order_curves`], with reversals also at `subdivisions − 1` evenly spaced points inside
+    /// every grid interval. The curves stay exact (piecewise linear in `u` with nodes at the reversal and the
+    /// grid nodes beyond it); more reversals make a CBH operator built from them follow the Everett table
+    /// closely between grid reversals as well.
+    pub fn first_order_curves_subdivided(&self, subdivisions: usize) -> (CurveFamily, CurveFamily) {
+        let k = subdivisions.max(1);
         let g = self.grid.nodes();
         let n = self.grid.n_intervals();
         let (lo, hi) = (g[0], g[n]);
         let y_pos = self.offset + self.everett(lo, hi);
-        let mut ascending = Vec::with_capacity(n);
+        let point = |i: usize, l: usize| g[i] + (g[i + 1] - g[i]) * l as f64 / k as f64;
+        let mut ascending = Vec::with_capacity(n * k);
         for i in 0..n {
-            let m = g[i];
-            let y_m = y_pos - self.everett(m, hi);
-            let u: Vec<f64> = g[i..].to_vec();
-            let y: Vec<f64> = u.iter().map(|&x| y_m + self.everett(m, x)).collect();
-            ascending.push((u, y));
+            for l in 0..k {
+                let m = point(i, l);
+                let y_m = y_pos - self.everett(m, hi);
+                let mut u = Vec::with_capacity(n - i + 1);
+                u.push(m);
+                u.extend_from_slice(&g[i + 1..]);
+                let y: Vec<f64> = u.iter().map(|&x| y_m + self.everett(m, x)).collect();
+                ascending.push((u, y));
+            }
         }
-        let mut descending = Vec::with_capacity(n);
-        for j in (1..=n).rev() {
-            let big_m = g[j];
-            let y_m = self.offset + self.everett(lo, big_m);
-            let u: Vec<f64> = g[..=j].iter().rev().copied().collect();
-            let y: Vec<f64> = u.iter().map(|&x| y_m - self.everett(x, big_m)).collect();
-            descending.push((u, y));
+        let mut descending = Vec::with_capacity(n * k);
+        for j in (0..n).rev() {
+            for l in (1..=k).rev() {
+                let big_m = point(j, l);
+                let y_m = self.offset + self.everett(lo, big_m);
+                let mut u = Vec::with_capacity(j + 2);
+                u.push(big_m);
+                u.extend(g[..=j].iter().rev().copied());
+                let y: Vec<f64> = u.iter().map(|&x| y_m - self.everett(x, big_m)).collect();
+                descending.push((u, y));
+            }
         }
         (ascending, descending)
     }
@@ -399,6 +417,16 @@ mod tests {
         }
         assert!((asc[0].1[0] - 1.0).abs() < 1e-12);
         assert!(model.everett(0.5, 0.4) == 0.0);
+        // Subdivided reversals: same major branches, four times the curves, each exact against `everett`.
+        let (asc4, desc4) = model.first_order_curves_subdivided(4);
+        assert_eq!((asc4.len(), desc4.len()), (24, 24));
+        assert_eq!(asc4[0], asc[0]);
+        assert_eq!(desc4[0], desc[0]);
+        let (u, y) = &asc4[5];
+        let m = u[0];
+        let mid = 0.5 * (u[0] + u[1]);
+        let y_mid = y[0] + 0.5 * (y[1] - y[0]);
+        assert!((y_mid - (y[0] + model.everett(m, mid))).abs() < 1e-12);
     }
 
     #[test]

@@ -21,7 +21,7 @@ pub mod virtual_actuator;
 
 pub use effects::{Effect, EffectKind, EffectSet, ParamSpec};
 pub use presets::{PRESETS, preset};
-pub use virtual_actuator::{ActuatorConfig, Sample, Trace, VirtualActuator};
+pub use virtual_actuator::{ActuatorConfig, SETTABLE, Sample, Trace, VirtualActuator};
 
 use std::fmt;
 

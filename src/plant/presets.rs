@@ -1,10 +1,12 @@
 //! Calibrated configurations of the virtual actuator.
 //!
-//! - `bmr2013`: the paper's rig (Nguyen & Choi). ±1.25 A gives about ±600 N·mm; off-state seal friction spans
-//!   about −20…50 N·mm over a revolution (figs 11-12); the steel loop width is like figs 14-15. It is physically
-//!   honest rather than CBH-shaped: the MRF-132DG yield stress makes torque a nonlinear map of the flux density,
-//!   the two circuits differ slightly, and the coils have a real field lag (`coil_lag` on, 8 ms).
-//!   Logged at 1 kHz unless the caller picks another rate; sensor noise 1.5 N·mm (std), 0.19 N·mm steps.
+//! - `bmr2013`: the paper's rig (Nguyen & Choi). +1.25 A gives about +615 N·mm and −1.25 A about −590 N·mm
+//!   (paper: about ±600); off-state seal friction spans −19.9…49.8 N·mm over a revolution (figs 11-12: about
+//!   −20…50); the major loop is at most about 85 N·mm wide, near ±0.5 A (figs 14-15). It is physically honest
+//!   rather than CBH-shaped: the MRF-132DG yield stress makes torque a nonlinear map of the flux density, the
+//!   steel has a broad switching-field spread (coercivity 0.05 A ± 0.1 A, 35 % reversible), the two circuits
+//!   differ slightly, and the coils have a real field lag (`coil_lag` on, 8 ms). Sensor noise 1.5 N·mm (std),
+//!   0.19 N·mm steps; rotors at 1 rev/s with 1 % speed ripple.
 //! - `ideal`: exactly Preisach in the nominal current — torque linear in B, no viscous drag, no friction, no
 //!   lag, a perfect sensor. The CBH model built from its first-order curves reproduces it to round-off.
 //! - `rig_preisach`: the `ideal` field path (exactly Preisach, no lag) with the rig's seal friction, speed ripple

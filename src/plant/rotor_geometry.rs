@@ -52,7 +52,8 @@ impl RotorGeometry {
             self.disc_radius_mm,
             self.drum_width_mm,
         );
-        1e-3 * (4.0 * PI * (rd.powi(3) - rs.powi(3)) / 3.0 + 2.0 * PI * rd * rd * l)
+        // Plain products (not powi) so every platform rounds alike.
+        1e-3 * (4.0 * PI * (rd * rd * rd - rs * rs * rs) / 3.0 + 2.0 * PI * rd * rd * l)
     }
 
     /// Viscous torque (N·mm) of a rotor at relative speed `omega_rad_s` in a fluid of viscosity `eta_pa_s`.
@@ -65,7 +66,8 @@ impl RotorGeometry {
         );
         // eta in N·s/mm² is 1e-6 × Pa·s.
         let eta = eta_pa_s * 1e-6;
-        eta * omega_rad_s * (PI * (rd.powi(4) - rs.powi(4)) + 2.0 * PI * rd.powi(3) * l) / h
+        let (rd3, rs3) = (rd * rd * rd, rs * rs * rs);
+        eta * omega_rad_s * (PI * (rd3 * rd - rs3 * rs) + 2.0 * PI * rd3 * l) / h
     }
 }
 

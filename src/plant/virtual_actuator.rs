@@ -2,7 +2,8 @@
 //!
 //! Per sample: (time delay) → coil split and converters → (coil lag) → steel Preisach per coil → yield and
 //! viscous stress → rotor torques (non-congruent output map) → `T = T2 − T1` (thermal gain, torque ripple) →
-//! + seal friction at the encoder angle (current-dependent growth, extra harmonic) → torque sensor (drift).
+//! plus seal friction at the encoder angle (current-dependent growth, extra harmonic) → torque sensor (drift).
+//!
 //! Positive nominal current excites coil 2 and gives positive torque.
 
 use super::converter::{Converter, ConverterParams, coil_split};
@@ -42,7 +43,107 @@ pub struct ActuatorConfig {
     pub effects: EffectSet,
 }
 
+/// Scalar parameters that [`ActuatorConfig::set`] can change, by dotted name.
+pub const SETTABLE: [&str; 33] = [
+    "converter.gain_a_per_v",
+    "converter.limit_a",
+    "converter.bandwidth_hz",
+    "steel1.saturation_t",
+    "steel1.coercivity_a",
+    "steel1.coercivity_width_a",
+    "steel1.interaction_width_a",
+    "steel1.reversible_fraction",
+    "steel1.reversible_width_a",
+    "steel2.saturation_t",
+    "steel2.coercivity_a",
+    "steel2.coercivity_width_a",
+    "steel2.interaction_width_a",
+    "steel2.reversible_fraction",
+    "steel2.reversible_width_a",
+    "fluid.viscosity_pa_s",
+    "geometry.shaft_radius_mm",
+    "geometry.disc_radius_mm",
+    "geometry.drum_width_mm",
+    "geometry.gap_mm",
+    "drive.speed_rad_s",
+    "drive.speed_ripple",
+    "drive.theta0_rad",
+    "friction.offset_nmm",
+    "friction.scale",
+    "sensor.lever_mm",
+    "sensor.noise_n",
+    "sensor.resolution_n",
+    "sensor.range_n",
+    "sensor.offset_n",
+    "full_current_a",
+    "full_torque_nmm",
+    "sample_rate_hz",
+];
+
 impl ActuatorConfig {
+    /// Change one scalar parameter by dotted name (see [`SETTABLE`]); `friction.scale` multiplies every
+    /// friction harmonic amplitude and `converter.bandwidth_hz = 0` removes the bandwidth limit. The value is
+    /// range-checked when the actuator is built.
+    pub fn set(&mut self, key: &str, value: f64) -> Result<(), PlantError> {
+        let slot: &mut f64 = match key {
+            "converter.gain_a_per_v" => &mut self.converter.gain_a_per_v,
+            "converter.limit_a" => &mut self.converter.limit_a,
+            "converter.bandwidth_hz" => {
+                self.converter.bandwidth_hz = if value == 0.0 { None } else { Some(value) };
+                return Ok(());
+            }
+            "steel1.saturation_t" => &mut self.steel1.saturation_t,
+            "steel1.coercivity_a" => &mut self.steel1.coercivity_a,
+            "steel1.coercivity_width_a" => &mut self.steel1.coercivity_width_a,
+            "steel1.interaction_width_a" => &mut self.steel1.interaction_width_a,
+            "steel1.reversible_fraction" => &mut self.steel1.reversible_fraction,
+            "steel1.reversible_width_a" => &mut self.steel1.reversible_width_a,
+            "steel2.saturation_t" => &mut self.steel2.saturation_t,
+            "steel2.coercivity_a" => &mut self.steel2.coercivity_a,
+            "steel2.coercivity_width_a" => &mut self.steel2.coercivity_width_a,
+            "steel2.interaction_width_a" => &mut self.steel2.interaction_width_a,
+            "steel2.reversible_fraction" => &mut self.steel2.reversible_fraction,
+            "steel2.reversible_width_a" => &mut self.steel2.reversible_width_a,
+            "fluid.viscosity_pa_s" => &mut self.fluid.viscosity_pa_s,
+            "geometry.shaft_radius_mm" => &mut self.geometry.shaft_radius_mm,
+            "geometry.disc_radius_mm" => &mut self.geometry.disc_radius_mm,
+            "geometry.drum_width_mm" => &mut self.geometry.drum_width_mm,
+            "geometry.gap_mm" => &mut self.geometry.gap_mm,
+            "drive.speed_rad_s" => &mut self.drive.speed_rad_s,
+            "drive.speed_ripple" => &mut self.drive.speed_ripple,
+            "drive.theta0_rad" => &mut self.drive.theta0_rad,
+            "friction.offset_nmm" => &mut self.friction.offset_nmm,
+            "friction.scale" => {
+                if !value.is_finite() {
+                    return Err(PlantError::InvalidParameter(format!(
+                        "friction.scale = {value} is not finite"
+                    )));
+                }
+                self.friction
+                    .harmonics
+                    .iter_mut()
+                    .for_each(|h| h.0 *= value);
+                return Ok(());
+            }
+            "sensor.lever_mm" => &mut self.sensor.lever_mm,
+            "sensor.noise_n" => &mut self.sensor.noise_n,
+            "sensor.resolution_n" => &mut self.sensor.resolution_n,
+            "sensor.range_n" => &mut self.sensor.range_n,
+            "sensor.offset_n" => &mut self.sensor.offset_n,
+            "full_current_a" => &mut self.full_current_a,
+            "full_torque_nmm" => &mut self.full_torque_nmm,
+            "sample_rate_hz" => &mut self.sample_rate_hz,
+            _ => {
+                return Err(PlantError::InvalidParameter(format!(
+                    "unknown actuator parameter {key:?}; settable: {}",
+                    SETTABLE.join(", ")
+                )));
+            }
+        };
+        *slot = value;
+        Ok(())
+    }
+
     pub fn validate(&self) -> Result<(), PlantError> {
         check_range("sample_rate_hz", self.sample_rate_hz, 1.0, 1e7)?;
         self.converter.validate()?;

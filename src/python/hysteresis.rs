@@ -136,21 +136,13 @@ impl PyHysteresis {
             .unwrap_or(Initial::Negative);
         let asc = parse_family(ascending, "ascending")?;
         let desc = parse_family(descending, "descending")?;
-        let a: Vec<_> = asc
-            .iter()
-            .map(|(u, y)| (u.as_slice(), y.as_slice()))
-            .collect();
-        let d: Vec<_> = desc
-            .iter()
-            .map(|(u, y)| (u.as_slice(), y.as_slice()))
-            .collect();
         let opts = BuildOptions {
             monotone_tolerance,
             reach_tolerance,
             closure_tolerance,
             max_nodes,
         };
-        let op = Operator::from_curves(&a, &d, &opts, initial).map_err(bmr_err)?;
+        let op = Operator::from_curve_data(&asc, &desc, &opts, initial).map_err(bmr_err)?;
         Ok(PyHysteresis { op })
     }
 

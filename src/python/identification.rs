@@ -136,10 +136,19 @@ impl PyEverettModel {
         Ok(PyArray1::from_vec(py, y))
     }
 
-    /// First-order curves at every grid node, `(ascending, descending)`, each a list of `(u, y)` arrays in
-    /// traversal order; the first curve of each family is the major branch.
-    fn first_order_curves<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyTuple>> {
-        let (asc, desc) = self.inner.first_order_curves();
+    /// First-order curves at every grid node (and at `subdivisions − 1` points inside every interval),
+    /// `(ascending, descending)`, each a list of `(u, y)` arrays in traversal order; the first curve of each
+    /// family is the major branch.
+    #[pyo3(signature = (subdivisions=1))]
+    fn first_order_curves<'py>(
+        &self,
+        py: Python<'py>,
+        subdivisions: usize,
+    ) -> PyResult<Bound<'py, PyTuple>> {
+        if subdivisions == 0 {
+            return Err(BmrError::new_err("subdivisions must be at least 1"));
+        }
+        let (asc, desc) = self.inner.first_order_curves_subdivided(subdivisions);
         let conv = |fam: Vec<(Vec<f64>, Vec<f64>)>| -> PyResult<Bound<'py, PyList>> {
             let items: Vec<Bound<'py, PyTuple>> = fam
                 .into_iter()

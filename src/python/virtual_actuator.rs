@@ -1,7 +1,8 @@
 //! Python binding of the virtual BMR actuator (`bmr.VirtualActuator`, `bmr.EFFECTS`, `bmr.effect_parameters`).
-use crate::plant::VirtualActuator;
 use crate::plant::effects::{Effect, EffectKind, EffectSet};
+use crate::plant::mr_fluid::YieldStress;
 use crate::plant::presets::{DEFAULT_SAMPLE_RATE_HZ, PRESETS, preset as preset_config};
+use crate::plant::{SETTABLE, VirtualActuator};
 use crate::python::arrays::{extract_f64_array, to_numpy};
 use crate::python::{BmrError, bmr_err};
 use numpy::PyArray1;
@@ -68,8 +69,10 @@ fn apply_effects(set: &mut EffectSet, spec: &Bound<'_, PyAny>) -> PyResult<()> {
 
 /// The virtual BMR actuator: a seeded physical simulator of the paper's rig.
 ///
-/// ``VirtualActuator(preset="bmr2013", *, seed=0, sample_rate_hz=1000.0, effects=None)``; ``effects`` adds to
-/// (or, with ``None`` / ``"name:off"``, removes from) the preset's effects.
+/// ``VirtualActuator(preset="bmr2013", *, seed=0, sample_rate_hz=1000.0, effects=None, overrides=None)``;
+/// ``effects`` adds to (or, with ``None`` / ``"name:off"``, removes from) the preset's effects; ``overrides``
+/// changes physical parameters by dotted name, e.g. ``{"sensor.noise_n": 0.0, "friction.scale": 0.5}``
+/// (``bmr.ACTUATOR_PARAMETERS`` lists them).
 #[pyclass(name = "VirtualActuator", module = "bmr._core")]
 pub struct PyVirtualActuator {
     inner: VirtualActuator,
@@ -79,12 +82,14 @@ pub struct PyVirtualActuator {
 #[pymethods]
 impl PyVirtualActuator {
     #[new]
-    #[pyo3(signature = (preset = "bmr2013", *, seed = None, sample_rate_hz = DEFAULT_SAMPLE_RATE_HZ, effects = None))]
+    #[pyo3(signature = (preset = "bmr2013", *, seed = None, sample_rate_hz = DEFAULT_SAMPLE_RATE_HZ, effects = None,
+                        overrides = None))]
     fn new(
         preset: &str,
         seed: Option<&Bound<'_, PyAny>>,
         sample_rate_hz: f64,
         effects: Option<&Bound<'_, PyAny>>,
+        overrides: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<Self> {
         let seed: u64 = match seed {
             None => 0,
@@ -96,6 +101,22 @@ impl PyVirtualActuator {
         config.sample_rate_hz = sample_rate_hz;
         if let Some(spec) = effects {
             apply_effects(&mut config.effects, spec)?;
+        }
+        if let Some(over) = overrides.filter(|o| !o.is_none()) {
+            let over = over.cast::<PyDict>().map_err(|_| {
+                BmrError::new_err("overrides must be a dict {\"group.parameter\": value}")
+            })?;
+            for (k, v) in over.iter() {
+                let k: String = k.extract().map_err(|_| {
+                    BmrError::new_err(format!(
+                        "overrides: parameter names must be strings, got {k}"
+                    ))
+                })?;
+                let v: f64 = v.extract().map_err(|_| {
+                    BmrError::new_err(format!("overrides: {k} = {v} is not a number"))
+                })?;
+                config.set(&k, v).map_err(bmr_err)?;
+            }
         }
         let inner = VirtualActuator::new(config, seed).map_err(bmr_err)?;
         Ok(PyVirtualActuator {
@@ -139,6 +160,32 @@ impl PyVirtualActuator {
         for (name, v) in cols {
             out.set_item(name, to_numpy(py, v))?;
         }
+        Ok(out)
+    }
+
+    /// Advance one sample with commanded nominal current ``current_a`` (A); returns a dict of floats with the same
+    /// keys as ``run`` plus ``command_valid`` (a non-finite command applies the safe 0 A and is flagged False).
+    fn step<'py>(&mut self, py: Python<'py>, current_a: f64) -> PyResult<Bound<'py, PyDict>> {
+        let s = self.inner.step(current_a);
+        let out = PyDict::new(py);
+        let items: [(&str, f64); 12] = [
+            ("t_s", s.t_s),
+            ("current_a", s.current_cmd_a),
+            ("coil1_a", s.coil1_a),
+            ("coil2_a", s.coil2_a),
+            ("theta_rad", s.theta_rad),
+            ("speed_rad_s", s.speed_rad_s),
+            ("torque_nmm", s.torque_nmm),
+            ("b1_t", s.b1_t),
+            ("b2_t", s.b2_t),
+            ("field_torque_nmm", s.field_torque_nmm),
+            ("friction_nmm", s.friction_nmm),
+            ("torque_true_nmm", s.torque_true_nmm),
+        ];
+        for (k, v) in items {
+            out.set_item(k, v)?;
+        }
+        out.set_item("command_valid", s.command_valid)?;
         Ok(out)
     }
 
@@ -205,6 +252,72 @@ impl PyVirtualActuator {
     #[getter]
     fn time_s(&self) -> f64 {
         self.inner.time_s()
+    }
+
+    /// The physical parameters of every stage (units in the names), for reports and ground-truth studies.
+    #[getter]
+    fn parameters<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let c = self.inner.config();
+        let out = PyDict::new(py);
+        let conv = PyDict::new(py);
+        conv.set_item("gain_a_per_v", c.converter.gain_a_per_v)?;
+        conv.set_item("limit_a", c.converter.limit_a)?;
+        conv.set_item("bandwidth_hz", c.converter.bandwidth_hz)?;
+        out.set_item("converter", conv)?;
+        for (name, st) in [("steel1", &c.steel1), ("steel2", &c.steel2)] {
+            let d = PyDict::new(py);
+            d.set_item("saturation_t", st.saturation_t)?;
+            d.set_item("coercivity_a", st.coercivity_a)?;
+            d.set_item("coercivity_width_a", st.coercivity_width_a)?;
+            d.set_item("interaction_width_a", st.interaction_width_a)?;
+            d.set_item("reversible_fraction", st.reversible_fraction)?;
+            d.set_item("reversible_width_a", st.reversible_width_a)?;
+            d.set_item("range_a", st.range_a)?;
+            d.set_item("grid", st.grid)?;
+            out.set_item(name, d)?;
+        }
+        let fluid = PyDict::new(py);
+        match c.fluid.yield_stress {
+            YieldStress::Mrf132dg => fluid.set_item("yield_stress", "MRF-132DG cubic")?,
+            YieldStress::Linear { kpa_per_t } => {
+                fluid.set_item("yield_stress", "linear")?;
+                fluid.set_item("kpa_per_t", kpa_per_t)?;
+            }
+        }
+        fluid.set_item("viscosity_pa_s", c.fluid.viscosity_pa_s)?;
+        out.set_item("fluid", fluid)?;
+        let g = PyDict::new(py);
+        g.set_item("shaft_radius_mm", c.geometry.shaft_radius_mm)?;
+        g.set_item("disc_radius_mm", c.geometry.disc_radius_mm)?;
+        g.set_item("drum_width_mm", c.geometry.drum_width_mm)?;
+        g.set_item("gap_mm", c.geometry.gap_mm)?;
+        out.set_item("geometry", g)?;
+        let d = PyDict::new(py);
+        d.set_item("speed_rad_s", c.drive.speed_rad_s)?;
+        d.set_item("speed_ripple", c.drive.speed_ripple)?;
+        d.set_item("theta0_rad", c.drive.theta0_rad)?;
+        out.set_item("drive", d)?;
+        let f = PyDict::new(py);
+        f.set_item("offset_nmm", c.friction.offset_nmm)?;
+        f.set_item(
+            "amplitude_nmm",
+            c.friction.harmonics.iter().map(|h| h.0).collect::<Vec<_>>(),
+        )?;
+        f.set_item(
+            "phase_rad",
+            c.friction.harmonics.iter().map(|h| h.1).collect::<Vec<_>>(),
+        )?;
+        out.set_item("friction", f)?;
+        let s = PyDict::new(py);
+        s.set_item("lever_mm", c.sensor.lever_mm)?;
+        s.set_item("noise_n", c.sensor.noise_n)?;
+        s.set_item("resolution_n", c.sensor.resolution_n)?;
+        s.set_item("range_n", c.sensor.range_n)?;
+        s.set_item("offset_n", c.sensor.offset_n)?;
+        out.set_item("sensor", s)?;
+        out.set_item("full_current_a", c.full_current_a)?;
+        out.set_item("full_torque_nmm", c.full_torque_nmm)?;
+        Ok(out)
     }
 
     /// Standard deviation of the torque sensor noise, N·mm.
@@ -276,5 +389,6 @@ pub(crate) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
         PyTuple::new(m.py(), EffectKind::ALL.map(|k| k.name()))?,
     )?;
     m.add("PRESETS", PyTuple::new(m.py(), PRESETS)?)?;
+    m.add("ACTUATOR_PARAMETERS", PyTuple::new(m.py(), SETTABLE)?)?;
     Ok(())
 }
