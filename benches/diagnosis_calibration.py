@@ -10,7 +10,7 @@ from the ``rig_preisach`` virtual actuator with that effect is diagnosed blind.
 * false alarm (clean bundles, no effect): any physical effect accepted;
 * parameter error: relative error of the effect's main parameter.
 
-Usage: ``python benches/diagnosis_calibration.py [--seeds 10] [--sizes 0.5,1,2] [--effects a,b] [--markdown]``
+Usage: ``python benches/diagnosis_calibration.py [--seeds 10] [--sizes 0.5,1,2] [--effects a,b] [--closed-loop]``
 """
 from __future__ import annotations
 
@@ -52,17 +52,18 @@ def effect_at(name: str, size: float) -> dict[str, float]:
     return out
 
 
-def one(name: str | None, size: float, seed: int) -> dict[str, Any]:
+def one(name: str | None, size: float, seed: int, closed_loop: bool = False) -> dict[str, Any]:
     effects = {name: effect_at(name, size)} if name else None
     bundle = diagnosis_bundle("rig_preisach", effects=effects, seed=seed)
     t0 = time.perf_counter()
-    d = diagnose(bundle, progress=False, closed_loop=False)
+    d = diagnose(bundle, progress=False, closed_loop=closed_loop)
     wall = time.perf_counter() - t0
     names = [e["name"] for e in d.effects]
     physical = [n for n in names if n in PHYSICAL]
     row: dict[str, Any] = {"effect": name or "clean", "size": size, "seed": seed, "found": names,
                            "wall_s": wall, "nominal": d.nominal_heldout_rms_nmm, "final": d.residual_rms_nmm,
-                           "noise": d.noise_floor_nmm}
+                           "noise": d.noise_floor_nmm,
+                           "loop_ratio": (d.closed_loop or {}).get("ratio", math.nan)}
     if name:
         row["detected"] = name in physical
         row["wrong"] = any(n != name for n in physical)
@@ -80,7 +81,8 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--seeds", type=int, default=10)
     p.add_argument("--sizes", default="0.5,1,2")
     p.add_argument("--effects", default=",".join(MEDIUM))
-    p.add_argument("--markdown", action="store_true", help="print the README table")
+    p.add_argument("--closed-loop", action="store_true",
+                   help="also measure extended vs nominal compensator tracking on each bundle's plant")
     args = p.parse_args(argv)
     sizes = [float(s) for s in args.sizes.split(",")]
     effects = [e for e in args.effects.split(",") if e]
@@ -92,7 +94,7 @@ def main(argv: list[str] | None = None) -> int:
     for name in effects:
         for size in sizes:
             for seed in range(args.seeds):
-                rows.append(one(name, size, 1000 + seed))
+                rows.append(one(name, size, 1000 + seed, args.closed_loop))
                 r = rows[-1]
                 print(f"{name} ×{size:g} seed {seed}: {r['found']} param err {r['param_err']:.3f} "
                       f"({r['wall_s']:.1f} s)", file=sys.stderr)
@@ -103,9 +105,10 @@ def main(argv: list[str] | None = None) -> int:
     fa = np.mean([r["false_alarm"] for r in clean]) if clean else math.nan
     print(f"Clean bundles (rig_preisach, no effect): false-alarm rate {fa:.2f} over {len(clean)} seeds; found: "
           f"{sorted({tuple(r['found']) for r in clean})}\n")
+    loop = " median tracking ratio extended/nominal |" if args.closed_loop else ""
     print("| effect | size | medium parameters | detection | wrong name | median param. error | held-out RMS "
-          "nominal → extended (N·mm) |")
-    print("|---|---|---|---|---|---|---|")
+          "nominal → extended (N·mm) |" + loop)
+    print("|---|---|---|---|---|---|---|" + ("---|" if args.closed_loop else ""))
     for name in effects:
         for size in sizes:
             sel = [r for r in rows if r["effect"] == name and r["size"] == size]
@@ -118,7 +121,9 @@ def main(argv: list[str] | None = None) -> int:
             nom = np.median([r["nominal"] for r in sel])
             fin = np.median([r["final"] for r in sel])
             params = ", ".join(f"{k}={v:g}" for k, v in effect_at(name, size).items())
-            print(f"| {name} | ×{size:g} | {params} | {det:.2f} | {wrong:.2f} | {err:.3f} | {nom:.2f} → {fin:.2f} |")
+            extra = f" {np.nanmedian([r['loop_ratio'] for r in sel]):.2f} |" if args.closed_loop else ""
+            print(f"| {name} | ×{size:g} | {params} | {det:.2f} | {wrong:.2f} | {err:.3f} | {nom:.2f} → {fin:.2f} |"
+                  + extra)
     return 0
 
 
