@@ -172,6 +172,12 @@ def test_bad_input_is_a_clear_error(tmp_path: Path) -> None:
         diagnose(bundle, tmp_path / "missing.json", progress=False)
     with pytest.raises(bmr.BmrError):
         diagnose(42, progress=False)  # type: ignore[arg-type]
+    from bmr.diagnosis.excitation import minor_loop_vertices
+
+    with pytest.raises(bmr.BmrError, match="centres"):
+        minor_loop_vertices(centres=0)
+    with pytest.raises(bmr.BmrError, match="swing_a"):
+        minor_loop_vertices(swing_a=2.0)
 
 
 def test_rig_preisach_preset_is_the_ideal_field_path_with_the_rig_friction_and_sensor() -> None:

@@ -12,7 +12,7 @@ import numpy as np
 
 from bmr._core import BmrError
 from bmr.bundle import Run
-from bmr.experiments import FULL_CURRENT_A, OPENING_RATE_A_PER_S, _record, _with_opening, ramp_path
+from bmr.experiments import FULL_CURRENT_A, OPENING_RATE_A_PER_S, custom, ramp_path
 
 __all__ = ["minor_loop_vertices", "minor_loops", "diagnosis_bundle"]
 
@@ -48,8 +48,9 @@ def minor_loops(actuator: Any, *, rate_a_per_s: float = 1.0, name: str = "minor_
         raise BmrError(f"rate_a_per_s must be positive, got {rate_a_per_s!r}")
     vertices = minor_loop_vertices(full_a, **kwargs)
     body = ramp_path(0.0, vertices, rate_a_per_s / actuator.sample_rate_hz)
-    cur, k = _with_opening(actuator, body, opening_rate_a_per_s, full_a)
-    return _record(actuator, name, "custom", cur, k, {"vertices_a": vertices, "rate_a_per_s": float(rate_a_per_s)})
+    run = custom(actuator, body, name=name, full_a=full_a, opening_rate_a_per_s=opening_rate_a_per_s)
+    run.meta.update({"vertices_a": vertices, "rate_a_per_s": float(rate_a_per_s)})
+    return run
 
 
 def diagnosis_bundle(preset: str = "rig_preisach", *, effects: Any = None, seed: int = 0, quick: bool = True,
