@@ -199,3 +199,15 @@ def test_unknown_extension_in_a_model_file_is_a_clear_error(lag_diagnosis: Diagn
     bad = bmr.Model.from_dict({**m.to_dict(), "extensions": [{"name": "flux_capacitor", "params": {}}]})
     with pytest.raises(bmr.BmrError, match="flux_capacitor"):
         ExtendedModel(bad)
+
+
+def test_consecutive_bundles_with_the_same_run_names_do_not_share_state() -> None:
+    # Thermal drift keeps per-run heating states between calls: a second bundle whose runs carry the same names
+    # but other lengths (here: the same bundle at half the rate) must be diagnosed from its own runs.
+    bundle = diagnosis_bundle(PRESET, effects={"thermal_drift": {"gain_loss": 0.06, "tau_s": 60.0}}, seed=3)
+    first = diagnose(bundle, folds=2, progress=False, closed_loop=False)
+    half = bundle.decimated(2)
+    assert half.sample_rate_hz == bundle.sample_rate_hz / 2 and len(half.runs[0].data) < len(bundle.runs[0].data)
+    second = diagnose(half, folds=2, progress=False, closed_loop=False)
+    assert "thermal_drift" in [e["name"] for e in first.to_dict()["effects"]]
+    assert second.to_dict()["residual_rms_nmm"] > 0

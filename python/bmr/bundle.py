@@ -105,6 +105,16 @@ class Bundle:
                 raise BmrError(f"unknown run kind {k!r}; expected one of {', '.join(RUN_KINDS)}")
         return [r for r in self.runs if r.kind in kinds]
 
+    def decimated(self, factor: int) -> "Bundle":
+        """Every ``factor``-th sample of every run (no filtering: for quasi-static logs sampled far above the
+        dynamics of interest). Run metadata is kept; the sample rate is divided by ``factor``."""
+        if not (isinstance(factor, int) and factor >= 1):
+            raise BmrError(f"decimation factor must be an integer >= 1, got {factor!r}")
+        if factor == 1:
+            return self
+        runs = [Run(r.name, r.kind, r.data.iloc[::factor].reset_index(drop=True), dict(r.meta)) for r in self.runs]
+        return Bundle(self.actuator, self.sample_rate_hz / factor, runs, dict(self.meta))
+
     def identification_runs(self) -> list[Run]:
         return self.by_kind(*IDENTIFICATION_KINDS)
 

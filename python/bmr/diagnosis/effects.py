@@ -140,7 +140,7 @@ class TableResolution(Effect):
 
 
 # ----------------------------------------------------------------------------------------------- linear effects
-_PROTOCOL_HEAT: dict[tuple[float, str], np.ndarray] = {}
+_PROTOCOL_HEAT: dict[tuple[float, int], tuple[Any, np.ndarray]] = {}
 
 
 def bundle_thermal_state(data: EvalData, tau_s: float) -> list[np.ndarray]:
@@ -194,14 +194,16 @@ class ThermalDrift(Effect):
         # Heating also changed the gain along the protocol runs: identify the tables again without it.
         names = list(data.run_start_s)
         for r, _ in path.protocol:
-            key = (float(value), r.name)
+            # Keyed by the run object (held in the entry, so its id stays unique): run names repeat across
+            # bundles diagnosed in one process.
+            key = (float(value), id(r))
             if key not in _PROTOCOL_HEAT:
-                _PROTOCOL_HEAT[key] = bundle_thermal_state(data, float(value))[names.index(r.name)]
+                _PROTOCOL_HEAT[key] = (r, bundle_thermal_state(data, float(value))[names.index(r.name)])
         return path.with_correction(self.name, float(value), own_beta)
 
     @staticmethod
     def remove(y, value, beta, run, t0_s, model):
-        x = _PROTOCOL_HEAT[(float(value), run.name)]
+        x = _PROTOCOL_HEAT[(float(value), id(run))][1]
         return y / np.maximum(1.0 + beta[1] - beta[0] * x, 1e-3)
 
     def params(self, value, beta, path):

@@ -123,8 +123,10 @@ class FieldPath:
             if key not in _REIDENTIFIED:
                 if len(_REIDENTIFIED) > 256:
                     _REIDENTIFIED.clear()
-                _REIDENTIFIED[key] = self._reidentified()
-            return _REIDENTIFIED[key]
+                # The entry holds the protocol itself, so its id cannot be reused by another bundle's runs while
+                # the entry lives (an id alone would go stale once the protocol is freed).
+                _REIDENTIFIED[key] = (self.protocol, self._reidentified())
+            return _REIDENTIFIED[key][1]
         asc, desc = self.model.hysteresis.curves()
         if self.curvature == 0.0:
             return list(asc), list(desc)
