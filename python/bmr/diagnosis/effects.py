@@ -16,6 +16,7 @@ virtual actuator's parametrisation (``bmr.effect_parameters()``) so a simulated 
 from __future__ import annotations
 
 import math
+from abc import ABC, abstractmethod
 from typing import Any, Sequence
 
 import numpy as np
@@ -26,7 +27,7 @@ from bmr.diagnosis.residuals import EvalData
 __all__ = ["Effect", "LIBRARY", "PHYSICAL", "by_name", "thermal_state"]
 
 
-class Effect:
+class Effect(ABC):
     """Base class: ``name``, ``field`` (True for field effects), ``grid(data)`` of the nonlinear parameter
     (``[None]`` when there is none)."""
 
@@ -38,16 +39,18 @@ class Effect:
     def grid(self, data: EvalData) -> list[Any]:
         return [None]
 
-    # field effects
+    # Field effects (``field = True``) change the field path and implement ``apply``; linear effects add
+    # regression columns and implement ``columns``. Asking one kind for the other's method is a dispatch error.
     def apply(self, path: FieldPath, value: Any, data: EvalData, train: np.ndarray | None) -> FieldPath:
-        raise NotImplementedError
+        raise TypeError(f"{self.name} is a linear effect: it adds columns, it does not change the field path")
 
     # linear effects: columns over the evaluated spans, concatenated over runs (n_eval × p)
     def columns(self, data: EvalData, value: Any, y_field: np.ndarray, model: Any) -> np.ndarray:
-        raise NotImplementedError
+        raise TypeError(f"{self.name} is a field effect: it changes the field path, it adds no columns")
 
+    @abstractmethod
     def params(self, value: Any, beta: np.ndarray, path: FieldPath) -> dict[str, float]:
-        raise NotImplementedError
+        """The effect's parameters (named with units) from its nonlinear value, fitted ``beta`` and path."""
 
     def update_path(self, path: FieldPath, value: Any, own_beta: np.ndarray, data: EvalData
                     ) -> FieldPath | None:
