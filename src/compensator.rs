@@ -76,6 +76,8 @@ pub struct Compensator<S, const N: usize, const K: usize> {
     friction: Friction<K>,
     gain_a_per_v: f64,
     limit_a: f64,
+    /// Friction feedforward of the last fault-free step (N·mm).
+    friction_nmm: f64,
 }
 
 /// A compensator parameter outside its range.
@@ -123,6 +125,7 @@ impl<S: AsRef<[f64]>, const N: usize, const K: usize> Compensator<S, N, K> {
             friction,
             gain_a_per_v,
             limit_a,
+            friction_nmm: 0.0,
         })
     }
 
@@ -138,6 +141,10 @@ impl<S: AsRef<[f64]>, const N: usize, const K: usize> Compensator<S, N, K> {
     pub fn gain_a_per_v(&self) -> f64 {
         self.gain_a_per_v
     }
+    /// Friction feedforward (N·mm) of the last step that was not a fault.
+    pub fn friction_nmm(&self) -> f64 {
+        self.friction_nmm
+    }
     /// Torque (N·mm, without friction) the forward model predicts for the last command.
     pub fn predicted_torque(&self) -> f64 {
         self.forward.output()
@@ -149,7 +156,8 @@ impl<S: AsRef<[f64]>, const N: usize, const K: usize> Compensator<S, N, K> {
         if !(torque_ref_nmm.is_finite() && theta_rad.is_finite()) {
             return self.commit(0.0, false, true);
         }
-        let target = torque_ref_nmm - self.friction.eval(theta_rad);
+        self.friction_nmm = self.friction.eval(theta_rad);
+        let target = torque_ref_nmm - self.friction_nmm;
         let InverseInput { input, saturated } = match &mut self.inverse {
             InverseKind::Exact => self.forward.inverse_input(target),
             InverseKind::Paper(inv) => {

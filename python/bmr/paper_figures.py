@@ -95,7 +95,7 @@ def paper_figures(out: Path, bundle: Any, model: Any, cases: dict[str, Any]) -> 
         ax.set(xlabel="Current (×0.125 A)", ylabel="Torque (N·mm)", title=title)
         ax.legend(loc="upper left", fontsize=7)
         save(fig, f"{key}_{'ascending' if key == 'fig14' else 'descending'}_torque_curves.png", key)
-    inv = model.hysteresis  # the paper's current curves are the torque curves with axes swapped (eq 17-20)
+    # The paper's current curves are the torque curves with their axes swapped (eq 17-20).
     for key, fam, title in (("fig16", asc, "Fig 16: first-order ascending current curves"),
                             ("fig17", desc, "Fig 17: first-order descending current curves")):
         fig, ax = plt.subplots(figsize=(5.2, 4.0))
@@ -103,7 +103,6 @@ def paper_figures(out: Path, bundle: Any, model: Any, cases: dict[str, Any]) -> 
             ax.plot(y, np.asarray(u) / CURRENT_UNIT_A, lw=0.9)
         ax.set(xlabel="Torque (N·mm)", ylabel="Current (×0.125 A)", title=title)
         save(fig, f"{key}_{'ascending' if key == 'fig16' else 'descending'}_current_curves.png", key)
-    del inv
 
     c0 = cases["triangle_current_without_friction_compensation"]
     c1 = cases["triangle_current_with_friction_compensation"]

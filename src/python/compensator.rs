@@ -3,12 +3,11 @@ use numpy::{AllowTypeChange, PyArray1, PyArrayLike1};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
-use crate::cbh::Initial;
 use crate::compensator::{Command, Compensator, CompensatorState, InverseKind};
 use crate::friction::{Friction, MAX_ORDER};
 use crate::python::arrays::{DETACH_LEN, to_numpy, to_vec};
 use crate::python::friction::PyFriction;
-use crate::python::hysteresis::{MEMORY, PyHysteresis, parse_initial};
+use crate::python::hysteresis::{MEMORY, PyHysteresis, initial_or_negative};
 use crate::python::{BmrError, bmr_err};
 
 type Core = Compensator<Vec<f64>, MEMORY, MAX_ORDER>;
@@ -82,10 +81,7 @@ impl PyCompensator {
         current_limit: f64,
         initial: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<Self> {
-        let initial = initial
-            .map(parse_initial)
-            .transpose()?
-            .unwrap_or(Initial::Negative);
+        let initial = initial_or_negative(initial)?;
         let forward = hysteresis.op.clone();
         let (kind, name) = match inverse {
             "exact" => (InverseKind::Exact, "exact"),
@@ -144,7 +140,13 @@ impl PyCompensator {
             let (mut sat, mut fault) = (Vec::with_capacity(n), Vec::with_capacity(n));
             for (&t, &a) in r.iter().zip(&th) {
                 let c = core.step(t, a);
-                let model = core.predicted_torque() + core.friction().eval(a);
+                // The step already evaluated the friction unless it was a fault.
+                let friction = if c.fault {
+                    core.friction().eval(a)
+                } else {
+                    core.friction_nmm()
+                };
+                let model = core.predicted_torque() + friction;
                 for (col, v) in cols.iter_mut().zip([
                     c.current_a,
                     c.coil1_a,
@@ -185,10 +187,7 @@ impl PyCompensator {
     /// Forget the memory and start from `initial` (default: after negative saturation).
     #[pyo3(signature = (initial=None))]
     fn reset(&mut self, initial: Option<&Bound<'_, PyAny>>) -> PyResult<()> {
-        let initial = initial
-            .map(parse_initial)
-            .transpose()?
-            .unwrap_or(Initial::Negative);
+        let initial = initial_or_negative(initial)?;
         self.core.reset(initial);
         Ok(())
     }

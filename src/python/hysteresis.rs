@@ -14,7 +14,14 @@ pub(crate) const MEMORY: usize = 64;
 pub(crate) type Operator = Hysteresis<Vec<f64>, MEMORY>;
 
 /// Parse `initial`: "negative", "positive", ("ascending", u) or ("descending", u).
-pub(crate) fn parse_initial(obj: &Bound<'_, PyAny>) -> PyResult<Initial> {
+/// An optional `initial` argument; `None` means after negative saturation.
+pub(crate) fn initial_or_negative(obj: Option<&Bound<'_, PyAny>>) -> PyResult<Initial> {
+    obj.map(parse_initial)
+        .transpose()
+        .map(|i| i.unwrap_or(Initial::Negative))
+}
+
+fn parse_initial(obj: &Bound<'_, PyAny>) -> PyResult<Initial> {
     if let Ok(s) = obj.cast::<PyString>() {
         return match s.to_cow()?.as_ref() {
             "negative" => Ok(Initial::Negative),
@@ -130,10 +137,7 @@ impl PyHysteresis {
         closure_tolerance: f64,
         max_nodes: usize,
     ) -> PyResult<Self> {
-        let initial = initial
-            .map(parse_initial)
-            .transpose()?
-            .unwrap_or(Initial::Negative);
+        let initial = initial_or_negative(initial)?;
         let asc = parse_family(ascending, "ascending")?;
         let desc = parse_family(descending, "descending")?;
         let opts = BuildOptions {
@@ -172,10 +176,7 @@ impl PyHysteresis {
     /// Forget the memory and start from `initial` ("negative", "positive", ("ascending", u), ("descending", u)).
     #[pyo3(signature = (initial=None))]
     fn reset(&mut self, initial: Option<&Bound<'_, PyAny>>) -> PyResult<()> {
-        let initial = initial
-            .map(parse_initial)
-            .transpose()?
-            .unwrap_or(Initial::Negative);
+        let initial = initial_or_negative(initial)?;
         self.op.reset(initial);
         Ok(())
     }
