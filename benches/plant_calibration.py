@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 
 import bmr
-from bmr import experiments as ex
+from bmr.simulation import experiments as ex
 
 PAPER_TORQUE_NMM = 600.0
 PAPER_FRICTION_BAND_NMM = (-20.0, 50.0)

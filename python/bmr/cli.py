@@ -53,11 +53,11 @@ def main(argv: Sequence[str] | None = None) -> int:
         if args.command == "demo":
             from bmr.demo import run_cli
         elif args.command == "simulate":
-            from bmr.experiments import run_cli
+            from bmr.simulation.experiments import run_cli
         elif args.command == "identify":
-            from bmr.identify import run_cli
+            from bmr.identification.procedure import run_cli
         else:
-            from bmr.diagnose import run_cli
+            from bmr.diagnosis.procedure import run_cli
         return int(run_cli(args) or 0)
     except BmrError as exc:
         print(f"bmr {args.command}: error: {exc}", file=sys.stderr)

@@ -20,7 +20,7 @@ import numpy as np
 import pandas as pd
 
 from bmr._core import BmrError
-from bmr.bundle import OPTIONAL_COLUMNS, REQUIRED_COLUMNS, Bundle, Run
+from bmr.data.bundle import OPTIONAL_COLUMNS, REQUIRED_COLUMNS, Bundle, Run
 
 __all__ = ["UNITS", "convert_units", "read_table", "bundle_from_files", "supported_units"]
 

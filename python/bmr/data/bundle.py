@@ -10,7 +10,7 @@ import json
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable, Iterator
+from typing import Any, Callable, Iterable, Iterator
 
 import numpy as np
 import pandas as pd
@@ -120,6 +120,15 @@ class Bundle:
 
     def evaluation_runs(self) -> list[Run]:
         return [r for r in self.runs if r.kind not in IDENTIFICATION_KINDS]
+
+
+def runs_of(runs: "Bundle | Run | Iterable[Run]") -> list[Run]:
+    """The runs of a bundle, a single run or any iterable of runs, as a list."""
+    if isinstance(runs, Bundle):
+        return list(runs.runs)
+    if isinstance(runs, Run):
+        return [runs]
+    return list(runs)
 
 
 def validate_run_data(name: str, data: pd.DataFrame) -> None:
