@@ -8,9 +8,13 @@
 #[cfg(feature = "alloc")]
 extern crate alloc;
 
+pub mod accommodation;
 pub mod cbh;
 pub mod compensator;
 pub mod congruency;
+pub mod creep;
+#[cfg(feature = "alloc")]
+pub mod discrepancy;
 pub mod error;
 pub mod everett;
 pub mod friction;
@@ -22,6 +26,7 @@ pub mod inverse;
 pub mod paper_inverse;
 #[cfg(feature = "std")]
 pub mod plant;
+pub mod rate_dependence;
 pub mod reversals;
 #[cfg(feature = "alloc")]
 pub mod table_builder;
