@@ -22,6 +22,7 @@ pub mod inverse;
 pub mod paper_inverse;
 #[cfg(feature = "std")]
 pub mod plant;
+pub mod reversals;
 #[cfg(feature = "alloc")]
 pub mod table_builder;
 pub mod trig;
@@ -33,6 +34,7 @@ pub use error::{FamilyKind, TableError};
 pub use everett::{Family, Strip};
 pub use friction::Friction;
 pub use inverse::InverseInput;
+pub use reversals::{ReversalFinder, ReversalOrder, ReversalPoint};
 #[cfg(feature = "alloc")]
 pub use table_builder::{BuildOptions, MeasuredCurve, build_tables};
 

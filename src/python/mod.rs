@@ -6,6 +6,7 @@ mod compensator;
 mod friction;
 mod hysteresis;
 mod identification;
+mod reversals;
 mod virtual_actuator;
 
 pyo3::create_exception!(
@@ -26,6 +27,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     hysteresis::register(m)?;
     friction::register(m)?;
     identification::register(m)?;
+    reversals::register(m)?;
     virtual_actuator::register(m)?;
     compensator::register(m)?;
     Ok(())
