@@ -1,4 +1,4 @@
-"""The ``bmr`` command line: ``bmr demo | simulate | identify | diagnose``.
+"""The ``bmr`` command line: ``bmr demo | simulate | import | identify | predict | diagnose``.
 
 Each subcommand's work lives in the module that owns the capability; this file only parses arguments.
 """
@@ -32,6 +32,35 @@ def _parser() -> argparse.ArgumentParser:
     s.add_argument("--format", choices=("csv", "parquet"), default="csv")
     s.add_argument("-o", "--out", required=True, help="bundle folder to write")
 
+    m = sub.add_parser("import", help="turn raw lab logs into a bundle (declared input/output, protocol, roles)",
+                       description="Read lab logs (CSV, Parquet, TDMS, MAT, dSPACE ControlDesk captures, "
+                       "tab-separated analyzer exports, SLAC magnetic-measurement tables) into a bundle. Columns "
+                       "are COL, COL:UNIT (the unit the bundle stores; converted from the unit the file states) "
+                       "or COL:SOURCE:UNIT (for files that state no unit).")
+    m.add_argument("files", nargs="+", help="log files (every table holding the declared columns is a run)")
+    m.add_argument("--input", required=True, metavar="COL[:UNIT]", help="the device's input column")
+    m.add_argument("--output", required=True, metavar="COL[:UNIT]", help="the device's output column")
+    m.add_argument("--angle", metavar="COL[:UNIT]", help="rotor angle column (optional; stored in rad)")
+    m.add_argument("--time", metavar="COL[:UNIT]",
+                   help="time column (default: the format's time axis or a column named time/t; stored in s)")
+    m.add_argument("--output-sigma", metavar="COL[:UNIT]",
+                   help="per-sample standard uncertainty of the output (optional)")
+    m.add_argument("--input-name", help="name of the input quantity (default from its unit, e.g. V -> voltage)")
+    m.add_argument("--output-name", help="name of the output quantity (e.g. 'integrated gradient')")
+    m.add_argument("--protocol", choices=("forc-ascending", "forc-descending", "major-loop", "any"),
+                   default="any", help="what the identification runs follow; checked with their reversals "
+                   "(default: any)")
+    m.add_argument("--holdout", action="append", default=[], metavar="RUN[,RUN...]",
+                   help="runs (or files) held out for evaluation; the others are for identification")
+    m.add_argument("--format", choices=("csv", "parquet", "tdms", "mat", "controldesk", "aixacct", "slac"),
+                   help="force a reader (default: from extension and content)")
+    m.add_argument("--device", help="device name stored in the bundle")
+    m.add_argument("--sample-rate", type=float, metavar="HZ", help="time from the sample index for files without one")
+    m.add_argument("--deadband", type=float, metavar="X", help="reversal dead-band in input units "
+                   "(default: 1 %% of the input span or 10x its sample noise)")
+    m.add_argument("--file-format", choices=("csv", "parquet"), default="csv", help="bundle run files (default csv)")
+    m.add_argument("-o", "--out", required=True, help="bundle folder to write (new or empty)")
+
     i = sub.add_parser("identify", help="identify friction and CBH tables from a bundle")
     i.add_argument("bundle")
     i.add_argument("--method", choices=("forc", "lstsq", "both"), default="forc")
@@ -44,6 +73,15 @@ def _parser() -> argparse.ArgumentParser:
     g.add_argument("--seed", type=int, default=0)
     g.add_argument("--json", dest="json_out", help="write the bmr-diagnosis/1 JSON here")
     g.add_argument("--report", help="write an HTML report here")
+    r = sub.add_parser("predict", help="predict a bundle's held-out runs with a model: RMS and max error per run")
+    r.add_argument("model", help="model file (bmr-model JSON)")
+    r.add_argument("bundle", help="bundle folder")
+    r.add_argument("--runs", action="append", default=[], metavar="RUN[,RUN...]",
+                   help="runs to predict (default: the bundle's evaluation runs)")
+    r.add_argument("--offset", choices=("none", "first-sample"), default="none",
+                   help="per-run output offset: none, or taken from each run's first evaluated sample")
+    r.add_argument("--json", dest="json_out", help="write the bmr-prediction/1 JSON here")
+    r.add_argument("--figure", help="write a PNG figure (measured vs predicted vs input; residual) here")
     return p
 
 
@@ -54,8 +92,12 @@ def main(argv: Sequence[str] | None = None) -> int:
             from bmr.demo import run_cli
         elif args.command == "simulate":
             from bmr.simulation.experiments import run_cli
+        elif args.command == "import":
+            from bmr.data.importing import run_cli
         elif args.command == "identify":
             from bmr.identification.procedure import run_cli
+        elif args.command == "predict":
+            from bmr.identification.prediction import run_cli
         else:
             from bmr.diagnosis.procedure import run_cli
         return int(run_cli(args) or 0)

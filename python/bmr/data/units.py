@@ -208,6 +208,8 @@ def format_number(x: float, digits: int = 3) -> str:
     if x == 0 or 1e-2 <= abs(x) < 1e5:
         return f"{x:.{digits}g}"
     mantissa, exponent = f"{x:.{max(digits - 1, 0)}e}".split("e")
+    if "." in mantissa:
+        mantissa = mantissa.rstrip("0").rstrip(".")
     return f"{mantissa}e{int(exponent)}"
 
 
