@@ -38,6 +38,7 @@ import pandas as pd
 
 from bmr._core import BmrError
 from bmr.data.quantities import ACTUATOR, Quantities
+from bmr.data.signals import nominal_sample_rate  # noqa: F401 - re-exported: readers infer rates with it
 
 FORMAT_V1 = "bmr-bundle/1"
 FORMAT = "bmr-bundle/2"
@@ -86,6 +87,14 @@ class Run:
             raise TypeError(f"run {self.name!r}: quantities must be a bmr.data.quantities.Quantities, "
                             f"got {type(self.quantities).__name__}")
         validate_run_data(self.name, self.data, self.quantities)
+
+    def __repr__(self) -> str:
+        n = len(self.data)
+        t = self.data["t_s"].to_numpy(dtype=float) if "t_s" in self.data.columns and n else np.zeros(0)
+        span = f", {t[-1] - t[0]:.6g} s" if t.size > 1 else ""
+        role = f", role={self.role!r}" if self.role is not None else ""
+        return (f"Run({self.name!r}, kind={self.kind!r}{role}, {n} samples{span}, "
+                f"columns: {', '.join(self.data.columns)})")
 
     def column(self, name: str) -> np.ndarray:
         if name not in self.data.columns:
@@ -147,12 +156,6 @@ class Run:
         """The actuator's measured torque (N·mm)."""
         return self._actuator("torque_nmm")
 
-    def __repr__(self) -> str:
-        n = len(self.data)
-        dur = float(self.data["t_s"].iloc[-1] - self.data["t_s"].iloc[0]) if n else 0.0
-        role = f", {self.role}" if self.role else ""
-        return f"Run({self.name!r}, {self.kind}{role}, {n} samples, {dur:.6g} s)"
-
 
 @dataclass
 class Bundle:
@@ -167,8 +170,9 @@ class Bundle:
 
     def __post_init__(self) -> None:
         rate = self.sample_rate_hz
-        if not (isinstance(rate, numbers.Real) and not isinstance(rate, bool) and math.isfinite(rate) and rate > 0):
-            raise BmrError(f"sample_rate_hz must be a positive finite number, got {rate!r}")
+        # Any real number (numpy scalars included), but not a bool: `true` in a manifest is not 1 Hz.
+        if isinstance(rate, bool) or not isinstance(rate, numbers.Real) or not (math.isfinite(rate) and rate > 0):
+            raise BmrError(f"sample_rate_hz must be a positive finite number of Hz, got {rate!r}")
         self.sample_rate_hz = float(rate)
         names = [r.name for r in self.runs]
         dupes = sorted({n for n in names if names.count(n) > 1})
@@ -183,18 +187,28 @@ class Bundle:
     def device(self) -> str:
         return self.actuator
 
+    def __repr__(self) -> str:
+        kinds: dict[str, int] = {}
+        for r in self.runs:
+            kinds[r.kind] = kinds.get(r.kind, 0) + 1
+        samples = sum(len(r.data) for r in self.runs)
+        duration = 0.0
+        for r in self.runs:
+            if "t_s" in r.data.columns and len(r.data) > 1:
+                t = r.data["t_s"].to_numpy(dtype=float)
+                duration += float(t[-1] - t[0])
+        what = ", ".join(f"{n} {k}" for k, n in kinds.items())
+        held = sum(not r.is_identification for r in self.runs) if any(r.role for r in self.runs) else None
+        roles = f", {held} held out" if held is not None else ""
+        device = "" if self.quantities.is_actuator else f"{self.quantities.describe()}: "
+        return (f"Bundle({self.actuator!r}: {device}{len(self.runs)} runs ({what}{roles}), {samples} samples, "
+                f"{duration:.6g} s at {self.sample_rate_hz:g} Hz)")
+
     def __iter__(self) -> Iterator[Run]:
         return iter(self.runs)
 
     def __len__(self) -> int:
         return len(self.runs)
-
-    def __repr__(self) -> str:
-        n = sum(len(r.data) for r in self.runs)
-        ident = sum(r.is_identification for r in self.runs)
-        return (f"Bundle({self.actuator!r}, {self.quantities.describe()}, {len(self.runs)} runs "
-                f"({ident} identification, {len(self.runs) - ident} evaluation), {n} samples, "
-                f"{self.sample_rate_hz:.6g} Hz)")
 
     def run(self, name: str) -> Run:
         for r in self.runs:

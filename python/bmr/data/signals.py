@@ -9,7 +9,7 @@ import numpy as np
 
 from bmr._core import BmrError
 
-__all__ = ["SampleRate", "sample_noise", "sample_rate", "timestamp_resolution"]
+__all__ = ["SampleRate", "nominal_sample_rate", "sample_noise", "sample_rate"]
 
 
 def sample_noise(u: np.ndarray | Sequence[np.ndarray]) -> float:
@@ -21,33 +21,42 @@ def sample_noise(u: np.ndarray | Sequence[np.ndarray]) -> float:
     return float(np.median(np.concatenate(d2))) / (0.6745 * math.sqrt(6.0)) if d2 else 0.0
 
 
-def timestamp_resolution(t: np.ndarray) -> float:
-    """The coarsest decimal step (10⁻ᵏ s) that every timestamp is a whole multiple of, within round-off: 0.01 for
-    times written with two decimals, 0.002 s steps give 0.001. Timestamps on no decimal grid give their
-    round-off level."""
-    t = np.asarray(t, dtype=float)
-    scale = float(np.max(np.abs(t))) if t.size else 0.0
-    floor = max(scale * 1e-15, 1e-300)
-    for k in range(-3, 16):
-        q = 10.0 ** -k
-        if q < floor:
+def nominal_sample_rate(t_s: np.ndarray) -> float:
+    """The logging rate (Hz) of a uniformly sampled time column, rounded to what its timestamps resolve: a log at
+    500 Hz whose times are stored with finite precision gives 500.0, not 499.99999999999955. NaN for fewer than
+    two samples."""
+    t = np.asarray(t_s, dtype=float)
+    if t.size < 2 or not t[-1] > t[0]:
+        return float("nan")
+    span = float(t[-1] - t[0])
+    rate = (t.size - 1) / span
+    # Timestamp resolution: the coarsest decimal step that all times sit on (to within float round-off).
+    scale = max(abs(float(t[0])), abs(float(t[-1])), span)
+    # Times on no decimal grid (accumulated float steps): their round-off, which grows with the sample count.
+    resolution = t.size * float(np.finfo(float).eps) * scale
+    for d in range(-9, 16):
+        step = 10.0 ** -d
+        if step > span:
+            continue
+        # Allowed deviation: float round-off of the stored times, in units of the step.
+        if np.all(np.abs(t / step - np.round(t / step)) <= max(1e-9, 8 * np.finfo(float).eps * scale / step)):
+            resolution = step
             break
-        x = t / q
-        if np.all(np.abs(x - np.round(x)) <= 1e-6):
-            return q
-    return floor
+    # Relative precision of the rate: one timestamp step over the whole span.
+    digits = max(3, min(15, int(math.floor(-math.log10(resolution / span)))))
+    return float(f"{rate:.{digits}g}")
 
 
 @dataclass(frozen=True)
 class SampleRate:
-    """A logging rate: ``hz`` rounded to what the timestamps resolve, the median step, and its spread (``irregular``
-    when the 5-95 % range of the steps exceeds 1 % of the median)."""
+    """A logging rate: ``hz`` rounded to what the timestamps resolve (:func:`nominal_sample_rate` of the longest
+    run), the median step and the range of steps (``irregular`` when the 5-95 % range of the steps exceeds 1 % of
+    the median)."""
 
     hz: float
     dt_s: float
     dt_min_s: float
     dt_max_s: float
-    resolution_s: float
     irregular: bool
 
     def describe(self) -> str:
@@ -59,19 +68,14 @@ class SampleRate:
         return text
 
 
-def sample_rate(times: Sequence[np.ndarray] | np.ndarray) -> SampleRate:
-    """The sample rate of one or several time vectors (s): ``1 / median step``, rounded to the significant digits
-    the timestamps' resolution supports (a 2 ms step logged in whole milliseconds is 500 Hz, not
-    499.99999999999955 Hz)."""
-    arrays = [np.asarray(times, dtype=float)] if isinstance(times, np.ndarray) else [np.asarray(t, float)
-                                                                                   for t in times]
+def sample_rate(times: Sequence[np.ndarray]) -> SampleRate:
+    """The sample rate of several runs' time vectors (s) and how regular their steps are."""
+    arrays = [np.asarray(t, dtype=float) for t in times]
     steps = np.concatenate([np.diff(t) for t in arrays if t.size > 1]) if arrays else np.zeros(0)
     steps = steps[np.isfinite(steps) & (steps > 0)]
     if steps.size == 0:
         raise BmrError("cannot infer a sample rate: fewer than two increasing timestamps")
-    q = max(timestamp_resolution(t) for t in arrays if t.size)
-    dt = float(np.median(steps))
-    digits = int(np.clip(math.ceil(math.log10(max(dt / q, 1.0)) + 1e-9) + 1, 2, 12))
-    hz = float(f"{1.0 / dt:.{digits}g}")
+    hz = nominal_sample_rate(max(arrays, key=lambda t: t.size))
     lo, hi = (float(v) for v in np.quantile(steps, [0.05, 0.95]))
-    return SampleRate(hz, dt, float(steps.min()), float(steps.max()), q, (hi - lo) > 0.01 * dt)
+    dt = float(np.median(steps))
+    return SampleRate(hz, dt, float(steps.min()), float(steps.max()), (hi - lo) > 0.01 * dt)
