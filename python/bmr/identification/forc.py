@@ -160,8 +160,9 @@ def extract_first_order_curves(
 ) -> FirstOrderCurves:
     """Cut and fit the first-order curves of one run (or several runs of one actuator).
 
-    Friction ``friction(theta)`` (N·mm) is subtracted first. Reversals of the current are found with a
-    dead-band (``deadband_a``, default: the larger of 1 % of the current span and 10 × the current's sample noise);
+    Friction ``friction(angle)`` (output units) is subtracted first when the runs have an angle. Reversals of the
+    input are found with a dead-band (``deadband_a``, in input units; default: the larger of 1 % of the input span
+    and 10 × the input's sample noise);
     a rising segment from a minimum that followed positive saturation (or from negative saturation) up to
     positive saturation is an ascending first-order curve, and symmetrically for descending ones. Curves whose
     reversals lie within a few noise sigmas of each other are pooled (repeated branches average their noise).
@@ -172,18 +173,18 @@ def extract_first_order_curves(
         raise BmrError("extract_first_order_curves needs at least one run")
     if n_nodes < 4:
         raise BmrError(f"n_nodes must be at least 4, got {n_nodes}")
-    all_u = np.concatenate([r.current for r in runs])
-    lo, hi = input_range if input_range is not None else input_range_of([r.current for r in runs])
+    all_u = np.concatenate([r.input for r in runs])
+    lo, hi = input_range if input_range is not None else input_range_of([r.input for r in runs])
     if not hi > lo:
-        raise BmrError(f"runs {', '.join(r.name for r in runs)}: the current never varies; no curves to extract")
+        raise BmrError(f"runs {', '.join(r.name for r in runs)}: the input never varies; no curves to extract")
     db = deadband_a if deadband_a is not None else _default_deadband(all_u)
     # Repeats of one curve (e.g. the major branches of several runs) have reversals a few noise sigmas apart.
     pool_tol = min(db, max(0.005 * (hi - lo), 4.0 * sample_noise(all_u)))
     sat_tol = saturation_tol_a if saturation_tol_a is not None else max(2.0 * db, 0.02 * (hi - lo))
     pools: dict[str, list[tuple[float, list[np.ndarray], list[np.ndarray]]]] = {"asc": [], "desc": []}
     for r in runs:
-        u = r.current
-        y = r.torque - (friction(r.theta) if friction is not None else 0.0)
+        u = r.input
+        y = r.output - (friction(r.angle) if friction is not None and r.angle is not None else 0.0)
         asc, desc = _raw_first_order_segments(u, db, lo, hi, sat_tol)
         for key, segs in (("asc", asc), ("desc", desc)):
             for a, b in segs:
@@ -220,7 +221,8 @@ def extract_first_order_curves(
     if not ascending or not descending:
         names = ", ".join(r.name for r in runs)
         raise BmrError(f"runs {names}: found {len(ascending)} ascending and {len(descending)} descending "
-                       f"first-order curves (dead-band {db:.4g} A); both families need at least the major branch")
+                       f"first-order curves (dead-band {runs[0].quantities.input.format(db, 4)}); both families need "
+                       "at least the major branch")
     return FirstOrderCurves(ascending, descending, (lo, hi))
 
 

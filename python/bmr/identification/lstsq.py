@@ -59,12 +59,12 @@ def fit_tables_lstsq(
         raise BmrError("fit_tables_lstsq needs at least one run")
     if n_intervals < 2:
         raise BmrError(f"n_intervals must be at least 2, got {n_intervals}")
-    us = [r.current for r in runs]
-    ys = [r.torque - (friction(r.theta) if friction is not None else 0.0) for r in runs]
+    us = [r.input for r in runs]
+    ys = [r.output - (friction(r.angle) if friction is not None and r.angle is not None else 0.0) for r in runs]
     all_u = np.concatenate(us)
-    lo, hi = input_range if input_range is not None else input_range_of([r.current for r in runs])
+    lo, hi = input_range if input_range is not None else input_range_of(us)
     if not hi > lo:
-        raise BmrError("the current never varies in the training runs; nothing to identify")
+        raise BmrError("the input never varies in the training runs; nothing to identify")
     grid = np.linspace(lo, hi, n_intervals + 1)
     tol = SATURATION_TOL * (hi - lo)
     total = sum(u.size for u in us)

@@ -1,19 +1,24 @@
-"""The identified model of one actuator (friction + CBH tables) and its versioned file format ``bmr-model/1``.
+"""The identified model of one device (friction + CBH tables) and its versioned file format ``bmr-model/2``.
 
 File layout (JSON)::
 
-    {"format": "bmr-model/1",
+    {"format": "bmr-model/2",
+     "quantities": {"input": {"name": "current", "unit": "A", "column": "current_a"},
+                    "output": {"name": "torque", "unit": "N·mm", "column": "torque_nmm"},
+                    "angle": {"name": "angle", "unit": "rad", "column": "theta_rad"} | null},
      "friction": {"c0": ..., "a": [...], "b": [...], "order": K, "stderr": {...}} | null,
      "hysteresis": {"ascending": [[[u...], [y...]], ...], "descending": [[[u...], [y...]], ...],
                     "initial": "negative"},
-     "limits": {"current_a": [lo, hi], "torque_nmm": [lo, hi]},
+     "limits": {"<input column>": [lo, hi], "<output column>": [lo, hi]},
      "converter_gain_a_per_v": 0.125,
      "extensions": [{"name": ..., "params": {...}}, ...],
      "meta": {...},
      "sha256": "..."}
 
-``sha256`` is the digest of the canonical JSON of everything else: a damaged file is reported as such.
-Loading a missing, unknown or newer format is an error that names the format found.
+``quantities`` says what the tables map (input and output in their units; the friction series, in output units,
+needs an angle). ``bmr-model/1`` files (the same without ``quantities``) load as the BMR actuator's model
+(current A → torque N·mm, angle rad). ``sha256`` is the digest of the canonical JSON of everything else: a
+damaged file is reported as such. Loading a missing, unknown or newer format is an error that names the format.
 """
 from __future__ import annotations
 
@@ -27,14 +32,16 @@ from typing import Any, Sequence
 import numpy as np
 
 from bmr._core import BmrError, Compensator, Hysteresis
+from bmr.data.quantities import ACTUATOR, Quantities
 from bmr.identification.forc import paper_current_curves
 from bmr.identification.friction import FrictionFit
 
 __all__ = ["FORMAT", "Model"]
 
-FORMAT = "bmr-model/1"
+FORMAT = "bmr-model/2"
+FORMATS = ("bmr-model/1", FORMAT)
 _FAMILY = "bmr-model/"
-_VERSION = 1
+_VERSION = 2
 
 
 def _digest(content: dict[str, Any]) -> str:
@@ -43,12 +50,13 @@ def _digest(content: dict[str, Any]) -> str:
 
 
 class Model:
-    """Friction + CBH hysteresis of one actuator.
+    """Friction + CBH hysteresis of one device.
 
     ``hysteresis``: a ``bmr.Hysteresis``; ``friction``: a ``FrictionFit`` (callable on angles, with ``c0, a, b``)
-    or None; ``limits``: ``{"current_a": [lo, hi], "torque_nmm": [lo, hi]}``; ``converter_gain_a_per_v``: the
-    voltage-to-current converter gain (paper: 0.125 A/V); ``extensions``: discovered effects
-    ``[{"name": ..., "params": {...}}]``; ``meta``: free information (identification report).
+    or None; ``quantities``: what the input and output are (default: the BMR actuator's current A → torque N·mm);
+    ``limits``: ``{input column: [lo, hi], output column: [lo, hi]}`` (e.g. ``current_a``, ``torque_nmm``);
+    ``converter_gain_a_per_v``: the voltage-to-current converter gain (paper: 0.125 A/V); ``extensions``:
+    discovered effects ``[{"name": ..., "params": {...}}]``; ``meta``: free information (identification report).
     """
 
     def __init__(
@@ -61,7 +69,10 @@ class Model:
         extensions: Sequence[dict[str, Any]] | None = None,
         meta: dict[str, Any] | None = None,
         curves: tuple[list[tuple[np.ndarray, np.ndarray]], list[tuple[np.ndarray, np.ndarray]]] | None = None,
+        quantities: Quantities = ACTUATOR,
     ) -> None:
+        if not isinstance(quantities, Quantities):
+            raise TypeError(f"quantities must be a bmr.data.quantities.Quantities, got {type(quantities).__name__}")
         if not (isinstance(converter_gain_a_per_v, (int, float)) and math.isfinite(converter_gain_a_per_v)
                 and converter_gain_a_per_v > 0):
             raise BmrError(f"converter_gain_a_per_v must be positive and finite, got {converter_gain_a_per_v!r}")
@@ -73,9 +84,11 @@ class Model:
         self.converter_gain_a_per_v = float(converter_gain_a_per_v)
         self.extensions = [dict(e) for e in (extensions or [])]
         self.meta = dict(meta or {})
+        self.quantities = quantities
         lo, hi = hysteresis.input_range
         ylo, yhi = hysteresis.output_range
-        self.limits = {"current_a": [float(lo), float(hi)], "torque_nmm": [float(ylo), float(yhi)]}
+        self.limits = {quantities.input.column: [float(lo), float(hi)],
+                       quantities.output.column: [float(ylo), float(yhi)]}
         for key, value in (limits or {}).items():
             self.limits[key] = [float(v) for v in value]
 
@@ -87,15 +100,29 @@ class Model:
         desc = [(np.asarray(u, float), np.asarray(y, float)) for u, y in descending]
         return cls(Hysteresis.from_curves(asc, desc, initial=initial), friction, curves=(asc, desc), **kwargs)
 
+    @property
+    def input_limits(self) -> tuple[float, float]:
+        """The input range the model was identified on (input unit)."""
+        lo, hi = self.limits[self.quantities.input.column]
+        return float(lo), float(hi)
+
+    @property
+    def output_limits(self) -> tuple[float, float]:
+        """The output range of the model's major loop (output unit)."""
+        lo, hi = self.limits[self.quantities.output.column]
+        return float(lo), float(hi)
+
     # ------------------------------------------------------------------------------------------- use
     def friction_torque(self, theta_rad: Any) -> np.ndarray:
-        """Friction (N·mm) at rotor angles ``theta_rad`` (zeros without a friction model)."""
+        """Friction (output unit, N·mm for the actuator) at rotor angles ``theta_rad`` (zeros without a friction
+        model)."""
         theta = np.asarray(theta_rad, dtype=float)
         return self.friction(theta) if self.friction is not None else np.zeros(theta.shape)
 
     def simulate(self, current: Any, theta: Any = None, *, initial: str = "negative") -> np.ndarray:
-        """Torque (N·mm) for nominal current ``current`` (A) and rotor angle ``theta`` (rad; None: no friction),
-        starting from the ``initial`` saturation state."""
+        """Output (``quantities.output``; torque in N·mm for the actuator) for the input ``current``
+        (``quantities.input``; nominal current in A) and rotor angle ``theta`` (rad; None: no friction), starting
+        from the ``initial`` saturation state."""
         i_a = np.ascontiguousarray(current, dtype=float)
         if i_a.ndim != 1:
             raise BmrError(f"current must be one-dimensional, got shape {i_a.shape}")
@@ -116,7 +143,7 @@ class Model:
         e.g. ``inverse="paper"``)."""
         friction = self.friction.to_friction() if self.friction is not None else None
         kwargs.setdefault("converter_gain", self.converter_gain_a_per_v)
-        lo, hi = self.limits["current_a"]
+        lo, hi = self.input_limits
         kwargs.setdefault("current_limit", max(abs(lo), abs(hi)))
         return Compensator(self.hysteresis, friction, **kwargs)
 
@@ -127,7 +154,7 @@ class Model:
 
     # --------------------------------------------------------------------------------------- files
     def to_dict(self) -> dict[str, Any]:
-        """The ``bmr-model/1`` content (without the digest)."""
+        """The ``bmr-model/2`` content (without the digest)."""
         asc, desc = self._source_curves if self._source_curves is not None else self.hysteresis.curves()
 
         def fam(curves: Any) -> list[list[list[float]]]:
@@ -135,6 +162,7 @@ class Model:
 
         return {
             "format": FORMAT,
+            "quantities": self.quantities.to_dict(),
             "friction": _jsonable(self.friction.to_dict()) if self.friction is not None else None,
             "hysteresis": {"ascending": fam(asc), "descending": fam(desc), "initial": "negative"},
             "limits": self.limits,
@@ -144,7 +172,7 @@ class Model:
         }
 
     def save(self, path: str | Path) -> Path:
-        """Write the model as ``bmr-model/1`` JSON (with its sha256 digest)."""
+        """Write the model as ``bmr-model/2`` JSON (with its sha256 digest)."""
         content = self.to_dict()
         content["sha256"] = _digest(content)
         p = Path(path)
@@ -156,11 +184,12 @@ class Model:
 
     @classmethod
     def from_dict(cls, content: Any, *, source: str = "model") -> "Model":
-        """Rebuild a model from ``bmr-model/1`` content; every problem is a ``BmrError`` naming the field."""
+        """Rebuild a model from ``bmr-model/1`` or ``/2`` content; every problem is a ``BmrError`` naming the
+        field."""
         if not isinstance(content, dict):
             raise BmrError(f"{source}: expected a JSON object, got {type(content).__name__}")
         fmt = content.get("format")
-        if fmt != FORMAT:
+        if fmt not in FORMATS:
             if isinstance(fmt, str) and fmt.startswith(_FAMILY):
                 try:
                     version = int(fmt[len(_FAMILY):])
@@ -185,6 +214,8 @@ class Model:
         asc = _curves(hyst["ascending"], f"{source}: hysteresis.ascending")
         desc = _curves(hyst["descending"], f"{source}: hysteresis.descending")
         friction = _friction(content.get("friction"), source)
+        quantities = (ACTUATOR if fmt == "bmr-model/1"
+                      else Quantities.from_dict(content.get("quantities"), f"{source}: quantities"))
         gain = content.get("converter_gain_a_per_v", 0.125)
         limits = content.get("limits") or {}
         if not isinstance(limits, dict):
@@ -201,11 +232,11 @@ class Model:
         except BmrError as exc:
             raise BmrError(f"{source}: hysteresis tables rejected: {exc}") from None
         return cls(h, friction, limits=limits, converter_gain_a_per_v=gain, extensions=ext,
-                   meta=content.get("meta") or {}, curves=(asc, desc))
+                   meta=content.get("meta") or {}, curves=(asc, desc), quantities=quantities)
 
     @classmethod
     def load(cls, path: str | Path) -> "Model":
-        """Read a ``bmr-model/1`` file."""
+        """Read a ``bmr-model/1`` or ``bmr-model/2`` file."""
         p = Path(path)
         if not p.is_file():
             raise BmrError(f"model file {str(p)!r} does not exist")
@@ -216,9 +247,11 @@ class Model:
         return cls.from_dict(content, source=str(p))
 
     def __repr__(self) -> str:
-        lo, hi = self.limits["current_a"]
+        q = self.quantities
+        lo, hi = self.input_limits
         fr = f"friction order {self.friction.order}" if self.friction is not None else "no friction"
-        return f"Model(current {lo:.4g}..{hi:.4g} A, {fr}, extensions={[e['name'] for e in self.extensions]})"
+        return (f"Model({q.describe()}, {q.input.name} {q.input.format(lo, 4)}..{q.input.format(hi, 4)}, {fr}, "
+                f"extensions={[e['name'] for e in self.extensions]})")
 
 
 def _curves(value: Any, where: str) -> list[tuple[np.ndarray, np.ndarray]]:

@@ -2,7 +2,9 @@
 curves (``"forc"``, :mod:`bmr.identification.forc`), least squares (``"lstsq"``,
 :mod:`bmr.identification.lstsq`) or both; and ``bmr identify`` on the command line.
 
-Friction is identified first from the ``off_state`` runs and subtracted from every run ("friction exclusion").
+Friction is identified first from the ``off_state`` runs and subtracted from every run ("friction exclusion");
+devices without an angle have no friction model. Every figure is in the bundle's declared units
+(``bundle.quantities``), and the model records them.
 """
 from __future__ import annotations
 
@@ -27,9 +29,9 @@ def _heldout_rms(model: Any, runs: Sequence[Run], lo: float, hi: float) -> dict[
     out = {}
     tol = SATURATION_TOL * (hi - lo)
     for r in runs:
-        y = model.simulate(r.current, r.theta)
-        s = evaluation_start(r.current, lo, hi, tol)
-        e = r.torque[s:] - y[s:]
+        y = model.simulate(r.input, r.angle)
+        s = evaluation_start(r.input, lo, hi, tol)
+        e = r.output[s:] - y[s:]
         out[r.name] = float(np.sqrt(np.mean(e * e))) if e.size else float("nan")
     return out
 
@@ -50,23 +52,29 @@ def identify(
     ``method``: ``"forc"`` (first-order curves of the protocol runs), ``"lstsq"`` (Everett table by least
     squares from the runs of ``train_kinds``, default the ``first_order_*`` runs, or every non-off-state run
     when there are none) or ``"both"`` (fit both and keep the one with the lower held-out RMS over the
-    evaluation runs). The model's ``meta["identification"]`` records the friction table, the chosen order and
-    its scores, held-out RMS per evaluation run for each method and the timings.
+    evaluation runs). Runs labelled for evaluation (``Run.role``) are never trained on. The model's
+    ``meta["identification"]`` records the friction table, the chosen order and its scores, held-out RMS per
+    evaluation run for each method (``heldout_rms``, in the output unit named by ``units``) and the timings.
     """
     if isinstance(bundle, str):
         bundle = read_bundle(bundle)
     if method not in ("forc", "lstsq", "both"):
         raise BmrError(f"unknown identification method {method!r}; use 'forc', 'lstsq' or 'both'")
     t0 = time.perf_counter()
-    friction = fit_friction(bundle, max_order=max_order) if bundle.by_kind("off_state") else None
+    q = bundle.quantities
+    identification = bundle.identification_runs()
+    off_state = [r for r in identification if r.kind == "off_state"]
+    friction = fit_friction(off_state, max_order=max_order) if off_state and q.angle is not None else None
     t_friction = time.perf_counter() - t0
-    protocol = bundle.by_kind("first_order_ascending", "first_order_descending")
+    protocol = [r for r in identification if r.kind in ("first_order_ascending", "first_order_descending")]
     evaluation = bundle.evaluation_runs()
-    lo, hi = input_range_of([r.current for r in bundle.runs if r.kind != "off_state"] or [np.zeros(2)])
-    info: dict[str, Any] = {"method": method, "friction": friction.to_dict() if friction else None,
-                            "time_s": {"friction": t_friction}, "heldout_rms_nmm": {}}
+    lo, hi = input_range_of([r.input for r in bundle.runs if r.kind != "off_state"] or [np.zeros(2)])
+    info: dict[str, Any] = {"method": method, "quantities": q.to_dict(),
+                            "units": {"input": q.input.unit, "output": q.output.unit},
+                            "friction": friction.to_dict() if friction else None,
+                            "time_s": {"friction": t_friction}, "heldout_rms": {}}
     candidates: dict[str, Model] = {}
-    limits = {"current_a": [lo, hi]}
+    limits = {q.input.column: [lo, hi]}
 
     if method in ("forc", "both"):
         if not protocol:
@@ -75,31 +83,34 @@ def identify(
         t = time.perf_counter()
         curves = extract_first_order_curves(protocol, friction, n_nodes=n_nodes, deadband_a=deadband_a,
                                             input_range=(lo, hi))
-        candidates["forc"] = Model.from_curves(curves.ascending, curves.descending, friction, limits=limits)
-        # Ascending vs descending family disagreement: zero for Preisach data (DESIGN section 2).
-        info["forc_consistency_nmm"] = candidates["forc"].hysteresis.consistency()
+        candidates["forc"] = Model.from_curves(curves.ascending, curves.descending, friction, limits=limits,
+                                               quantities=q)
+        # Ascending vs descending family disagreement: zero for Preisach data (docs/architecture.md §2.2).
+        info["forc_consistency"] = candidates["forc"].hysteresis.consistency()
         info["time_s"]["forc"] = time.perf_counter() - t
         info["forc_curves"] = {"ascending": len(curves.ascending), "descending": len(curves.descending)}
     if method in ("lstsq", "both"):
         if train_kinds is not None:
             train = bundle.by_kind(*train_kinds)
         else:
-            train = protocol or [r for r in bundle.runs if r.kind != "off_state"]
+            # Without protocol runs, every run not explicitly held out (role "evaluation") is trained on.
+            train = protocol or [r for r in bundle.runs if r.kind != "off_state" and r.role != "evaluation"]
         if not train:
             raise BmrError("no runs to train the least-squares tables on")
         t = time.perf_counter()
         tables = fit_tables_lstsq(train, friction, n_intervals=n_intervals, smoothing=smoothing,
                                   input_range=(lo, hi))
-        candidates["lstsq"] = Model.from_curves(tables.ascending, tables.descending, friction, limits=limits)
+        candidates["lstsq"] = Model.from_curves(tables.ascending, tables.descending, friction, limits=limits,
+                                                quantities=q)
         info["time_s"]["lstsq"] = time.perf_counter() - t
-        info["lstsq_fit"] = {"rms_nmm": tables.rms, "rows": tables.n_rows, "iterations": tables.iterations,
+        info["lstsq_fit"] = {"rms": tables.rms, "rows": tables.n_rows, "iterations": tables.iterations,
                              "runs": [r.name for r in train], "n_intervals": n_intervals}
     for name, m in candidates.items():
-        info["heldout_rms_nmm"][name] = _heldout_rms(m, evaluation, lo, hi)
+        info["heldout_rms"][name] = _heldout_rms(m, evaluation, lo, hi)
     chosen = method
     if method == "both":
         def score(name: str) -> float:
-            vals = [v for v in info["heldout_rms_nmm"][name].values() if math.isfinite(v)]
+            vals = [v for v in info["heldout_rms"][name].values() if math.isfinite(v)]
             return float(np.mean(vals)) if vals else float("inf")
         chosen = min(candidates, key=score)
     info["chosen"] = chosen
@@ -115,20 +126,24 @@ def run_cli(args: Any) -> int:
     model = identify(bundle, method=args.method)
     model.save(args.out)
     info = model.meta["identification"]
-    print(f"bmr identify: {bundle.actuator or args.bundle} ({len(bundle)} runs), method {args.method}"
-          f" -> {info['chosen']}, {info['time_s']['total']:.2f} s")
+    q = bundle.quantities
+    print(f"bmr identify: {bundle.actuator or args.bundle} ({len(bundle)} runs, {q.describe()}), method "
+          f"{args.method} -> {info['chosen']}, {info['time_s']['total']:.2f} s")
     f = info["friction"]
     if f:
-        print(f"  friction: order {f['order']} ({f['criterion']}), c0 = {f['c0']:.3f} ± {f['stderr']['c0']:.3f} "
-              f"N·mm, residual RMS {f['residual_rms_nmm']:.3f} N·mm")
+        print(f"  friction: order {f['order']} ({f['criterion']}), c0 = {q.output.format(f['c0'], 4)} "
+              f"± {q.output.format(f['stderr']['c0'], 2)}, residual RMS {q.output.format(f['residual_rms_nmm'])}")
+    elif q.angle is None:
+        print("  friction: the device has no angle, none identified")
     else:
         print("  friction: no off_state run, none identified")
     lo, hi = model.hysteresis.input_range
     ylo, yhi = model.hysteresis.output_range
-    print(f"  hysteresis: input {lo:.4g}..{hi:.4g} A, output {ylo:.4g}..{yhi:.4g} N·mm")
-    for name, per_run in info["heldout_rms_nmm"].items():
+    print(f"  hysteresis: input {q.input.format(lo, 4)}..{q.input.format(hi, 4)}, "
+          f"output {q.output.format(ylo, 4)}..{q.output.format(yhi, 4)}")
+    for name, per_run in info["heldout_rms"].items():
         if per_run:
-            vals = ", ".join(f"{k} {v:.3f}" for k, v in per_run.items())
-            print(f"  held-out RMS [{name}] (N·mm): {vals}")
+            vals = ", ".join(f"{k} {q.output.format(v)}" for k, v in per_run.items())
+            print(f"  held-out RMS [{name}]: {vals}")
     print(f"  wrote {args.out}")
     return 0

@@ -11,16 +11,12 @@ from typing import Sequence
 
 import numpy as np
 
+from bmr.data.signals import sample_noise
+
 __all__ = ["SATURATION_TOL", "evaluation_start", "input_range_of", "sample_noise"]
 
 # A run's state is known once its input is this close (fraction of the span) to a saturation end.
 SATURATION_TOL = 0.002
-
-
-def sample_noise(u: np.ndarray) -> float:
-    """White-noise standard deviation of ``u`` from its second differences (zero on ramps and holds, ``σ√6`` for
-    white noise), with the median so that the corners of the protocol do not count."""
-    return float(np.median(np.abs(np.diff(u, 2)))) / (0.6745 * math.sqrt(6.0)) if u.size > 2 else 0.0
 
 
 def input_range_of(currents: Sequence[np.ndarray], window: int = 21) -> tuple[float, float]:

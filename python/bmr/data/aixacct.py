@@ -1,0 +1,141 @@
+"""Tab-separated measurement tables as ferroelectric analyzers (aixACCT TF Analyzer "Export as ASCII") write them.
+
+A file holds one table per measurement, each with its own header line, possibly with a title (``Table 3``) and
+metadata lines (``SampleName: C12``, ``Hysteresis Frequency [Hz]: 100``) before it::
+
+    DynamicHysteresisResult
+    SampleName: C12
+    Table 1
+    Hysteresis Amplitude [V]: 10
+    Time s<TAB>Vplus V<TAB>Vminus V<TAB>I1 A<TAB>P1 uC_per_cm2
+    0.000000e+000<TAB>0.0<TAB>0.0<TAB>1.2e-7<TAB>-21.3
+    ...
+
+Each header field is a name followed by its unit (``P1 uC_per_cm2``, or bracketed: ``P1 [uC/cm2]``). A table ends
+at a blank or non-numeric line. Metadata lines become the table's ``meta`` (those before the first table are
+shared by all). Lines of numbers that do not match their header (a truncated last line) are errors naming the line.
+"""
+from __future__ import annotations
+
+import re
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from bmr._core import BmrError
+from bmr.data.tables import Table, read_text, split_name_unit
+
+__all__ = ["read", "looks_like"]
+
+_TITLE = re.compile(r"^(Result\s+|Data\s+)?Table\b.*$", re.IGNORECASE)
+_META = re.compile(r"^([^:\t]+):\s*(.*)$")
+
+
+def _fields(line: str) -> list[str]:
+    f = line.rstrip("\r\n").split("\t")
+    while f and not f[-1].strip():
+        f.pop()
+    return [x.strip() for x in f]
+
+
+def _number(text: str) -> float | None:
+    try:
+        return float(text)
+    except ValueError:
+        return None
+
+
+def _numeric(fields: list[str]) -> bool:
+    return bool(fields) and all(_number(x) is not None for x in fields)
+
+
+def _header(fields: list[str]) -> bool:
+    return (len(fields) >= 2 and all(fields) and not any(_number(x) is not None for x in fields)
+            and not fields[0].endswith(":"))
+
+
+def _tables(text: str, source: str) -> list[tuple[int, list[str], np.ndarray, dict[str, Any], str | None]]:
+    """``(header line number, header fields, rows, metadata, title)`` of every table."""
+    lines = text.splitlines()
+    last = max((i for i, line in enumerate(lines) if line.strip()), default=-1)
+    out = []
+    shared: dict[str, Any] = {}
+    pending: dict[str, Any] = {}
+    title: str | None = None
+    seen_table = False
+    i = 0
+    while i < len(lines):
+        fields = _fields(lines[i])
+        stripped = lines[i].strip()
+        if not stripped:
+            i += 1
+            continue
+        nxt = _fields(lines[i + 1]) if i + 1 < len(lines) else []
+        if "\t" in lines[i] and _header(fields) and _numeric(nxt):
+            width = len(fields)
+            rows = []
+            j = i + 1
+            while j < len(lines):
+                row = _fields(lines[j])
+                if not row or not _numeric(row):
+                    break
+                if len(row) != width:
+                    truncated = " (truncated file?)" if j == last else ""
+                    raise BmrError(f"{source}, line {j + 1}: {len(row)} values under a header of {width} "
+                                   f"({', '.join(fields)}){truncated}")
+                rows.append([float(x) for x in row])
+                j += 1
+            out.append((i + 1, fields, np.asarray(rows, dtype=float), {**shared, **pending}, title))
+            pending, title, seen_table = {}, None, True
+            i = j
+            continue
+        if _numeric(fields) and len(fields) >= 2:
+            raise BmrError(f"{source}, line {i + 1}: numbers without a header line of column names")
+        m = _META.match(stripped)
+        if _TITLE.match(stripped):
+            title = stripped
+        elif m:
+            (pending if seen_table or title else shared)[m.group(1).strip()] = m.group(2).strip()
+        elif not seen_table and not shared:
+            shared["section"] = stripped
+        i += 1
+    return out
+
+
+def looks_like(path: Path) -> bool:
+    """True when the text file holds at least one tab-separated header line followed by a row of numbers."""
+    try:
+        text = read_text(path)
+    except BmrError:
+        return False
+    lines = text.splitlines()
+    return any("\t" in a and _header(_fields(a)) and _numeric(_fields(b)) for a, b in zip(lines, lines[1:]))
+
+
+def read(path: str | Path) -> list[Table]:
+    """One table per measurement in the file."""
+    p = Path(path)
+    found = _tables(read_text(p), str(p))
+    if not found:
+        raise BmrError(f"{p}: no tab-separated table found (expected a header line of names with units, e.g. "
+                       "'Time s<TAB>Vplus V<TAB>P1 uC_per_cm2', followed by rows of numbers)")
+    tables = []
+    for k, (line, header, rows, meta, title) in enumerate(found):
+        columns: dict[str, np.ndarray] = {}
+        units: dict[str, str] = {}
+        aliases: dict[str, list[str]] = {}
+        for j, field in enumerate(header):
+            name, unit = split_name_unit(field)
+            if name in columns:
+                name = f"{name}.{j}"
+            columns[name] = rows[:, j]
+            if unit is not None:
+                units[name] = unit
+                aliases.setdefault(field.lower(), []).append(name)
+        many = len(found) > 1
+        name = f"{p.stem}-{k + 1}" if many else p.stem
+        where = f"{p} (table {k + 1}{', ' + title if title else ''}, header at line {line})" if many else str(p)
+        tables.append(Table(name, columns, where, units, meta={**meta, **({"table": title} if title else {})},
+                            aliases=aliases))
+    return tables
