@@ -163,6 +163,29 @@ impl Creep {
     }
 }
 
+/// Relaxation signals of a core output `v`: for each time constant `taus_s[j]`, `xⱼ − v` with `xⱼ` the exact
+/// first-order lag of `v` starting at rest at `v[0]` — the columns a diagnosis fits creep weights on (the creep
+/// output is `v + Σⱼ cⱼ (xⱼ − v)`, `cⱼ = fraction·wⱼ`). Written row-major into `out` (`v.len() × taus_s.len()`).
+/// `false` (nothing written) when the sizes differ, `dt_s` is not positive or a time constant is not positive.
+pub fn relaxation_columns(v: &[f64], taus_s: &[f64], dt_s: f64, out: &mut [f64]) -> bool {
+    let m = taus_s.len();
+    if out.len() != v.len() * m || !(dt_s > 0.0) || taus_s.iter().any(|t| !(*t > 0.0)) {
+        return false;
+    }
+    let Some(&v0) = v.first() else {
+        return true;
+    };
+    for (j, &tau) in taus_s.iter().enumerate() {
+        let p = libm::exp(-dt_s / tau);
+        let mut x = v0;
+        for (i, &vi) in v.iter().enumerate() {
+            x = p * x + (1.0 - p) * vi;
+            out[i * m + j] = x - vi;
+        }
+    }
+    true
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -225,6 +248,19 @@ mod tests {
         assert!(Creep::with_spectrum(0.1, &[1.0], &[0.0], 1e-3, 0.0).is_none());
         let mut taus = [0.0; MAX_CREEP_TERMS];
         assert_eq!(log_uniform_taus(1e-6, 1e6, &mut taus), Some(MAX_CREEP_TERMS));
+    }
+
+    #[test]
+    fn relaxation_columns_are_the_single_term_operator() {
+        let dt = 1e-2;
+        let v: [f64; 50] = core::array::from_fn(|i| libm::sin(0.2 * i as f64));
+        let mut out = [0.0; 100];
+        assert!(relaxation_columns(&v, &[0.1, 1.0], dt, &mut out));
+        let mut c = Creep::with_spectrum(0.5, &[1.0], &[1.0], dt, v[0]).unwrap();
+        for (i, &vi) in v.iter().enumerate() {
+            assert!((c.step(vi) - (vi + 0.5 * out[2 * i + 1])).abs() < 1e-12);
+        }
+        assert!(!relaxation_columns(&v, &[0.0], dt, &mut out[..50]));
     }
 
     #[test]

@@ -7,6 +7,7 @@ use crate::cbh::{Hysteresis, Initial, State};
 use crate::congruency::congruency;
 use crate::python::arrays::{DETACH_LEN, extract_f64_array, to_numpy, to_vec};
 use crate::python::{BmrError, bmr_err};
+use crate::rate_dependence::RateDependence;
 use crate::table_builder::BuildOptions;
 
 /// Memory capacity (reversal points) of the Python operator.
@@ -171,6 +172,57 @@ impl PyHysteresis {
             self.op.run_into(&inputs, &mut out);
         }
         to_numpy(py, out)
+    }
+
+    /// Run ``u`` (sampled every ``dt_s``) through the rate-dependence stage (``rate_dependence``: a lag of the core
+    /// input whose time constant ``tau_s`` is scaled by the branch's differential slope over ``slope_ref``; default
+    /// the major loop's mean slope, output span over input span), continuing from the current state with the stage
+    /// at rest at ``u[0]``. Returns the outputs.
+    #[pyo3(signature = (u, *, tau_s, dt_s, slope_ref=None))]
+    fn run_rate_dependent<'py>(
+        &mut self,
+        py: Python<'py>,
+        u: PyArrayLike1<'py, f64, AllowTypeChange>,
+        tau_s: f64,
+        dt_s: f64,
+        slope_ref: Option<f64>,
+    ) -> PyResult<Bound<'py, PyArray1<f64>>> {
+        let inputs = to_vec(u);
+        if let Some(i) = inputs.iter().position(|x| !x.is_finite()) {
+            return Err(BmrError::new_err(format!(
+                "u[{i}] = {} is not finite",
+                inputs[i]
+            )));
+        }
+        let (lo, hi) = self.op.input_range();
+        let (ylo, yhi) = self.op.output_range();
+        let slope_ref = slope_ref.unwrap_or((yhi - ylo) / (hi - lo));
+        let u0 = inputs.first().copied().unwrap_or(0.0);
+        let mut stage = RateDependence::new(tau_s, slope_ref, dt_s, hi - lo, u0, self.op.output())
+            .ok_or_else(|| {
+                BmrError::new_err(format!(
+                    "rate dependence needs tau_s >= 0, slope_ref > 0 and dt_s > 0 (tau_s={tau_s}, \
+                     slope_ref={slope_ref}, dt_s={dt_s})"
+                ))
+            })?;
+        let n = inputs.len();
+        let op = &mut self.op;
+        let mut scan = move || -> Vec<f64> {
+            inputs
+                .iter()
+                .map(|&x| {
+                    let y = op.step(stage.step(x));
+                    stage.observe(y);
+                    y
+                })
+                .collect()
+        };
+        let out = if n > DETACH_LEN {
+            py.detach(scan)
+        } else {
+            scan()
+        };
+        Ok(to_numpy(py, out))
     }
 
     /// Forget the memory and start from `initial` ("negative", "positive", ("ascending", u), ("descending", u)).

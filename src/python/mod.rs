@@ -3,6 +3,7 @@ use pyo3::prelude::*;
 
 mod arrays;
 mod compensator;
+mod effect_signals;
 mod friction;
 mod hysteresis;
 mod identification;
@@ -30,5 +31,6 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     reversals::register(m)?;
     virtual_actuator::register(m)?;
     compensator::register(m)?;
+    effect_signals::register(m)?;
     Ok(())
 }
