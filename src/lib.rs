@@ -13,6 +13,7 @@ pub mod compensator;
 pub mod congruency;
 pub mod error;
 pub mod everett;
+pub mod filters;
 pub mod friction;
 #[cfg(feature = "alloc")]
 pub mod from_curves;
@@ -25,6 +26,7 @@ pub mod plant;
 #[cfg(feature = "alloc")]
 pub mod table_builder;
 pub mod trig;
+pub mod vocabulary;
 
 pub use cbh::{Hysteresis, Initial, State};
 pub use compensator::{Command, Compensator, CompensatorError, CompensatorState, InverseKind};

@@ -3,6 +3,7 @@ use pyo3::prelude::*;
 
 mod arrays;
 mod compensator;
+mod filters;
 mod friction;
 mod hysteresis;
 mod identification;
@@ -28,5 +29,6 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     identification::register(m)?;
     virtual_actuator::register(m)?;
     compensator::register(m)?;
+    filters::register(m)?;
     Ok(())
 }
