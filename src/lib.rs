@@ -17,6 +17,7 @@ pub mod creep;
 pub mod discrepancy;
 pub mod error;
 pub mod everett;
+pub mod filters;
 pub mod friction;
 #[cfg(feature = "alloc")]
 pub mod from_curves;
@@ -31,6 +32,7 @@ pub mod reversals;
 #[cfg(feature = "alloc")]
 pub mod table_builder;
 pub mod trig;
+pub mod vocabulary;
 
 pub use cbh::{Hysteresis, Initial, State};
 pub use compensator::{Command, Compensator, CompensatorError, CompensatorState, InverseKind};

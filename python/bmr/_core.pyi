@@ -133,8 +133,27 @@ PRESETS: tuple[str, ...]
 ACTUATOR_PARAMETERS: tuple[str, ...]
 """Dotted names of the physical parameters ``VirtualActuator(overrides=...)`` can change."""
 
-def effect_parameters() -> dict[str, dict[str, object]]:
-    """Every effect: ``{name: {"doc": str, "params": {param: {"unit", "default", "min", "max", "doc"}}}}``."""
+MODEL_EXTENSIONS: tuple[str, ...]
+"""Names a model file's ``extensions`` may hold: the effects plus ``core_tables``, ``table_resolution``,
+``offset``."""
+
+def effect_parameters(*, model_entries: bool = False) -> dict[str, dict[str, object]]:
+    """Every effect: ``{name: {"doc": str, "acts": str, "params": {param: {"unit", "default", "min", "max",
+    "whole", "doc"}}}}``; ``model_entries=True`` adds the model-file entries that are not effects."""
+
+def lag(x: ArrayLike, tau_s: float, dt_s: float, *, initial: float | None = None) -> np.ndarray:
+    """Exact first-order lag (zero-order hold): ``y[n] = p·y[n−1] + (1 − p)·x[n]``, ``p = exp(−dt/τ)``, at rest
+    at ``initial`` (default ``x[0]``)."""
+
+def lead(y: ArrayLike, tau_s: float, dt_s: float, *, initial: float | None = None) -> np.ndarray:
+    """Exact inverse of :func:`lag` (``y[−1] = initial``, default ``y[0]``)."""
+
+def delay(x: ArrayLike, delay_s: float, dt_s: float, *, fill: float | None = None) -> np.ndarray:
+    """``x`` delayed by ``round(delay_s/dt_s)`` samples, ``fill`` (default ``x[0]``) before the start."""
+
+def heating_state(current_a: ArrayLike, tau_s: float, dt_s: float, full_current_a: float, *,
+                  initial: float = 0.0) -> np.ndarray:
+    """Coil heating state (1 = steady full current) driven by ``(I/I_full)²`` with time constant ``tau_s``."""
 
 _EffectsSpec = Union[None, dict[str, Union[dict[str, float], None]], Sequence[str], str]
 

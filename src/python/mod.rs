@@ -4,6 +4,7 @@ use pyo3::prelude::*;
 mod arrays;
 mod compensator;
 mod effect_signals;
+mod filters;
 mod friction;
 mod hysteresis;
 mod identification;
@@ -32,5 +33,6 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     virtual_actuator::register(m)?;
     compensator::register(m)?;
     effect_signals::register(m)?;
+    filters::register(m)?;
     Ok(())
 }
