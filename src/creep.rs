@@ -16,6 +16,8 @@
 //! `no_std`, allocation-free, fixed sample period; the inverse ([`Creep::input_for`]) gives the core output that
 //! produces a wanted output this sample, so a compensator can undo creep before the hysteresis inverse.
 
+use crate::filters::Lag;
+
 /// Most relaxation terms of one creep operator.
 pub const MAX_CREEP_TERMS: usize = 16;
 
@@ -52,8 +54,7 @@ pub struct Creep {
     fraction: f64,
     n: usize,
     weight: [f64; MAX_CREEP_TERMS],
-    pole: [f64; MAX_CREEP_TERMS],
-    state: [f64; MAX_CREEP_TERMS],
+    relax: [Lag; MAX_CREEP_TERMS],
 }
 
 impl Creep {
@@ -99,12 +100,11 @@ impl Creep {
             fraction,
             n,
             weight: [0.0; MAX_CREEP_TERMS],
-            pole: [0.0; MAX_CREEP_TERMS],
-            state: [y0; MAX_CREEP_TERMS],
+            relax: [Lag::new(0.0, dt_s, y0); MAX_CREEP_TERMS],
         };
         for i in 0..n {
             c.weight[i] = weights[i] / total;
-            c.pole[i] = libm::exp(-dt_s / taus_s[i]);
+            c.relax[i] = Lag::new(taus_s[i], dt_s, y0);
         }
         Some(c)
     }
@@ -121,7 +121,7 @@ impl Creep {
 
     /// Back to rest at `y0` (every relaxation settled).
     pub fn reset(&mut self, y0: f64) {
-        self.state = [y0; MAX_CREEP_TERMS];
+        self.relax.iter_mut().for_each(|r| r.set_output(y0));
     }
 
     /// Let every relaxation run for `duration_s` with the core output held at `v` (a rest between runs).
@@ -130,9 +130,9 @@ impl Creep {
             return;
         }
         let periods = duration_s / dt_s;
-        for i in 0..self.n {
-            let p = libm::pow(self.pole[i], periods);
-            self.state[i] = p * self.state[i] + (1.0 - p) * v;
+        for r in self.relax.iter_mut().take(self.n) {
+            let p = libm::pow(r.pole(), periods);
+            r.set_output(p * r.output() + (1.0 - p) * v);
         }
     }
 
@@ -141,9 +141,7 @@ impl Creep {
     pub fn step(&mut self, v: f64) -> f64 {
         let mut lagged = 0.0;
         for i in 0..self.n {
-            let p = self.pole[i];
-            self.state[i] = p * self.state[i] + (1.0 - p) * v;
-            lagged += self.weight[i] * (self.state[i] - v);
+            lagged += self.weight[i] * (self.relax[i].step(v) - v);
         }
         v + self.fraction * lagged
     }
@@ -155,9 +153,9 @@ impl Creep {
         let mut wp = 0.0;
         let mut wpx = 0.0;
         for i in 0..self.n {
-            let a = self.weight[i] * self.pole[i];
+            let a = self.weight[i] * self.relax[i].pole();
             wp += a;
-            wpx += a * self.state[i];
+            wpx += a * self.relax[i].output();
         }
         (y - self.fraction * wpx) / (1.0 - self.fraction * wp)
     }
@@ -176,11 +174,9 @@ pub fn relaxation_columns(v: &[f64], taus_s: &[f64], dt_s: f64, out: &mut [f64])
         return true;
     };
     for (j, &tau) in taus_s.iter().enumerate() {
-        let p = libm::exp(-dt_s / tau);
-        let mut x = v0;
+        let mut x = Lag::new(tau, dt_s, v0);
         for (i, &vi) in v.iter().enumerate() {
-            x = p * x + (1.0 - p) * vi;
-            out[i * m + j] = x - vi;
+            out[i * m + j] = x.step(vi) - vi;
         }
     }
     true
@@ -221,7 +217,10 @@ mod tests {
         // Equal increments per decade of time: fraction / 6 decades.
         let per_decade = fraction / 6.0;
         for w in y.windows(2) {
-            assert!(((w[1] - w[0]) - per_decade).abs() < 0.1 * per_decade, "{y:?}");
+            assert!(
+                ((w[1] - w[0]) - per_decade).abs() < 0.1 * per_decade,
+                "{y:?}"
+            );
         }
     }
 
@@ -247,7 +246,10 @@ mod tests {
         assert!(Creep::log_uniform(0.1, 0.1, 1.0, 0.0, 0.0).is_none());
         assert!(Creep::with_spectrum(0.1, &[1.0], &[0.0], 1e-3, 0.0).is_none());
         let mut taus = [0.0; MAX_CREEP_TERMS];
-        assert_eq!(log_uniform_taus(1e-6, 1e6, &mut taus), Some(MAX_CREEP_TERMS));
+        assert_eq!(
+            log_uniform_taus(1e-6, 1e6, &mut taus),
+            Some(MAX_CREEP_TERMS)
+        );
     }
 
     #[test]

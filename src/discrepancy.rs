@@ -54,8 +54,16 @@ pub static CANDIDATES: &[Candidate] = &[
         "model-output change since the last reversal times the logarithm of the time since it",
     ),
     c("int(u dt)", "{u}*s", "running integral of the input"),
-    c("int(u^2 dt)", "{u}^2*s", "running integral of the squared input"),
-    c("y*t", "{y}*s", "model output times the time since the run's start"),
+    c(
+        "int(u^2 dt)",
+        "{u}^2*s",
+        "running integral of the squared input",
+    ),
+    c(
+        "y*t",
+        "{y}*s",
+        "model output times the time since the run's start",
+    ),
     c(
         "y*int(u^2 dt)",
         "{y}*{u}^2*s",
@@ -183,7 +191,15 @@ mod tests {
         // Up to 1 at t = 1 s, down to -1 at t = 3 s, then up.
         let u: Vec<f64> = t
             .iter()
-            .map(|&t| if t <= 1.0 { t } else if t <= 3.0 { 2.0 - t } else { t - 4.0 })
+            .map(|&t| {
+                if t <= 1.0 {
+                    t
+                } else if t <= 3.0 {
+                    2.0 - t
+                } else {
+                    t - 4.0
+                }
+            })
             .collect();
         let y: Vec<f64> = u.iter().map(|x| 2.0 * x).collect();
         let th: Vec<f64> = t.iter().map(|t| 0.5 * t).collect();

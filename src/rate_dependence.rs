@@ -19,6 +19,8 @@
 //! sampled exactly for the time constant of the sample. `no_std`, allocation-free; [`RateDependence::input_for`]
 //! is the exact inverse (the command that puts the core input where a compensator wants it).
 
+use crate::filters::lag_pole;
+
 /// Slopes below this share of the reference count as flat (no lag); above [`MAX_RELATIVE_SLOPE`] they are capped.
 const MIN_RELATIVE_SLOPE: f64 = 1e-6;
 /// Cap of the relative slope (a vertical jump of a measured table must not freeze the input).
@@ -98,12 +100,7 @@ impl RateDependence {
 
     #[inline]
     fn update_pole(&mut self) {
-        let tau = self.tau_s * self.rel_slope;
-        self.pole = if tau > 0.0 {
-            libm::exp(-self.dt_s / tau)
-        } else {
-            0.0
-        };
+        self.pole = lag_pole(self.dt_s, self.tau_s * self.rel_slope);
     }
 
     /// One sample, first half: applied input `u` held over this period → core input at its end.

@@ -55,6 +55,10 @@ class Hysteresis:
     ) -> "Hysteresis": ...
     def step(self, u: float) -> float: ...
     def run(self, u: _ArrayLike) -> np.ndarray: ...
+    def run_rate_dependent(self, u: _ArrayLike, *, tau_s: float, dt_s: float,
+                           slope_ref: float | None = None) -> np.ndarray:
+        """``u`` through the rate-dependence stage (core-input lag of time constant ``tau_s`` scaled by the
+        branch's differential slope over ``slope_ref``, default output span / input span), then the operator."""
     def __copy__(self) -> Hysteresis: ...
     def __deepcopy__(self, memo: dict[int, object]) -> Hysteresis: ...
     def reset(self, initial: _Initial | None = None) -> None: ...
@@ -155,6 +159,21 @@ def heating_state(current_a: ArrayLike, tau_s: float, dt_s: float, full_current_
                   initial: float = 0.0) -> np.ndarray:
     """Coil heating state (1 = steady full current) driven by ``(I/I_full)²`` with time constant ``tau_s``."""
 
+def creep_columns(v: ArrayLike, taus_s: ArrayLike, dt_s: float) -> np.ndarray:
+    """``n × len(taus_s)`` relaxation signals ``lag(v, τⱼ) − v`` (exact lags from rest at ``v[0]``)."""
+
+def accommodation_shift(u: ArrayLike, v: ArrayLike, *, kappa: float, cycles: float, lo: float, hi: float,
+                        deadband: float, saturation_tol: float, y_mid: float) -> np.ndarray:
+    """Minor-loop accommodation shift (output units) along input ``u`` and core output ``v``."""
+
+def candidate_signals(t_s: ArrayLike, u: ArrayLike, y: ArrayLike, *, deadband: float,
+                      theta_rad: ArrayLike | None = None, harmonics: int = 0) -> np.ndarray:
+    """``n × m`` candidate library of one run (columns named in :data:`CANDIDATES`, then angle harmonics)."""
+
+CANDIDATES: tuple[tuple[str, str, str], ...]
+"""The candidate library's run signals: ``(name, unit template, definition)``; ``{u}``/``{y}`` stand for the
+input/output unit."""
+
 _EffectsSpec = Union[None, dict[str, Union[dict[str, float], None]], Sequence[str], str]
 
 @final
@@ -176,6 +195,8 @@ class VirtualActuator:
     def step(self, current_a: float) -> dict[str, float | bool]:
         """One sample: the keys of ``run`` as floats, plus ``command_valid`` (NaN applies 0 A, flagged)."""
     def reset(self) -> None: ...
+    def start_run(self, rest_s: float = 0.0) -> None:
+        """A new recording after resting ``rest_s`` s at zero current (inf: settled, coils cold)."""
     def true_friction(self, theta_rad: _ArrayLike) -> np.ndarray: ...
     def theta_ahead(self, n: int) -> np.ndarray: ...
     @property

@@ -135,7 +135,11 @@ fn candidate_signals<'py>(
     let width = library_width(if th.is_some() { harmonics } else { 0 });
     let n = u.len();
     let build = || candidate_library(&t, &u, &y, th.as_deref(), harmonics, deadband);
-    let lib = if n > DETACH_LEN { py.detach(build) } else { build() };
+    let lib = if n > DETACH_LEN {
+        py.detach(build)
+    } else {
+        build()
+    };
     let lib = lib.ok_or_else(|| {
         BmrError::new_err(format!(
             "candidate_signals needs t_s, u, y (and theta_rad) of one length, strictly increasing time and a \

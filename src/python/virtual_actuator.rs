@@ -190,6 +190,14 @@ impl PyVirtualActuator {
         Ok(out)
     }
 
+    /// Start a new recording after the rig rested ``rest_s`` seconds at zero current (``float("inf")``: long enough
+    /// for the coils to cool and creep to settle; 0: back to back). The steel keeps its remanence; the leakage
+    /// integral restarts and the per-run calibration (``run_gain_offset``) is drawn anew.
+    #[pyo3(signature = (rest_s = 0.0))]
+    fn start_run(&mut self, rest_s: f64) -> PyResult<()> {
+        self.inner.start_run(rest_s).map_err(bmr_err)
+    }
+
     /// Back to the state right after construction (demagnetised, cold, t = 0, same noise stream).
     fn reset(&mut self) {
         self.inner.reset();
