@@ -2,7 +2,8 @@
 
 Core (Rust): ``Hysteresis`` (CBH operator), ``Friction`` (angle-periodic seal friction), ``Compensator``
 (exact or paper inverse + friction feedforward, coil split, current limit), ``VirtualActuator`` (a physical
-simulator of the rig; ``EFFECTS`` names its switchable effects, ``effect_parameters()`` documents them).
+simulator of the rig; ``EFFECTS`` names its switchable effects, ``effect_parameters()`` documents them),
+``VirtualDevice`` (a hysteretic device with one input and one output and no angle: ``DEVICE_PRESETS``).
 Experiment protocols and bundles of them: ``bmr.experiments`` (:mod:`bmr.simulation.experiments`).
 Package layout, in data-flow order: :mod:`bmr.data` (bundles, lab readers) → :mod:`bmr.identification`
 (friction, first-order curves, least-squares tables, ``Model``) → :mod:`bmr.diagnosis` → :mod:`bmr.report`;
@@ -17,6 +18,8 @@ angles in rad, time in s, converter voltages in V.
 """
 from bmr._core import (
     ACTUATOR_PARAMETERS,
+    DEVICE_PARAMETERS,
+    DEVICE_PRESETS,
     EFFECTS,
     PRESETS,
     BmrError,
@@ -28,6 +31,7 @@ from bmr._core import (
     Hysteresis,
     HysteresisState,
     VirtualActuator,
+    VirtualDevice,
     effect_parameters,
     fit_everett,
 )
@@ -45,6 +49,8 @@ from bmr.simulation import experiments
 
 __all__ = [
     "ACTUATOR_PARAMETERS",
+    "DEVICE_PARAMETERS",
+    "DEVICE_PRESETS",
     "EFFECTS",
     "PRESETS",
     "BmrError",
@@ -61,6 +67,7 @@ __all__ = [
     "Model",
     "Run",
     "VirtualActuator",
+    "VirtualDevice",
     "bundle_from_files",
     "diagnose",
     "effect_parameters",

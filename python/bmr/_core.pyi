@@ -174,6 +174,11 @@ CANDIDATES: tuple[tuple[str, str, str], ...]
 """The candidate library's run signals: ``(name, unit template, definition)``; ``{u}``/``{y}`` stand for the
 input/output unit."""
 
+DEVICE_PRESETS: tuple[str, ...]
+"""Names of the virtual device presets (``piezo``, ``ferroelectric``)."""
+DEVICE_PARAMETERS: tuple[str, ...]
+"""Names of the parameters ``VirtualDevice(overrides=...)`` can change."""
+
 _EffectsSpec = Union[None, dict[str, Union[dict[str, float], None]], Sequence[str], str]
 
 @final
@@ -265,3 +270,38 @@ class Compensator:
     def hysteresis(self) -> Hysteresis: ...
     @property
     def friction(self) -> Friction: ...
+
+@final
+class VirtualDevice:
+    """Seeded virtual hysteretic device with one input and one output and no angle (a piezo stack, a
+    ferroelectric capacitor): Preisach core plus the vocabulary's effects that need no angle."""
+    def __new__(
+        cls,
+        preset: str = "piezo",
+        *,
+        seed: int = 0,
+        sample_rate_hz: float | None = None,
+        effects: _EffectsSpec = None,
+        overrides: dict[str, float] | None = None,
+    ) -> Self: ...
+    def run(self, u: _ArrayLike) -> dict[str, np.ndarray]:
+        """Commanded inputs → ``t_s, input, output`` (measured) and ``output_true``."""
+    def start_run(self, rest_s: float = 0.0) -> None: ...
+    @property
+    def effects(self) -> dict[str, dict[str, float]]: ...
+    @property
+    def quantities(self) -> tuple[tuple[str, str], tuple[str, str]]: ...
+    @property
+    def input_range(self) -> tuple[float, float]: ...
+    @property
+    def noise(self) -> float: ...
+    @property
+    def preset(self) -> str: ...
+    @property
+    def name(self) -> str: ...
+    @property
+    def seed(self) -> int: ...
+    @property
+    def sample_rate_hz(self) -> float: ...
+    @property
+    def time_s(self) -> float: ...

@@ -375,7 +375,7 @@ pub struct VirtualActuator {
 }
 
 /// The calibration draws use their own stream, so that switching `run_gain_offset` on leaves the noise alone.
-fn calibration_stream(seed: u64) -> Rng {
+pub(super) fn calibration_stream(seed: u64) -> Rng {
     Rng::new(seed ^ 0xC0FF_EE15_CA1B_0A7E)
 }
 
@@ -411,7 +411,8 @@ impl VirtualActuator {
             Accommodation::new(kappa, cycles, -full, full, 0.02 * full, 0.004 * full, 0.0)
         });
         let mut calibration_rng = calibration_stream(seed);
-        let (run_gain, run_offset_nmm) = draw_calibration(&fx, &mut calibration_rng);
+        let (run_gain, run_offset_nmm) =
+            draw_run_calibration(fx.run_gain_offset, &mut calibration_rng);
         Ok(VirtualActuator {
             creep1: creep(),
             creep2: creep(),
@@ -494,7 +495,7 @@ impl VirtualActuator {
         self.last_applied = 0.0;
         self.calibration_rng = calibration_stream(self.seed);
         (self.run_gain, self.run_offset_nmm) =
-            draw_calibration(&self.fx, &mut self.calibration_rng);
+            draw_run_calibration(self.fx.run_gain_offset, &mut self.calibration_rng);
         self.drive.reset();
         self.rng = Rng::new(self.seed);
         self.index = 0;
@@ -543,7 +544,7 @@ impl VirtualActuator {
         }
         self.leak_integral = 0.0;
         (self.run_gain, self.run_offset_nmm) =
-            draw_calibration(&self.fx, &mut self.calibration_rng);
+            draw_run_calibration(self.fx.run_gain_offset, &mut self.calibration_rng);
         Ok(())
     }
 
@@ -603,13 +604,13 @@ impl VirtualActuator {
         let coil2_a = self.converter2.step(self.converter2.voltage_for(c2));
         let field1_a = self.field1.step(coil1_a);
         let field2_a = self.field2.step(coil2_a);
-        let b1_t = flux(
+        let b1_t = preisach_flux(
             &mut self.steel1,
             &mut self.rate1,
             &mut self.creep1,
             field1_a,
         );
-        let b2_t = flux(
+        let b2_t = preisach_flux(
             &mut self.steel2,
             &mut self.rate2,
             &mut self.creep2,
@@ -681,10 +682,10 @@ impl VirtualActuator {
     }
 }
 
-/// One circuit's flux density: the field current through the dynamic field (rate dependence) into the steel,
-/// then the magnetic after-effect (creep).
+/// One circuit's flux density (any Preisach core's output): the input through the dynamic field (rate
+/// dependence) into the core, then the after-effect (creep).
 #[inline]
-fn flux(
+pub(super) fn preisach_flux(
     steel: &mut PreisachSteel,
     rate: &mut Option<RateDependence>,
     creep: &mut Option<Creep>,
@@ -704,9 +705,9 @@ fn flux(
     }
 }
 
-/// This run's sensor gain and offset (N·mm): 1 and 0 unless `run_gain_offset` is on.
-fn draw_calibration(fx: &ActiveEffects, rng: &mut Rng) -> (f64, f64) {
-    match fx.run_gain_offset {
+/// This run's sensor gain and offset (output units): 1 and 0 unless `run_gain_offset` (spreads) is on.
+pub(super) fn draw_run_calibration(spread: Option<(f64, f64)>, rng: &mut Rng) -> (f64, f64) {
+    match spread {
         Some((gain_sd, offset_sd)) => (1.0 + gain_sd * rng.normal(), offset_sd * rng.normal()),
         None => (1.0, 0.0),
     }

@@ -10,6 +10,7 @@ mod hysteresis;
 mod identification;
 mod reversals;
 mod virtual_actuator;
+mod virtual_device;
 
 pyo3::create_exception!(
     bmr,
@@ -31,6 +32,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     identification::register(m)?;
     reversals::register(m)?;
     virtual_actuator::register(m)?;
+    virtual_device::register(m)?;
     compensator::register(m)?;
     effect_signals::register(m)?;
     filters::register(m)?;

@@ -12,7 +12,7 @@ use pyo3::types::{PyDict, PyList, PyString, PyTuple};
 
 /// Apply a Python effects specification to `set`: None, a dict `{name: {param: value} | None}` (None
 /// removes the preset's effect), or a list of `"name:key=value,..."` strings (`"name:off"` removes it).
-fn apply_effects(set: &mut EffectSet, spec: &Bound<'_, PyAny>) -> PyResult<()> {
+pub(crate) fn apply_effects(set: &mut EffectSet, spec: &Bound<'_, PyAny>) -> PyResult<()> {
     if spec.is_none() {
         return Ok(());
     }
