@@ -435,7 +435,8 @@ def simulate_bundle(preset: str = "bmr2013", *, effects: Mapping[str, Any] | Seq
                     sample_rate_hz: float = BUNDLE_SAMPLE_RATE_HZ,
                     on_run: Callable[[Run], Any] | None = None,
                     overrides: Mapping[str, float] | None = None,
-                    extra_runs: Sequence[Callable[[VirtualActuator], Run]] = ()) -> Bundle:
+                    extra_runs: Sequence[Callable[[VirtualActuator], Run]] = (),
+                    rest_s: float | None = None) -> Bundle:
     """The paper's experiment set on a fresh virtual actuator, as a :class:`bmr.Bundle`.
 
     Runs, in order, on one actuator (its thermal state and sensor drift carry over; each run's opening
@@ -448,18 +449,23 @@ def simulate_bundle(preset: str = "bmr2013", *, effects: Mapping[str, Any] | Seq
     ``on_run(run)`` is called after each run (progress reporting). Logged at ``sample_rate_hz`` (500 Hz).
     ``overrides`` changes physical parameters by dotted name (``bmr.ACTUATOR_PARAMETERS``), e.g. the noise level.
     ``extra_runs``: further protocols (callables taking the actuator, returning a run) appended after the set.
+    ``rest_s``: the rig rests that long at zero current before each run after the first (the coils cool, creep
+    settles; ``VirtualActuator.start_run``); None: back to back. Each run is a new recording either way (per-run
+    calibration and the leakage integral start anew).
     """
     actuator = VirtualActuator(preset, seed=seed, sample_rate_hz=sample_rate_hz, effects=effects,
                                overrides=dict(overrides) if overrides else None)
     plan = [fn for _name, fn in _plan(bool(quick), compensator, actuator.sample_rate_hz)] + list(extra_runs)
     runs: list[Run] = []
-    for fn in plan:
+    for i, fn in enumerate(plan):
+        if i > 0:
+            actuator.start_run(float(rest_s or 0.0))
         runs.append(fn(actuator))
         if on_run is not None:
             on_run(runs[-1])
     meta = {"simulator": {"preset": preset, "seed": int(seed), "quick": bool(quick),
                           "effects": {k: dict(v) for k, v in actuator.effects.items()},
-                          "noise_nmm": actuator.noise_nmm,
+                          "noise_nmm": actuator.noise_nmm, "rest_s": rest_s,
                           "overrides": {k: float(v) for k, v in (overrides or {}).items()}}}
     return Bundle(actuator=actuator.name, sample_rate_hz=actuator.sample_rate_hz, runs=runs, meta=meta)
 
