@@ -88,13 +88,14 @@ def repeated_loops(actuator: Any, *, rate_a_per_s: float = 1.0, name: str = "rep
 
 
 def diagnosis_bundle(preset: str = "rig_preisach", *, effects: Any = None, seed: int = 0, quick: bool = True,
-                     sample_rate_hz: float = 500.0, rest_s: float | None = None, overrides: Any = None) -> Bundle:
+                     sample_rate_hz: float = 500.0, rest_s: float | None = None, overrides: Any = None,
+                     forc_reversals: int | None = None) -> Bundle:
     """The paper's experiment set (:func:`bmr.simulation.experiments.simulate_bundle`) plus one
     :func:`minor_loops` run and one :func:`repeated_loops` run, all on one virtual actuator (``preset`` with
     ``effects``, ``seed``, ``overrides``): the bundle the diagnosis is calibrated on. ``rest_s``: rest between
-    runs (see ``simulate_bundle``)."""
+    runs, ``forc_reversals``: reversals per first-order family (see ``simulate_bundle``)."""
     opening = 2.5 if quick else OPENING_RATE_A_PER_S
     return simulate_bundle(preset, effects=effects, seed=seed, quick=quick, sample_rate_hz=sample_rate_hz,
-                           rest_s=rest_s, overrides=overrides,
+                           rest_s=rest_s, overrides=overrides, forc_reversals=forc_reversals,
                            extra_runs=[lambda a: minor_loops(a, opening_rate_a_per_s=opening),
                                        lambda a: repeated_loops(a, opening_rate_a_per_s=opening)])
