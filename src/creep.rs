@@ -87,8 +87,7 @@ impl Creep {
             && dt_s > 0.0
             && dt_s.is_finite()
             && y0.is_finite()
-            && n >= 1
-            && n <= MAX_CREEP_TERMS
+            && (1..=MAX_CREEP_TERMS).contains(&n)
             && weights.len() == n
             && taus_s.iter().all(|t| *t > 0.0 && t.is_finite())
             && weights.iter().all(|w| *w >= 0.0 && w.is_finite());
@@ -126,7 +125,7 @@ impl Creep {
 
     /// Let every relaxation run for `duration_s` with the core output held at `v` (a rest between runs).
     pub fn hold(&mut self, v: f64, duration_s: f64, dt_s: f64) {
-        if !(duration_s > 0.0) {
+        if duration_s.is_nan() || duration_s <= 0.0 {
             return;
         }
         let periods = duration_s / dt_s;
@@ -167,7 +166,8 @@ impl Creep {
 /// `false` (nothing written) when the sizes differ, `dt_s` is not positive or a time constant is not positive.
 pub fn relaxation_columns(v: &[f64], taus_s: &[f64], dt_s: f64, out: &mut [f64]) -> bool {
     let m = taus_s.len();
-    if out.len() != v.len() * m || !(dt_s > 0.0) || taus_s.iter().any(|t| !(*t > 0.0)) {
+    let positive = |x: f64| x > 0.0;
+    if out.len() != v.len() * m || !positive(dt_s) || !taus_s.iter().all(|&t| positive(t)) {
         return false;
     }
     let Some(&v0) = v.first() else {

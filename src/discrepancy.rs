@@ -92,7 +92,7 @@ pub fn candidate_library(
     if t_s.len() != n || y.len() != n || theta_rad.is_some_and(|th| th.len() != n) {
         return None;
     }
-    if t_s.windows(2).any(|w| !(w[1] > w[0])) {
+    if !t_s.windows(2).all(|w| w[1] > w[0]) {
         return None;
     }
     let harmonics = if theta_rad.is_some() { harmonics } else { 0 };
