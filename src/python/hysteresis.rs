@@ -166,8 +166,9 @@ impl PyHysteresis {
     /// Run ``u`` (sampled every ``dt_s``) through the rate-dependence stage (``rate_dependence``: a lag of the core
     /// input whose time constant ``tau_s`` is scaled by the branch's differential slope over ``slope_ref``; default
     /// the major loop's mean slope, output span over input span), continuing from the current state with the stage
-    /// at rest at ``u[0]``. Returns the outputs.
+    /// at rest at ``u[0]``. Returns ``(outputs, core_inputs)``.
     #[pyo3(signature = (u, *, tau_s, dt_s, slope_ref=None))]
+    #[allow(clippy::type_complexity)]
     fn run_rate_dependent<'py>(
         &mut self,
         py: Python<'py>,
@@ -175,7 +176,7 @@ impl PyHysteresis {
         tau_s: f64,
         dt_s: f64,
         slope_ref: Option<f64>,
-    ) -> PyResult<Bound<'py, PyArray1<f64>>> {
+    ) -> PyResult<(Bound<'py, PyArray1<f64>>, Bound<'py, PyArray1<f64>>)> {
         let inputs = to_vec(u);
         if let Some(i) = inputs.iter().position(|x| !x.is_finite()) {
             return Err(BmrError::new_err(format!(
@@ -196,22 +197,24 @@ impl PyHysteresis {
             })?;
         let n = inputs.len();
         let op = &mut self.op;
-        let mut scan = move || -> Vec<f64> {
-            inputs
-                .iter()
-                .map(|&x| {
-                    let y = op.step(stage.step(x));
-                    stage.observe(y);
-                    y
-                })
-                .collect()
+        let scan = move || -> (Vec<f64>, Vec<f64>) {
+            let mut ys = Vec::with_capacity(n);
+            let mut cores = Vec::with_capacity(n);
+            for &x in &inputs {
+                let c = stage.step(x);
+                let y = op.step(c);
+                stage.observe(y);
+                ys.push(y);
+                cores.push(c);
+            }
+            (ys, cores)
         };
-        let out = if n > DETACH_LEN {
+        let (ys, cores) = if n > DETACH_LEN {
             py.detach(scan)
         } else {
             scan()
         };
-        Ok(to_numpy(py, out))
+        Ok((to_numpy(py, ys), to_numpy(py, cores)))
     }
 
     /// Forget the memory and start from `initial` ("negative", "positive", ("ascending", u), ("descending", u)).
