@@ -197,7 +197,7 @@ impl PyHysteresis {
             })?;
         let n = inputs.len();
         let op = &mut self.op;
-        let scan = move || -> (Vec<f64>, Vec<f64>) {
+        let mut scan = move || -> (Vec<f64>, Vec<f64>) {
             let mut ys = Vec::with_capacity(n);
             let mut cores = Vec::with_capacity(n);
             for &x in &inputs {
