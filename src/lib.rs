@@ -23,6 +23,8 @@ pub mod inverse;
 pub mod paper_inverse;
 #[cfg(feature = "std")]
 pub mod plant;
+pub mod simulation;
+pub mod stages;
 #[cfg(feature = "alloc")]
 pub mod table_builder;
 pub mod trig;
@@ -33,7 +35,7 @@ pub use compensator::{Command, Compensator, CompensatorError, CompensatorState, 
 pub use congruency::{Congruency, congruency};
 pub use error::{FamilyKind, TableError};
 pub use everett::{Family, Strip};
-pub use friction::Friction;
+pub use friction::{Friction, FrictionError};
 pub use inverse::InverseInput;
 #[cfg(feature = "alloc")]
 pub use table_builder::{BuildOptions, MeasuredCurve, build_tables};
