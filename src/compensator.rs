@@ -104,6 +104,8 @@ pub enum CompensatorError {
     FrictionBound(f64),
     /// An extension stage could not be built.
     Stage(StageError),
+    /// A friction model with a current gain needs the `friction_current` stage (built with the control period).
+    CurrentDependentFriction,
 }
 
 impl core::fmt::Display for CompensatorError {
@@ -124,6 +126,10 @@ impl core::fmt::Display for CompensatorError {
                  it could not be evaluated finitely"
             ),
             CompensatorError::Stage(e) => e.fmt(f),
+            CompensatorError::CurrentDependentFriction => f.write_str(
+                "a friction model with gain_per_a needs the friction_current extension (and the control period \
+                 dt_s) to estimate the current it grows with",
+            ),
         }
     }
 }
@@ -166,12 +172,15 @@ impl<S: AsRef<[f64]>, const N: usize, const K: usize> Compensator<S, N, K> {
     }
 
     fn set_friction(&mut self, friction: Friction<K>) -> Result<(), CompensatorError> {
+        if friction.gain_per_a() != 0.0 && self.stages.friction_current.is_none() {
+            return Err(CompensatorError::CurrentDependentFriction);
+        }
         let bound = friction.magnitude() * (1.0 + friction.gain_per_a().abs() * self.limit_a);
         if bound.is_nan() || bound > MAX_MAGNITUDE {
             return Err(CompensatorError::FrictionBound(bound));
         }
         self.friction = friction;
-        self.extended = self.stages.any() || friction.gain_per_a() != 0.0;
+        self.extended = self.stages.any();
         Ok(())
     }
 
@@ -299,10 +308,8 @@ impl<S: AsRef<[f64]>, const N: usize, const K: usize> Compensator<S, N, K> {
     #[inline]
     fn step_extended(&mut self, torque_ref_nmm: f64, theta_rad: f64) -> Command {
         let terms = self.friction.angle_terms(theta_rad);
-        // Current-dependent friction from the field current of the last sample (this one is not known yet).
-        self.friction_nmm = self
-            .friction
-            .with_terms(&terms, self.forward.state().input());
+        let current_a = self.stages.friction_current.map_or(0.0, |f| f.current_a());
+        self.friction_nmm = self.friction.with_terms(&terms, current_a);
         let mut gain = 1.0;
         if let Some(t) = &self.stages.thermal {
             gain *= t.gain();
@@ -341,6 +348,9 @@ impl<S: AsRef<[f64]>, const N: usize, const K: usize> Compensator<S, N, K> {
         if let Some(t) = &mut self.stages.thermal {
             t.commit(limited);
         }
+        if let Some(f) = &mut self.stages.friction_current {
+            f.commit(field_a);
+        }
         if exact && matches!(self.inverse, InverseKind::Exact) {
             self.forward.commit(field_a, target);
         } else {
@@ -372,6 +382,9 @@ impl<S: AsRef<[f64]>, const N: usize, const K: usize> Compensator<S, N, K> {
         };
         if let Some(t) = &mut self.stages.thermal {
             t.commit(0.0);
+        }
+        if let Some(f) = &mut self.stages.friction_current {
+            f.commit(field_a);
         }
         let y = self.forward.step(field_a);
         if let InverseKind::Paper(inv) = &mut self.inverse {

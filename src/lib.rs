@@ -13,12 +13,17 @@ pub mod compensator;
 pub mod congruency;
 pub mod error;
 pub mod everett;
+#[cfg(feature = "alloc")]
+pub mod export;
+#[cfg(feature = "ffi")]
+pub mod ffi;
 pub mod filters;
 pub mod friction;
 #[cfg(feature = "alloc")]
 pub mod from_curves;
 pub mod history;
 pub mod inverse;
+pub mod model_data;
 #[cfg(feature = "alloc")]
 pub mod paper_inverse;
 #[cfg(feature = "std")]

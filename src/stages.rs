@@ -165,6 +165,39 @@ impl Thermal {
     }
 }
 
+/// `friction_current`: the compensator's estimate of the |field current| the seal friction grows with. The current
+/// of this sample is not known before the inverse, and the last one fed straight back would close a loop through
+/// the friction and the inverse that chatters near reversals (where the branch is flat and a small torque change
+/// needs a large current change); so the estimate is the last field current smoothed over [`FRICTION_CURRENT_TAU_S`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FrictionCurrent {
+    smooth: Lag,
+}
+
+/// Time constant of the compensator's `friction_current` estimate (s).
+pub const FRICTION_CURRENT_TAU_S: f64 = 0.01;
+
+impl FrictionCurrent {
+    pub fn new(dt_s: f64) -> Self {
+        FrictionCurrent {
+            smooth: Lag::new(FRICTION_CURRENT_TAU_S, dt_s, 0.0),
+        }
+    }
+    /// The |current| (A) the friction feedforward uses this sample.
+    #[inline]
+    pub fn current_a(&self) -> f64 {
+        self.smooth.output()
+    }
+    /// Advance with the field current reached this sample.
+    #[inline]
+    pub fn commit(&mut self, field_a: f64) {
+        self.smooth.step(field_a.abs());
+    }
+    pub fn reset(&mut self, field_a: f64) {
+        self.smooth.set_output(field_a.abs());
+    }
+}
+
 /// `torque_ripple`: the field torque is scaled by `1 + eps·cos(θ + phase)`, from the friction's `sincos`.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Ripple {
@@ -342,6 +375,7 @@ pub struct Stages {
     pub thermal: Option<Thermal>,
     pub ripple: Option<Ripple>,
     pub output_map: Option<OutputMap>,
+    pub friction_current: Option<FrictionCurrent>,
 }
 
 /// What the friction model gains from the extensions: an extra harmonic and a current gain.
@@ -440,7 +474,12 @@ impl Stages {
                     }
                 }
                 EffectKind::FrictionHarmonics => fr.harmonic = Some((v[0] as usize, v[1], v[2])),
-                EffectKind::FrictionCurrent => fr.gain_per_a = Some(v[0]),
+                EffectKind::FrictionCurrent => {
+                    fr.gain_per_a = Some(v[0]);
+                    if v[0] != 0.0 {
+                        st.friction_current = Some(FrictionCurrent::new(dt_s));
+                    }
+                }
                 EffectKind::SensorDrift => {}
             }
         }
@@ -454,6 +493,7 @@ impl Stages {
             || self.thermal.is_some()
             || self.ripple.is_some()
             || self.output_map.is_some()
+            || self.friction_current.is_some()
     }
 
     /// Back to rest: field current `field_a`, cold coils, no reference history.
@@ -467,6 +507,9 @@ impl Stages {
         if let Some(t) = &mut self.thermal {
             t.reset(0.0);
         }
+        if let Some(f) = &mut self.friction_current {
+            f.reset(field_a);
+        }
     }
 
     /// The stateful stages (a plain copy).
@@ -475,6 +518,7 @@ impl Stages {
             coil_lag: self.coil_lag,
             time_delay: self.time_delay,
             thermal: self.thermal,
+            friction_current: self.friction_current,
         }
     }
 
@@ -503,11 +547,16 @@ impl Stages {
             let mut t = *t;
             t.reset(0.0);
             t
+        }) && same(&self.friction_current, &s.friction_current, |f| {
+            let mut f = *f;
+            f.reset(0.0);
+            f
         });
         if ok {
             self.coil_lag = s.coil_lag;
             self.time_delay = s.time_delay;
             self.thermal = s.thermal;
+            self.friction_current = s.friction_current;
         }
         ok
     }
@@ -519,6 +568,7 @@ pub struct StageState {
     coil_lag: Option<CoilLag>,
     time_delay: Option<Predictor>,
     thermal: Option<Thermal>,
+    friction_current: Option<FrictionCurrent>,
 }
 
 #[cfg(test)]

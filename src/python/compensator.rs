@@ -11,15 +11,18 @@ use pyo3::types::{PyDict, PyList, PyMapping, PyTuple};
 use crate::cbh::Initial;
 use crate::compensator::{Command, Compensator, CompensatorState, InverseKind};
 use crate::friction::{Friction, MAX_ORDER};
+use crate::model_data::{EffectValues, ModelData};
 use crate::python::arrays::{DETACH_LEN, to_numpy, to_vec};
 use crate::python::friction::PyFriction;
 use crate::python::hysteresis::{MEMORY, PyHysteresis, initial_or_negative};
 use crate::python::{BmrError, bmr_err};
 use crate::simulation::Simulation;
-use crate::stages::Scales;
+use crate::stages::{OutputMap, Scales};
 use crate::vocabulary::{NameList, Params, SPECS, extension_spec};
 
 type Core = Compensator<Vec<f64>, MEMORY, MAX_ORDER>;
+// Exported firmware remembers as much as the Python operators: the same commands, bit for bit.
+const _: () = assert!(MEMORY == crate::model_data::MEMORY);
 type Sim = Simulation<Vec<f64>, Vec<f64>, MEMORY, MAX_ORDER>;
 
 /// One control-period command: nominal current, coil currents (A), converter voltages (V) and flags.
@@ -853,7 +856,111 @@ impl PySimulation {
     }
 }
 
+/// Firmware source of `compensator` (exact inverse): `language` "rust" (static tables and `compensator(dt_s)` for
+/// the no_std crate) or "c" (arrays and a `BmrModel` named `<prefix>_model` for `bmr_compensator_init`).
+#[pyfunction]
+#[pyo3(signature = (compensator, language, *, title="bmr compensator", prefix="bmr"))]
+fn export_source(
+    compensator: &Bound<'_, PyCompensator>,
+    language: &str,
+    title: &str,
+    prefix: &str,
+) -> PyResult<String> {
+    let me = shared(compensator)?;
+    if me.inverse != "exact" {
+        return Err(BmrError::new_err(
+            "export: only the exact inverse runs in firmware (build the compensator with inverse=\"exact\")",
+        ));
+    }
+    if !(prefix
+        .chars()
+        .next()
+        .is_some_and(|c| c.is_ascii_alphabetic())
+        && prefix
+            .chars()
+            .all(|c| c.is_ascii_alphanumeric() || c == '_'))
+    {
+        return Err(BmrError::new_err(format!(
+            "export: prefix {prefix:?} must be a C identifier (letters, digits, _)"
+        )));
+    }
+    let op = &me.hysteresis.op;
+    let (a, d) = (op.ascending(), op.descending());
+    let (y_lo, y_hi) = op.output_range();
+    let f = &me.base_friction;
+    let effects: Vec<EffectValues> = me.extensions.iter().filter_map(EffectValues::of).collect();
+    let data = ModelData {
+        ascending: a.data(),
+        ascending_nodes: a.nodes(),
+        ascending_curves: a.curves(),
+        descending: d.data(),
+        descending_nodes: d.nodes(),
+        descending_curves: d.curves(),
+        y_lo,
+        y_hi,
+        friction_c0: f.c0(),
+        friction_a: f.a(),
+        friction_b: f.b(),
+        converter_gain_a_per_v: me.core.gain_a_per_v(),
+        current_limit_a: me.core.limit_a(),
+        full_torque_nmm: me.full_torque_nmm,
+        effects: &effects,
+    };
+    let title = title.replace("*/", "* /").replace('\n', " ");
+    match language {
+        "rust" => Ok(crate::export::rust_source(&data, &title)),
+        "c" => Ok(crate::export::c_header(&data, &title, prefix)),
+        other => Err(BmrError::new_err(format!(
+            "export: language {other:?}: expected 'rust' or 'c'"
+        ))),
+    }
+}
+
+/// Validate a model's `extensions` against the vocabulary: every name known, every parameter known and in range.
+/// Returns the entries as `[{"name", "params"}]` with every parameter filled in (defaults included).
+#[pyfunction]
+fn check_extensions<'py>(
+    py: Python<'py>,
+    extensions: &Bound<'py, PyAny>,
+) -> PyResult<Bound<'py, PyList>> {
+    extensions_to_py(py, &parse_extensions(Some(extensions))?)
+}
+
+fn output_map_of(curvature: f64, scale_nmm: f64) -> PyResult<OutputMap> {
+    OutputMap::curvature(curvature, scale_nmm).map_err(bmr_err)
+}
+
+/// The `non_congruent` output map (the compensator's own table) applied to core torques (N·mm).
+#[pyfunction]
+fn output_map<'py>(
+    py: Python<'py>,
+    core_nmm: PyArrayLike1<'py, f64, AllowTypeChange>,
+    curvature: f64,
+    scale_nmm: f64,
+) -> PyResult<Bound<'py, PyArray1<f64>>> {
+    let m = output_map_of(curvature, scale_nmm)?;
+    let x = to_vec(core_nmm);
+    Ok(to_numpy(py, x.iter().map(|&v| m.forward(v)).collect()))
+}
+
+/// The inverse of `output_map`: the core torques (N·mm) giving field torques `field_nmm`.
+#[pyfunction]
+fn output_map_inverse<'py>(
+    py: Python<'py>,
+    field_nmm: PyArrayLike1<'py, f64, AllowTypeChange>,
+    curvature: f64,
+    scale_nmm: f64,
+) -> PyResult<Bound<'py, PyArray1<f64>>> {
+    let mut m = output_map_of(curvature, scale_nmm)?;
+    let x = to_vec(field_nmm);
+    Ok(to_numpy(py, x.iter().map(|&v| m.inverse(v)).collect()))
+}
+
 pub(crate) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_function(wrap_pyfunction!(check_extensions, m)?)?;
+    m.add_function(wrap_pyfunction!(export_source, m)?)?;
+    m.add_function(wrap_pyfunction!(output_map, m)?)?;
+    m.add_function(wrap_pyfunction!(output_map_inverse, m)?)?;
     m.add_class::<PyCompensator>()?;
     m.add_class::<PyCommand>()?;
     m.add_class::<PyCompensatorState>()?;
