@@ -17,18 +17,25 @@ pub mod creep;
 pub mod discrepancy;
 pub mod error;
 pub mod everett;
+#[cfg(feature = "alloc")]
+pub mod export;
+#[cfg(feature = "ffi")]
+pub mod ffi;
 pub mod filters;
 pub mod friction;
 #[cfg(feature = "alloc")]
 pub mod from_curves;
 pub mod history;
 pub mod inverse;
+pub mod model_data;
 #[cfg(feature = "alloc")]
 pub mod paper_inverse;
 #[cfg(feature = "std")]
 pub mod plant;
 pub mod rate_dependence;
 pub mod reversals;
+pub mod simulation;
+pub mod stages;
 #[cfg(feature = "alloc")]
 pub mod table_builder;
 pub mod trig;
@@ -39,7 +46,7 @@ pub use compensator::{Command, Compensator, CompensatorError, CompensatorState, 
 pub use congruency::{Congruency, congruency};
 pub use error::{FamilyKind, TableError};
 pub use everett::{Family, Strip};
-pub use friction::Friction;
+pub use friction::{Friction, FrictionError};
 pub use inverse::InverseInput;
 pub use reversals::{ReversalFinder, ReversalOrder, ReversalPoint};
 #[cfg(feature = "alloc")]

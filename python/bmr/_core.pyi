@@ -18,6 +18,7 @@ __all__ = [
     "CompensatorState",
     "EFFECTS",
     "EverettModel",
+    "ExtendedSimulation",
     "Friction",
     "Hysteresis",
     "HysteresisState",
@@ -84,14 +85,22 @@ class Hysteresis:
 
 @final
 class Friction:
-    """Seal friction c0 + Σ a_k sin kθ + b_k cos kθ (N·mm), up to 12 harmonics."""
-    def __new__(cls, c0: float = 0.0, a: Sequence[float] = ..., b: Sequence[float] = ...) -> Self: ...
+    """Seal friction c0 + (1 + gain_per_a·|I|)·Σ a_k sin kθ + b_k cos kθ (N·mm), up to FRICTION_MAX_ORDER
+    harmonics."""
+    def __new__(
+        cls, c0: float = 0.0, a: Sequence[float] = ..., b: Sequence[float] = ..., gain_per_a: float = 0.0
+    ) -> Self: ...
     @staticmethod
     def from_amplitude_phase(c0: float, amplitude: Sequence[float], phase: Sequence[float]) -> "Friction": ...
     @overload
-    def __call__(self, theta: float) -> float: ...
+    def __call__(self, theta: float, current_a: float | None = None) -> float: ...
     @overload
-    def __call__(self, theta: _ArrayLike) -> np.ndarray: ...
+    def __call__(self, theta: _ArrayLike, current_a: _ArrayLike | float | None = None) -> np.ndarray: ...
+    @property
+    def gain_per_a(self) -> float: ...
+    def __copy__(self) -> Self: ...
+    def __deepcopy__(self, memo: object) -> Self: ...
+    def __reduce__(self) -> tuple[type, tuple[float, list[float], list[float], float]]: ...
     @property
     def c0(self) -> float: ...
     @property
@@ -101,6 +110,13 @@ class Friction:
     @property
     def order(self) -> int: ...
     def amplitude_phase(self) -> tuple[np.ndarray, np.ndarray]: ...
+
+FRICTION_MAX_ORDER: int
+"""Most harmonics a ``Friction`` holds."""
+
+def friction_series(theta_rad: _ArrayLike, c0: float, a: Sequence[float], b: Sequence[float]) -> np.ndarray:
+    """The friction series c0 + Σ a_k sin kθ + b_k cos kθ (N·mm) of any order: the one evaluator of every friction
+    model."""
 
 # --- identification (least squares, faer) ---
 def fit_friction_order(theta_rad: np.ndarray, torque_nmm: np.ndarray, order: int) -> dict:
@@ -150,17 +166,17 @@ def effect_parameters(*, model_entries: bool = False) -> dict[str, dict[str, obj
     """Every effect: ``{name: {"doc": str, "acts": str, "params": {param: {"unit", "default", "min", "max",
     "whole", "doc"}}}}``; ``model_entries=True`` adds the model-file entries that are not effects."""
 
-def lag(x: ArrayLike, tau_s: float, dt_s: float, *, initial: float | None = None) -> np.ndarray:
+def lag(x: _ArrayLike, tau_s: float, dt_s: float, *, initial: float | None = None) -> np.ndarray:
     """Exact first-order lag (zero-order hold): ``y[n] = p·y[n−1] + (1 − p)·x[n]``, ``p = exp(−dt/τ)``, at rest
     at ``initial`` (default ``x[0]``)."""
 
-def lead(y: ArrayLike, tau_s: float, dt_s: float, *, initial: float | None = None) -> np.ndarray:
+def lead(y: _ArrayLike, tau_s: float, dt_s: float, *, initial: float | None = None) -> np.ndarray:
     """Exact inverse of :func:`lag` (``y[−1] = initial``, default ``y[0]``)."""
 
-def delay(x: ArrayLike, delay_s: float, dt_s: float, *, fill: float | None = None) -> np.ndarray:
+def delay(x: _ArrayLike, delay_s: float, dt_s: float, *, fill: float | None = None) -> np.ndarray:
     """``x`` delayed by ``round(delay_s/dt_s)`` samples, ``fill`` (default ``x[0]``) before the start."""
 
-def heating_state(current_a: ArrayLike, tau_s: float, dt_s: float, full_current_a: float, *,
+def heating_state(current_a: _ArrayLike, tau_s: float, dt_s: float, full_current_a: float, *,
                   initial: float = 0.0) -> np.ndarray:
     """Coil heating state (1 = steady full current) driven by ``(I/I_full)²`` with time constant ``tau_s``."""
 
@@ -232,7 +248,9 @@ class VirtualActuator:
     def converter_gain_a_per_v(self) -> float: ...
 @final
 class Command:
-    """One control-period command."""
+    """One control-period command: nominal current (A, negative drives coil 1), coil currents (A), converter
+    voltages (V); ``saturated``: the torque asked for was not reachable; ``fault``: a non-finite input or
+    intermediate, zero current commanded."""
     current_a: float
     coil1_a: float
     coil2_a: float
@@ -240,14 +258,26 @@ class Command:
     volt2_v: float
     saturated: bool
     fault: bool
+    def __new__(
+        cls, current_a: float, coil1_a: float, coil2_a: float, volt1_v: float, volt2_v: float, saturated: bool,
+        fault: bool
+    ) -> Self: ...
+    def __copy__(self) -> Self: ...
+    def __deepcopy__(self, memo: object) -> Self: ...
+    def __reduce__(self) -> tuple[type, tuple[float, float, float, float, float, bool, bool]]: ...
 
 @final
 class CompensatorState:
-    """Opaque snapshot of a Compensator's memory."""
+    """Opaque snapshot of a Compensator's memory and stage states."""
+    def __copy__(self) -> Self: ...
+    def __deepcopy__(self, memo: object) -> Self: ...
+
+_Extensions = Sequence[Union[dict[str, object], Tuple[str, dict[str, float]]]]
 
 @final
 class Compensator:
-    """Open-loop torque compensator: I = H⁻¹[T_ref − T_f(θ)], coil split, current limit, converter voltages."""
+    """Open-loop torque compensator: I = H⁻¹[T_ref − T_f(θ)], coil split, current limit, converter voltages;
+    optionally extended by a model's stages (``extensions`` at control period ``dt_s``)."""
     def __new__(
         cls,
         hysteresis: Hysteresis,
@@ -257,12 +287,29 @@ class Compensator:
         converter_gain: float = 0.125,
         current_limit: float = 1.25,
         initial: _Initial | None = None,
+        extensions: _Extensions | None = None,
+        dt_s: float | None = None,
+        full_torque_nmm: float | None = None,
     ) -> Self: ...
+    @staticmethod
+    def from_model(model: object, *, dt_s: float, **kwargs: object) -> "Compensator":
+        """The full extended compensator of a ``bmr.Model`` or model file (``Model.compensator``)."""
     def step(self, torque_ref_nmm: float, theta_rad: float) -> Command: ...
-    def run(self, torque_ref_nmm: _ArrayLike, theta_rad: _ArrayLike) -> dict[str, np.ndarray]: ...
+    def step_ahead(self, torque_ref_ahead_nmm: float, theta_ahead_rad: float) -> Command: ...
+    def step_into(self, torque_ref_nmm: float, theta_rad: float, out: np.ndarray) -> float: ...
+    def run(
+        self,
+        torque_ref_nmm: _ArrayLike,
+        theta_rad: _ArrayLike,
+        *,
+        columns: Sequence[str] | None = None,
+        out: dict[str, np.ndarray] | None = None,
+    ) -> dict[str, np.ndarray]: ...
     def reset(self, initial: _Initial | None = None) -> None: ...
     def snapshot(self) -> CompensatorState: ...
     def restore(self, state: CompensatorState) -> None: ...
+    def __copy__(self) -> Self: ...
+    def __deepcopy__(self, memo: object) -> Self: ...
     @property
     def inverse(self) -> str: ...
     @property
@@ -270,11 +317,58 @@ class Compensator:
     @property
     def current_limit(self) -> float: ...
     @property
+    def dt_s(self) -> float | None: ...
+    @property
     def predicted_torque_nmm(self) -> float: ...
+    @property
+    def preview_samples(self) -> int: ...
+    @property
+    def extensions(self) -> list[dict[str, object]]: ...
+    @property
+    def stages(self) -> list[str]: ...
     @property
     def hysteresis(self) -> Hysteresis: ...
     @property
     def friction(self) -> Friction: ...
+
+@final
+class ExtendedSimulation:
+    """The forward chain of a model with its extensions: commanded current (A) and rotor angle (rad) → torque
+    (N·mm), through the very stages the extended Compensator inverts."""
+    def __new__(
+        cls,
+        hysteresis: Hysteresis,
+        friction: Friction | None = None,
+        *,
+        extensions: _Extensions | None = None,
+        dt_s: float,
+        full_current_a: float,
+        full_torque_nmm: float | None = None,
+    ) -> Self: ...
+    def run(
+        self,
+        current_a: _ArrayLike,
+        theta_rad: _ArrayLike,
+        *,
+        initial: _Initial | None = None,
+        heating: float = 0.0,
+        t0_s: float = 0.0,
+    ) -> dict[str, np.ndarray]: ...
+
+def check_extensions(extensions: _Extensions) -> list[dict[str, object]]:
+    """Validate a model's extensions against the vocabulary (names, parameters, ranges); the entries with every
+    parameter filled in."""
+
+def output_map(core_nmm: _ArrayLike, curvature: float, scale_nmm: float) -> np.ndarray:
+    """The non_congruent output map (the compensator's table) of core torques (N·mm)."""
+
+def output_map_inverse(field_nmm: _ArrayLike, curvature: float, scale_nmm: float) -> np.ndarray:
+    """Core torques (N·mm) giving field torques ``field_nmm`` through :func:`output_map`."""
+
+def export_source(compensator: Compensator, language: str, *, title: str = "bmr compensator",
+                  prefix: str = "bmr") -> str:
+    """Firmware source of an exact-inverse compensator: ``"rust"`` (static tables and ``compensator(dt_s)`` for
+    the no_std crate) or ``"c"`` (arrays and ``<prefix>_model`` for ``bmr_compensator_init``)."""
 
 @final
 class VirtualDevice:

@@ -1,4 +1,4 @@
-"""The ``bmr`` command line: ``bmr demo | simulate | import | identify | predict | diagnose``.
+"""The ``bmr`` command line: ``bmr demo | simulate | import | identify | predict | diagnose | export``.
 
 Each subcommand's work lives in the module that owns the capability; this file only parses arguments.
 """
@@ -97,6 +97,17 @@ def _parser() -> argparse.ArgumentParser:
                    help="per-run output offset: none, or taken from each run's first evaluated sample")
     r.add_argument("--json", dest="json_out", help="write the bmr-prediction/1 JSON here")
     r.add_argument("--figure", help="write a PNG figure (measured vs predicted vs input; residual) here")
+
+    x = sub.add_parser("export", help="write a model's compensator as firmware source (Rust no_std or C)")
+    x.add_argument("model", help="model file (bmr-model/1 JSON)")
+    lang = x.add_mutually_exclusive_group(required=True)
+    lang.add_argument("--rust", metavar="OUT.rs", help="write static tables and model::compensator(dt_s) for the "
+                      "no_std crate")
+    lang.add_argument("--c", metavar="OUT.h", help="write C arrays and <prefix>_model for bmr_compensator_init "
+                      "(include/bmr.h, cargo feature ffi)")
+    x.add_argument("--stages", default=None, help="extensions to compensate: 'all' or a comma-separated list "
+                   "(default: those the closed-loop check did not find harmful)")
+    x.add_argument("--prefix", default="bmr", help="C name prefix of the exported model (default: bmr)")
     return p
 
 
@@ -113,6 +124,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             from bmr.identification.procedure import run_cli
         elif args.command == "predict":
             from bmr.identification.prediction import run_cli
+        elif args.command == "export":
+            from bmr.identification.model import run_export_cli as run_cli
         else:
             from bmr.diagnosis.procedure import run_cli
         return int(run_cli(args) or 0)

@@ -1,31 +1,98 @@
-//! `bmr.Compensator`: hysteresis + friction compensation for one control loop, and its `Command`.
-use numpy::{AllowTypeChange, PyArray1, PyArrayLike1};
+//! `bmr.Compensator`: hysteresis + friction compensation for one control loop (optionally extended by a model's
+//! stages), its `Command`, and `bmr.ExtendedSimulation`, the forward chain the extended compensator inverts.
+use numpy::{
+    AllowTypeChange, PyArray1, PyArrayLike1, PyArrayMethods, PyReadwriteArray1,
+    PyUntypedArrayMethods,
+};
+use pyo3::exceptions::PyTypeError;
 use pyo3::prelude::*;
-use pyo3::types::PyDict;
+use pyo3::types::{PyDict, PyList, PyMapping, PyTuple};
 
+use crate::cbh::Initial;
 use crate::compensator::{Command, Compensator, CompensatorState, InverseKind};
 use crate::friction::{Friction, MAX_ORDER};
+use crate::model_data::{EffectValues, ModelData};
 use crate::python::arrays::{DETACH_LEN, to_numpy, to_vec};
 use crate::python::friction::PyFriction;
 use crate::python::hysteresis::{MEMORY, PyHysteresis, initial_or_negative};
 use crate::python::{BmrError, bmr_err};
+use crate::simulation::Simulation;
+use crate::stages::{OutputMap, Scales};
+use crate::vocabulary::{NameList, Params, SPECS, extension_spec};
 
 type Core = Compensator<Vec<f64>, MEMORY, MAX_ORDER>;
+// Exported firmware remembers as much as the Python operators: the same commands, bit for bit.
+const _: () = assert!(MEMORY == crate::model_data::MEMORY);
+type Sim = Simulation<Vec<f64>, Vec<f64>, MEMORY, MAX_ORDER>;
 
 /// One control-period command: nominal current, coil currents (A), converter voltages (V) and flags.
-#[pyclass(name = "Command", module = "bmr", frozen, get_all)]
+#[pyclass(name = "Command", module = "bmr", frozen, get_all, eq)]
+#[derive(Clone, PartialEq)]
 pub(crate) struct PyCommand {
+    /// Nominal current (A): negative drives coil 1, positive coil 2.
     current_a: f64,
+    /// Coil 1 current (A, ≥ 0).
     coil1_a: f64,
+    /// Coil 2 current (A, ≥ 0).
     coil2_a: f64,
+    /// Converter 1 input voltage (V).
     volt1_v: f64,
+    /// Converter 2 input voltage (V).
     volt2_v: f64,
+    /// The torque asked for was not reachable (input range or current limit).
     saturated: bool,
+    /// The reference or angle (or an intermediate) was not finite: zero current commanded.
     fault: bool,
 }
 
 #[pymethods]
 impl PyCommand {
+    #[new]
+    #[pyo3(signature = (current_a, coil1_a, coil2_a, volt1_v, volt2_v, saturated, fault))]
+    fn new(
+        current_a: f64,
+        coil1_a: f64,
+        coil2_a: f64,
+        volt1_v: f64,
+        volt2_v: f64,
+        saturated: bool,
+        fault: bool,
+    ) -> Self {
+        PyCommand {
+            current_a,
+            coil1_a,
+            coil2_a,
+            volt1_v,
+            volt2_v,
+            saturated,
+            fault,
+        }
+    }
+    fn __copy__(&self) -> Self {
+        self.clone()
+    }
+    fn __deepcopy__(&self, _memo: &Bound<'_, PyAny>) -> Self {
+        self.clone()
+    }
+    fn __reduce__<'py>(slf: &Bound<'py, Self>) -> PyResult<Bound<'py, PyTuple>> {
+        let c = slf.get();
+        let args = (
+            c.current_a,
+            c.coil1_a,
+            c.coil2_a,
+            c.volt1_v,
+            c.volt2_v,
+            c.saturated,
+            c.fault,
+        );
+        PyTuple::new(
+            slf.py(),
+            [
+                slf.get_type().into_any(),
+                args.into_pyobject(slf.py())?.into_any(),
+            ],
+        )
+    }
     fn __repr__(&self) -> String {
         format!(
             "Command(current_a={:.6}, coil1_a={:.6}, coil2_a={:.6}, volt1_v={:.6}, volt2_v={:.6}, saturated={}, fault={})",
@@ -54,34 +121,166 @@ impl From<Command> for PyCommand {
     }
 }
 
-/// Snapshot of a Compensator's memory.
+/// Snapshot of a Compensator's memory and stage states (restore it into the compensator it came from, or a copy).
 #[pyclass(name = "CompensatorState", module = "bmr", frozen)]
+#[derive(Clone)]
 pub(crate) struct PyCompensatorState(CompensatorState<MEMORY>);
 
-/// Open-loop torque compensator: `I = H⁻¹[T_ref − T_f(θ)]`, coil split, current limit, converter voltages.
+#[pymethods]
+impl PyCompensatorState {
+    fn __copy__(&self) -> Self {
+        self.clone()
+    }
+    fn __deepcopy__(&self, _memo: &Bound<'_, PyAny>) -> Self {
+        self.clone()
+    }
+}
+
+/// Parse `extensions`: a sequence of `{"name": str, "params": {param: value}}` (other keys are ignored, e.g. a
+/// model file's tables) or `(name, params)` pairs. Unknown names and parameters are errors naming the valid ones.
+pub(crate) fn parse_extensions(obj: Option<&Bound<'_, PyAny>>) -> PyResult<Vec<Params>> {
+    let Some(obj) = obj.filter(|o| !o.is_none()) else {
+        return Ok(Vec::new());
+    };
+    let items = obj.try_iter().map_err(|_| {
+        PyTypeError::new_err(
+            "extensions must be a sequence of {\"name\": ..., \"params\": {...}} entries",
+        )
+    })?;
+    let mut out = Vec::new();
+    for (i, item) in items.enumerate() {
+        let item = item?;
+        let (name, params): (String, Option<Bound<'_, PyAny>>) = if let Ok(m) =
+            item.cast::<PyMapping>()
+        {
+            let name = m
+                .get_item("name")
+                .map_err(|_| BmrError::new_err(format!("extensions[{i}] has no 'name'")))?;
+            let name: String = name.extract().map_err(|_| {
+                BmrError::new_err(format!("extensions[{i}]: 'name' must be a string"))
+            })?;
+            let params = m.get_item("params").ok().filter(|p| !p.is_none());
+            (name, params)
+        } else if let Ok((name, params)) = item.extract::<(String, Bound<'_, PyAny>)>() {
+            (name, Some(params).filter(|p| !p.is_none()))
+        } else {
+            return Err(BmrError::new_err(format!(
+                "extensions[{i}] must be {{\"name\": ..., \"params\": {{...}}}} or a (name, params) pair"
+            )));
+        };
+        let Some(spec) = extension_spec(&name) else {
+            return Err(BmrError::new_err(format!(
+                "unknown model extension {name:?}; known: {}, core_tables, table_resolution, offset",
+                NameList(SPECS)
+            )));
+        };
+        let mut given: Vec<(String, f64)> = Vec::new();
+        if let Some(p) = params {
+            let p = p.cast::<PyDict>().map_err(|_| {
+                BmrError::new_err(format!("extension {name}: 'params' must be a dict"))
+            })?;
+            for (k, v) in p.iter() {
+                let k: String = k.extract().map_err(|_| {
+                    BmrError::new_err(format!("extension {name}: parameter names must be strings"))
+                })?;
+                let v: f64 = v.extract().map_err(|_| {
+                    BmrError::new_err(format!("extension {name}: {k} = {v} is not a number"))
+                })?;
+                given.push((k, v));
+            }
+        }
+        let refs: Vec<(&str, f64)> = given.iter().map(|(k, v)| (k.as_str(), *v)).collect();
+        out.push(Params::new(spec, &refs).map_err(bmr_err)?);
+    }
+    Ok(out)
+}
+
+fn extensions_to_py<'py>(py: Python<'py>, ext: &[Params]) -> PyResult<Bound<'py, PyList>> {
+    let items = ext
+        .iter()
+        .map(|p| {
+            let d = PyDict::new(py);
+            d.set_item("name", p.spec.name)?;
+            let params = PyDict::new(py);
+            for (k, v) in p.iter() {
+                params.set_item(k, v)?;
+            }
+            d.set_item("params", params)?;
+            Ok(d)
+        })
+        .collect::<PyResult<Vec<_>>>()?;
+    PyList::new(py, items)
+}
+
+/// The columns `run` can return, in order: floats then flags.
+const COLUMNS: [&str; 8] = [
+    "current_a",
+    "coil1_a",
+    "coil2_a",
+    "volt1_v",
+    "volt2_v",
+    "model_torque_nmm",
+    "saturated",
+    "fault",
+];
+const FLOAT_COLUMNS: usize = 6;
+
+fn column_value(c: &Command, core: &Core, col: usize) -> f64 {
+    match col {
+        0 => c.current_a,
+        1 => c.coil1_a,
+        2 => c.coil2_a,
+        3 => c.volt1_v,
+        4 => c.volt2_v,
+        _ => core.model_torque_nmm(),
+    }
+}
+
+/// Open-loop torque compensator: `I = H⁻¹[T_ref − T_f(θ)]`, coil split, current limit, converter voltages;
+/// optionally extended by a diagnosed model's stages (`extensions`, see `bmr.effect_parameters()`).
 #[pyclass(name = "Compensator", module = "bmr")]
 pub(crate) struct PyCompensator {
     core: Core,
     inverse: &'static str,
+    /// What the compensator was built from (for copies, pickles and the repr).
+    hysteresis: PyHysteresis,
+    base_friction: Friction<MAX_ORDER>,
+    extensions: Vec<Params>,
+    dt_s: Option<f64>,
+    full_torque_nmm: f64,
 }
 
-#[pymethods]
+/// Borrow `slf` mutably, or say that it is in use (inside a `run` on another thread).
+fn busy<'py>(slf: &Bound<'py, PyCompensator>) -> PyResult<PyRefMut<'py, PyCompensator>> {
+    slf.try_borrow_mut().map_err(|_| {
+        BmrError::new_err(
+            "this Compensator is in use by another thread (inside run()); give each thread its own copy \
+             (copy.copy(compensator))",
+        )
+    })
+}
+
+fn shared<'py>(slf: &Bound<'py, PyCompensator>) -> PyResult<PyRef<'py, PyCompensator>> {
+    slf.try_borrow().map_err(|_| {
+        BmrError::new_err(
+            "this Compensator is in use by another thread (inside run()); give each thread its own copy \
+             (copy.copy(compensator))",
+        )
+    })
+}
+
 impl PyCompensator {
-    /// `hysteresis`: the current→torque operator (N·mm without friction); `friction`: seal friction (optional);
-    /// `inverse`: "exact" or "paper"; `converter_gain` in A/V; `current_limit` in A; `initial`: start state of the
-    /// memory (default after negative saturation).
-    #[new]
-    #[pyo3(signature = (hysteresis, friction=None, *, inverse="exact", converter_gain=0.125, current_limit=1.25,
-                        initial=None))]
-    fn new(
-        hysteresis: PyRef<'_, PyHysteresis>,
-        friction: Option<PyRef<'_, PyFriction>>,
+    #[allow(clippy::too_many_arguments)]
+    fn build(
+        hysteresis: PyHysteresis,
+        friction: Friction<MAX_ORDER>,
         inverse: &str,
         converter_gain: f64,
         current_limit: f64,
-        initial: Option<&Bound<'_, PyAny>>,
+        extensions: Vec<Params>,
+        dt_s: Option<f64>,
+        full_torque_nmm: Option<f64>,
     ) -> PyResult<Self> {
-        let initial = initial_or_negative(initial)?;
         let forward = hysteresis.op.clone();
         let (kind, name) = match inverse {
             "exact" => (InverseKind::Exact, "exact"),
@@ -99,155 +298,672 @@ impl PyCompensator {
                 )));
             }
         };
-        let friction = friction.map_or(Friction::zero(), |f| f.f);
+        let (ylo, yhi) = forward.output_range();
+        let full_torque_nmm = full_torque_nmm.unwrap_or(ylo.abs().max(yhi.abs()));
         let mut core =
             Core::new(forward, kind, friction, converter_gain, current_limit).map_err(bmr_err)?;
-        core.reset(initial);
+        if !extensions.is_empty() {
+            let dt = match dt_s {
+                Some(dt) => dt,
+                None if extensions.iter().all(|p| {
+                    // Effects that need no sample period: friction terms, the sensor, model-file entries.
+                    !matches!(p.spec.name, "coil_lag" | "time_delay" | "thermal_drift")
+                }) =>
+                {
+                    1.0
+                }
+                None => {
+                    return Err(BmrError::new_err(
+                        "extensions with coil_lag, time_delay or thermal_drift need dt_s (the control period, s)",
+                    ));
+                }
+            };
+            core = core
+                .with_extensions(&extensions, dt, full_torque_nmm)
+                .map_err(bmr_err)?;
+        }
         Ok(PyCompensator {
             core,
             inverse: name,
+            hysteresis,
+            base_friction: friction,
+            extensions,
+            dt_s,
+            full_torque_nmm,
         })
     }
 
-    /// One control period: reference torque (N·mm) and rotor angle (rad) → `Command`. Never raises: a NaN/inf
-    /// input gives zero current with `fault=True`.
-    fn step(&mut self, torque_ref_nmm: f64, theta_rad: f64) -> PyCommand {
-        self.core.step(torque_ref_nmm, theta_rad).into()
+    fn rebuilt(&self) -> PyResult<Self> {
+        let mut c = Self::build(
+            PyHysteresis {
+                op: self.hysteresis.op.clone(),
+            },
+            self.base_friction,
+            self.inverse,
+            self.core.gain_a_per_v(),
+            self.core.limit_a(),
+            self.extensions.clone(),
+            self.dt_s,
+            Some(self.full_torque_nmm),
+        )?;
+        c.core.restore(&self.core.snapshot()).map_err(bmr_err)?;
+        Ok(c)
+    }
+}
+
+#[pymethods]
+impl PyCompensator {
+    /// `hysteresis`: the current→torque operator (N·mm without friction); `friction`: seal friction (optional);
+    /// `inverse`: "exact" or "paper"; `converter_gain` in A/V; `current_limit` in A; `initial`: start state of the
+    /// memory (default after negative saturation). `extensions`: a model's extension entries
+    /// (`[{"name": ..., "params": {...}}]`, see `bmr.effect_parameters()`) made into compensator stages at control
+    /// period `dt_s`; `full_torque_nmm`: the output map's full scale when its `scale_nmm` is 0 (default: the
+    /// largest |torque| of `hysteresis`). `Compensator.from_model` builds all of it from a model file.
+    #[new]
+    #[pyo3(signature = (hysteresis, friction=None, *, inverse="exact", converter_gain=0.125, current_limit=1.25,
+                        initial=None, extensions=None, dt_s=None, full_torque_nmm=None))]
+    #[allow(clippy::too_many_arguments)]
+    fn new(
+        hysteresis: PyRef<'_, PyHysteresis>,
+        friction: Option<PyRef<'_, PyFriction>>,
+        inverse: &str,
+        converter_gain: f64,
+        current_limit: f64,
+        initial: Option<&Bound<'_, PyAny>>,
+        extensions: Option<&Bound<'_, PyAny>>,
+        dt_s: Option<f64>,
+        full_torque_nmm: Option<f64>,
+    ) -> PyResult<Self> {
+        let initial = initial_or_negative(initial)?;
+        let friction = friction.map_or(Friction::zero(), |f| f.f);
+        let ext = parse_extensions(extensions)?;
+        let mut c = Self::build(
+            PyHysteresis {
+                op: hysteresis.op.clone(),
+            },
+            friction,
+            inverse,
+            converter_gain,
+            current_limit,
+            ext,
+            dt_s,
+            full_torque_nmm,
+        )?;
+        c.core.reset(initial);
+        Ok(c)
     }
 
-    /// Offline run over arrays (same length): dict of arrays with the `Command` fields plus
-    /// `model_torque_nmm` (forward-model torque with friction for the commanded current).
+    /// The full (extended) compensator of a model: a `bmr.Model` or the path of a model file
+    /// (`Model.compensator(dt_s=..., **kwargs)`).
+    #[staticmethod]
+    #[pyo3(signature = (model, *, dt_s, **kwargs))]
+    fn from_model<'py>(
+        py: Python<'py>,
+        model: &Bound<'py, PyAny>,
+        dt_s: f64,
+        kwargs: Option<&Bound<'py, PyDict>>,
+    ) -> PyResult<Bound<'py, PyAny>> {
+        let model_cls = py.import("bmr")?.getattr("Model")?;
+        let model = if model.is_instance(&model_cls)? {
+            model.clone()
+        } else {
+            model_cls.call_method1("load", (model,))?
+        };
+        let kw = PyDict::new(py);
+        if let Some(k) = kwargs {
+            kw.update(k.as_mapping())?;
+        }
+        kw.set_item("dt_s", dt_s)?;
+        model.call_method("compensator", (), Some(&kw))
+    }
+
+    /// One control period: reference torque (N·mm) and rotor angle (rad) → `Command`. Never raises: a NaN/inf
+    /// input gives zero current with `fault=True`. With a `time_delay` stage the reference `delay` ahead is
+    /// predicted; use `step_ahead` when it is known.
+    fn step(slf: &Bound<'_, Self>, torque_ref_nmm: f64, theta_rad: f64) -> PyResult<PyCommand> {
+        Ok(busy(slf)?.core.step(torque_ref_nmm, theta_rad).into())
+    }
+
+    /// One control period given the reference torque and angle of the sample the command acts on
+    /// (`preview_samples` ahead of now; the same as `step` without a `time_delay` stage).
+    fn step_ahead(
+        slf: &Bound<'_, Self>,
+        torque_ref_ahead_nmm: f64,
+        theta_ahead_rad: f64,
+    ) -> PyResult<PyCommand> {
+        Ok(busy(slf)?
+            .core
+            .step_ahead(torque_ref_ahead_nmm, theta_ahead_rad)
+            .into())
+    }
+
+    /// `step` without creating a `Command`: writes `current_a, coil1_a, coil2_a, volt1_v, volt2_v, saturated,
+    /// fault` (flags as 0.0/1.0) into `out` (a float64 array of at least 7 elements) and returns the current (A).
+    fn step_into(
+        slf: &Bound<'_, Self>,
+        torque_ref_nmm: f64,
+        theta_rad: f64,
+        mut out: PyReadwriteArray1<'_, f64>,
+    ) -> PyResult<f64> {
+        let c = busy(slf)?.core.step(torque_ref_nmm, theta_rad);
+        let o = out
+            .as_slice_mut()
+            .map_err(|_| BmrError::new_err("step_into: out must be a contiguous float64 array"))?;
+        if o.len() < 7 {
+            return Err(BmrError::new_err(format!(
+                "step_into: out needs at least 7 elements, has {}",
+                o.len()
+            )));
+        }
+        o[..7].copy_from_slice(&[
+            c.current_a,
+            c.coil1_a,
+            c.coil2_a,
+            c.volt1_v,
+            c.volt2_v,
+            f64::from(u8::from(c.saturated)),
+            f64::from(u8::from(c.fault)),
+        ]);
+        Ok(c.current_a)
+    }
+
+    /// Offline run over arrays of one length: a dict of arrays with the `Command` fields plus `model_torque_nmm`
+    /// (the model's torque with friction for the command). The reference is known in advance: with a
+    /// `time_delay` stage each sample is commanded on the reference `delay` later (`step_ahead`).
+    /// `columns`: the names to compute (default all); `out`: a dict of preallocated arrays (float64, bool for
+    /// the flags) of the run's length, filled in place and returned.
+    #[pyo3(signature = (torque_ref_nmm, theta_rad, *, columns=None, out=None))]
+    fn run<'py>(
+        slf: &Bound<'py, Self>,
+        torque_ref_nmm: PyArrayLike1<'py, f64, AllowTypeChange>,
+        theta_rad: PyArrayLike1<'py, f64, AllowTypeChange>,
+        columns: Option<Vec<String>>,
+        out: Option<&Bound<'py, PyDict>>,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        let py = slf.py();
+        let n = torque_ref_nmm.len();
+        if n != theta_rad.len() {
+            return Err(BmrError::new_err(format!(
+                "run: torque_ref_nmm has {n} samples but theta_rad has {}",
+                theta_rad.len()
+            )));
+        }
+        let wanted: Vec<usize> = match &columns {
+            None => (0..COLUMNS.len()).collect(),
+            Some(names) => names
+                .iter()
+                .map(|c| {
+                    COLUMNS.iter().position(|k| k == c).ok_or_else(|| {
+                        BmrError::new_err(format!(
+                            "run: unknown column {c:?}; columns: {}",
+                            COLUMNS.join(", ")
+                        ))
+                    })
+                })
+                .collect::<PyResult<_>>()?,
+        };
+        let result = PyDict::new(py);
+        let mut floats: Vec<(usize, Bound<'py, PyArray1<f64>>)> = Vec::new();
+        let mut flags: Vec<(usize, Bound<'py, PyArray1<bool>>)> = Vec::new();
+        for &col in &wanted {
+            let name = COLUMNS[col];
+            let given = match out {
+                Some(o) => o.get_item(name)?,
+                None => None,
+            };
+            if col < FLOAT_COLUMNS {
+                let arr = match given {
+                    Some(a) => a.cast_into::<PyArray1<f64>>().map_err(|_| {
+                        BmrError::new_err(format!("run: out[{name:?}] must be a 1-D float64 array"))
+                    })?,
+                    None => unsafe { PyArray1::<f64>::new(py, n, false) },
+                };
+                floats.push((col, arr));
+            } else {
+                let arr = match given {
+                    Some(a) => a.cast_into::<PyArray1<bool>>().map_err(|_| {
+                        BmrError::new_err(format!("run: out[{name:?}] must be a 1-D bool array"))
+                    })?,
+                    None => unsafe { PyArray1::<bool>::new(py, n, false) },
+                };
+                flags.push((col, arr));
+            }
+        }
+        let mut float_views = Vec::with_capacity(floats.len());
+        for (col, a) in &floats {
+            let v = a.try_readwrite().map_err(|_| {
+                BmrError::new_err(format!("run: out[{:?}] is not writeable", COLUMNS[*col]))
+            })?;
+            float_views.push((*col, v));
+        }
+        let mut flag_views = Vec::with_capacity(flags.len());
+        for (col, a) in &flags {
+            let v = a.try_readwrite().map_err(|_| {
+                BmrError::new_err(format!("run: out[{:?}] is not writeable", COLUMNS[*col]))
+            })?;
+            flag_views.push((*col, v));
+        }
+        let mut float_slices: Vec<(usize, &mut [f64])> = Vec::with_capacity(floats.len());
+        for (col, v) in float_views.iter_mut() {
+            let s = v.as_slice_mut().map_err(|_| {
+                BmrError::new_err(format!("run: out[{:?}] must be contiguous", COLUMNS[*col]))
+            })?;
+            if s.len() != n {
+                return Err(BmrError::new_err(format!(
+                    "run: out[{:?}] has {} elements, the run {n}",
+                    COLUMNS[*col],
+                    s.len()
+                )));
+            }
+            float_slices.push((*col, s));
+        }
+        let mut flag_slices: Vec<(usize, &mut [bool])> = Vec::with_capacity(flags.len());
+        for (col, v) in flag_views.iter_mut() {
+            let s = v.as_slice_mut().map_err(|_| {
+                BmrError::new_err(format!("run: out[{:?}] must be contiguous", COLUMNS[*col]))
+            })?;
+            if s.len() != n {
+                return Err(BmrError::new_err(format!(
+                    "run: out[{:?}] has {} elements, the run {n}",
+                    COLUMNS[*col],
+                    s.len()
+                )));
+            }
+            flag_slices.push((*col, s));
+        }
+        let refs_owned;
+        let refs: &[f64] = match torque_ref_nmm.as_slice() {
+            Ok(s) => s,
+            Err(_) => {
+                refs_owned = torque_ref_nmm.as_array().to_vec();
+                &refs_owned
+            }
+        };
+        let th_owned;
+        let th: &[f64] = match theta_rad.as_slice() {
+            Ok(s) => s,
+            Err(_) => {
+                th_owned = theta_rad.as_array().to_vec();
+                &th_owned
+            }
+        };
+        {
+            let mut me = busy(slf)?;
+            let core = &mut me.core;
+            let mut work = move || {
+                let current_only =
+                    float_slices.len() == 1 && float_slices[0].0 == 0 && flag_slices.is_empty();
+                if current_only {
+                    let out = &mut *float_slices[0].1;
+                    core.run_with(refs, th, |i, c, _| out[i] = c.current_a);
+                    return;
+                }
+                core.run_with(refs, th, |i, c, core| {
+                    for (col, s) in float_slices.iter_mut() {
+                        s[i] = column_value(&c, core, *col);
+                    }
+                    for (col, s) in flag_slices.iter_mut() {
+                        s[i] = if *col == FLOAT_COLUMNS {
+                            c.saturated
+                        } else {
+                            c.fault
+                        };
+                    }
+                });
+            };
+            if n > DETACH_LEN {
+                py.detach(work);
+            } else {
+                work();
+            }
+        }
+        drop(float_views);
+        drop(flag_views);
+        for (col, a) in floats {
+            result.set_item(COLUMNS[col], a)?;
+        }
+        for (col, a) in flags {
+            result.set_item(COLUMNS[col], a)?;
+        }
+        Ok(result)
+    }
+
+    /// Forget the memory and start from `initial` (default: after negative saturation); stages back to rest.
+    #[pyo3(signature = (initial=None))]
+    fn reset(slf: &Bound<'_, Self>, initial: Option<&Bound<'_, PyAny>>) -> PyResult<()> {
+        let initial = initial_or_negative(initial)?;
+        busy(slf)?.core.reset(initial);
+        Ok(())
+    }
+
+    /// A copy of the memory and stage states (restore it with `restore`).
+    fn snapshot(slf: &Bound<'_, Self>) -> PyResult<PyCompensatorState> {
+        Ok(PyCompensatorState(shared(slf)?.core.snapshot()))
+    }
+
+    /// Return to a snapshot of this compensator (or of one with identical tables and stages).
+    fn restore(slf: &Bound<'_, Self>, state: &PyCompensatorState) -> PyResult<()> {
+        busy(slf)?.core.restore(&state.0).map_err(bmr_err)
+    }
+
+    /// "exact" or "paper".
+    #[getter]
+    fn inverse(slf: &Bound<'_, Self>) -> PyResult<&'static str> {
+        Ok(shared(slf)?.inverse)
+    }
+    /// Converter gain (A/V).
+    #[getter]
+    fn converter_gain(slf: &Bound<'_, Self>) -> PyResult<f64> {
+        Ok(shared(slf)?.core.gain_a_per_v())
+    }
+    /// Current limit (A).
+    #[getter]
+    fn current_limit(slf: &Bound<'_, Self>) -> PyResult<f64> {
+        Ok(shared(slf)?.core.limit_a())
+    }
+    /// Control period the stages were built for (s), None without extensions.
+    #[getter]
+    fn dt_s(slf: &Bound<'_, Self>) -> PyResult<Option<f64>> {
+        Ok(shared(slf)?.dt_s)
+    }
+    /// Forward-model torque (N·mm, at the hysteretic core, without friction) for the last command.
+    #[getter]
+    fn predicted_torque_nmm(slf: &Bound<'_, Self>) -> PyResult<f64> {
+        Ok(shared(slf)?.core.predicted_torque())
+    }
+    /// Samples the reference is taken ahead by (`time_delay`; 0 without it).
+    #[getter]
+    fn preview_samples(slf: &Bound<'_, Self>) -> PyResult<usize> {
+        Ok(shared(slf)?.core.preview_samples())
+    }
+    /// The extension entries the compensator was built with (`[{"name", "params"}]`).
+    #[getter]
+    fn extensions<'py>(slf: &Bound<'py, Self>) -> PyResult<Bound<'py, PyList>> {
+        extensions_to_py(slf.py(), &shared(slf)?.extensions)
+    }
+    /// Names of the stages that are on, in the order the physics acts.
+    #[getter]
+    fn stages(slf: &Bound<'_, Self>) -> PyResult<Vec<&'static str>> {
+        let me = shared(slf)?;
+        let st = me.core.stages();
+        let f = me.core.friction();
+        let has = |n: &str| me.extensions.iter().any(|p| p.spec.name == n);
+        let mut out = Vec::new();
+        if st.time_delay.is_some() {
+            out.push("time_delay");
+        }
+        if st.coil_lag.is_some() {
+            out.push("coil_lag");
+        }
+        if st.output_map.is_some() {
+            out.push("non_congruent");
+        }
+        if st.thermal.is_some() {
+            out.push("thermal_drift");
+        }
+        if st.ripple.is_some() {
+            out.push("torque_ripple");
+        }
+        if has("friction_harmonics") {
+            out.push("friction_harmonics");
+        }
+        if f.gain_per_a() != 0.0 {
+            out.push("friction_current");
+        }
+        Ok(out)
+    }
+    /// A copy of the forward operator in its current state.
+    #[getter]
+    fn hysteresis(slf: &Bound<'_, Self>) -> PyResult<PyHysteresis> {
+        Ok(PyHysteresis {
+            op: shared(slf)?.core.forward().clone(),
+        })
+    }
+    /// The friction model of the feedforward (with any extra harmonic and current gain of the extensions).
+    #[getter]
+    fn friction(slf: &Bound<'_, Self>) -> PyResult<PyFriction> {
+        Ok(PyFriction {
+            f: *shared(slf)?.core.friction(),
+        })
+    }
+    fn __copy__(slf: &Bound<'_, Self>) -> PyResult<Self> {
+        shared(slf)?.rebuilt()
+    }
+    fn __deepcopy__(slf: &Bound<'_, Self>, _memo: &Bound<'_, PyAny>) -> PyResult<Self> {
+        shared(slf)?.rebuilt()
+    }
+    fn __repr__(slf: &Bound<'_, Self>) -> PyResult<String> {
+        let me = shared(slf)?;
+        let names: Vec<&str> = me.extensions.iter().map(|p| p.spec.name).collect();
+        Ok(format!(
+            "Compensator(inverse={:?}, converter_gain={}, current_limit={}, friction_order={}, extensions={:?})",
+            me.inverse,
+            me.core.gain_a_per_v(),
+            me.core.limit_a(),
+            me.core.friction().order(),
+            names
+        ))
+    }
+}
+
+/// The forward chain of a model with its extensions: commanded current and rotor angle → torque (see
+/// `bmr.effect_parameters()`); the very stages the extended `Compensator` inverts.
+#[pyclass(name = "ExtendedSimulation", module = "bmr")]
+pub(crate) struct PySimulation {
+    sim: Sim,
+}
+
+#[pymethods]
+impl PySimulation {
+    /// `hysteresis` (the core's tables), `friction`, the model's `extensions` at sample period `dt_s`;
+    /// `full_current_a`: current of unit heating (A); `full_torque_nmm`: the output map's full scale when its
+    /// `scale_nmm` is 0 (default: the largest |torque| of `hysteresis`).
+    #[new]
+    #[pyo3(signature = (hysteresis, friction=None, *, extensions=None, dt_s, full_current_a, full_torque_nmm=None))]
+    fn new(
+        hysteresis: PyRef<'_, PyHysteresis>,
+        friction: Option<PyRef<'_, PyFriction>>,
+        extensions: Option<&Bound<'_, PyAny>>,
+        dt_s: f64,
+        full_current_a: f64,
+        full_torque_nmm: Option<f64>,
+    ) -> PyResult<Self> {
+        let ext = parse_extensions(extensions)?;
+        let core = hysteresis.op.clone();
+        let (ylo, yhi) = core.output_range();
+        let scales = Scales {
+            full_current_a,
+            full_torque_nmm: full_torque_nmm.unwrap_or(ylo.abs().max(yhi.abs())),
+        };
+        let friction = friction.map_or(Friction::zero(), |f| f.f);
+        let sim =
+            Sim::new(core, friction, &ext, dt_s, scales, |n| vec![0.0; n]).map_err(bmr_err)?;
+        Ok(PySimulation { sim })
+    }
+
+    /// Simulate commanded currents (A) at rotor angles (rad), from `initial` (default after negative
+    /// saturation), heating state `heating` and drift clock `t0_s` (s): a dict of `coil_current_a,
+    /// field_current_a, core_nmm, field_torque_nmm, friction_nmm, torque_nmm, measured_nmm` arrays.
+    #[pyo3(signature = (current_a, theta_rad, *, initial=None, heating=0.0, t0_s=0.0))]
     fn run<'py>(
         &mut self,
         py: Python<'py>,
-        torque_ref_nmm: PyArrayLike1<'py, f64, AllowTypeChange>,
+        current_a: PyArrayLike1<'py, f64, AllowTypeChange>,
         theta_rad: PyArrayLike1<'py, f64, AllowTypeChange>,
+        initial: Option<&Bound<'_, PyAny>>,
+        heating: f64,
+        t0_s: f64,
     ) -> PyResult<Bound<'py, PyDict>> {
-        let r = to_vec(torque_ref_nmm);
+        let initial: Initial = initial_or_negative(initial)?;
+        let u = to_vec(current_a);
         let th = to_vec(theta_rad);
-        if r.len() != th.len() {
+        if u.len() != th.len() {
             return Err(BmrError::new_err(format!(
-                "run: torque_ref_nmm has {} samples but theta_rad has {}",
-                r.len(),
+                "run: current_a has {} samples but theta_rad has {}",
+                u.len(),
                 th.len()
             )));
         }
-        let n = th.len();
-        let core = &mut self.core;
+        if let Some(i) = u.iter().position(|v| !v.is_finite()) {
+            return Err(BmrError::new_err(format!(
+                "run: current sample {i} is not finite ({})",
+                u[i]
+            )));
+        }
+        if !(heating.is_finite() && t0_s.is_finite()) {
+            return Err(BmrError::new_err("run: heating and t0_s must be finite"));
+        }
+        let sim = &mut self.sim;
+        let n = u.len();
         let mut work = move || {
-            let n = r.len();
-            let mut cols: [Vec<f64>; 6] = core::array::from_fn(|_| Vec::with_capacity(n));
-            let (mut sat, mut fault) = (Vec::with_capacity(n), Vec::with_capacity(n));
-            for (&t, &a) in r.iter().zip(&th) {
-                let c = core.step(t, a);
-                // The step already evaluated the friction unless it was a fault.
-                let friction = if c.fault {
-                    core.friction().eval(a)
-                } else {
-                    core.friction_nmm()
-                };
-                let model = core.predicted_torque() + friction;
+            sim.reset(initial, heating, t0_s);
+            let mut cols: [Vec<f64>; 7] = core::array::from_fn(|_| Vec::with_capacity(n));
+            for (&c, &a) in u.iter().zip(&th) {
+                let s = sim.step(c, a);
                 for (col, v) in cols.iter_mut().zip([
-                    c.current_a,
-                    c.coil1_a,
-                    c.coil2_a,
-                    c.volt1_v,
-                    c.volt2_v,
-                    model,
+                    s.coil_current_a,
+                    s.field_current_a,
+                    s.core_nmm,
+                    s.field_torque_nmm,
+                    s.friction_nmm,
+                    s.torque_nmm,
+                    s.measured_nmm,
                 ]) {
                     col.push(v);
                 }
-                sat.push(c.saturated);
-                fault.push(c.fault);
             }
-            (cols, sat, fault)
+            cols
         };
-        let (cols, sat, fault) = if n > DETACH_LEN {
+        let cols = if n > DETACH_LEN {
             py.detach(work)
         } else {
             work()
         };
         let d = PyDict::new(py);
         let names = [
-            "current_a",
-            "coil1_a",
-            "coil2_a",
-            "volt1_v",
-            "volt2_v",
-            "model_torque_nmm",
+            "coil_current_a",
+            "field_current_a",
+            "core_nmm",
+            "field_torque_nmm",
+            "friction_nmm",
+            "torque_nmm",
+            "measured_nmm",
         ];
         for (name, col) in names.into_iter().zip(cols) {
             d.set_item(name, to_numpy(py, col))?;
         }
-        d.set_item("saturated", PyArray1::from_vec(py, sat))?;
-        d.set_item("fault", PyArray1::from_vec(py, fault))?;
         Ok(d)
-    }
-
-    /// Forget the memory and start from `initial` (default: after negative saturation).
-    #[pyo3(signature = (initial=None))]
-    fn reset(&mut self, initial: Option<&Bound<'_, PyAny>>) -> PyResult<()> {
-        let initial = initial_or_negative(initial)?;
-        self.core.reset(initial);
-        Ok(())
-    }
-
-    fn snapshot(&self) -> PyCompensatorState {
-        PyCompensatorState(self.core.snapshot())
-    }
-
-    fn restore(&mut self, state: &PyCompensatorState) -> PyResult<()> {
-        self.core.restore(&state.0).map_err(bmr_err)
-    }
-
-    /// "exact" or "paper".
-    #[getter]
-    fn inverse(&self) -> &'static str {
-        self.inverse
-    }
-    /// Converter gain (A/V).
-    #[getter]
-    fn converter_gain(&self) -> f64 {
-        self.core.gain_a_per_v()
-    }
-    /// Current limit (A).
-    #[getter]
-    fn current_limit(&self) -> f64 {
-        self.core.limit_a()
-    }
-    /// Forward-model torque (N·mm, without friction) for the last command.
-    #[getter]
-    fn predicted_torque_nmm(&self) -> f64 {
-        self.core.predicted_torque()
-    }
-    /// A copy of the forward operator in its current state.
-    #[getter]
-    fn hysteresis(&self) -> PyHysteresis {
-        PyHysteresis {
-            op: self.core.forward().clone(),
-        }
-    }
-    /// The friction model used in the feedforward.
-    #[getter]
-    fn friction(&self) -> PyFriction {
-        PyFriction {
-            f: *self.core.friction(),
-        }
-    }
-    fn __repr__(&self) -> String {
-        format!(
-            "Compensator(inverse={:?}, converter_gain={}, current_limit={}, friction_order={})",
-            self.inverse,
-            self.core.gain_a_per_v(),
-            self.core.limit_a(),
-            self.core.friction().order()
-        )
     }
 }
 
+/// Firmware source of `compensator` (exact inverse): `language` "rust" (static tables and `compensator(dt_s)` for
+/// the no_std crate) or "c" (arrays and a `BmrModel` named `<prefix>_model` for `bmr_compensator_init`).
+#[pyfunction]
+#[pyo3(signature = (compensator, language, *, title="bmr compensator", prefix="bmr"))]
+fn export_source(
+    compensator: &Bound<'_, PyCompensator>,
+    language: &str,
+    title: &str,
+    prefix: &str,
+) -> PyResult<String> {
+    let me = shared(compensator)?;
+    if me.inverse != "exact" {
+        return Err(BmrError::new_err(
+            "export: only the exact inverse runs in firmware (build the compensator with inverse=\"exact\")",
+        ));
+    }
+    if !(prefix
+        .chars()
+        .next()
+        .is_some_and(|c| c.is_ascii_alphabetic())
+        && prefix
+            .chars()
+            .all(|c| c.is_ascii_alphanumeric() || c == '_'))
+    {
+        return Err(BmrError::new_err(format!(
+            "export: prefix {prefix:?} must be a C identifier (letters, digits, _)"
+        )));
+    }
+    let op = &me.hysteresis.op;
+    let (a, d) = (op.ascending(), op.descending());
+    let (y_lo, y_hi) = op.output_range();
+    let f = &me.base_friction;
+    let effects: Vec<EffectValues> = me.extensions.iter().filter_map(EffectValues::of).collect();
+    let data = ModelData {
+        ascending: a.data(),
+        ascending_nodes: a.nodes(),
+        ascending_curves: a.curves(),
+        descending: d.data(),
+        descending_nodes: d.nodes(),
+        descending_curves: d.curves(),
+        y_lo,
+        y_hi,
+        friction_c0: f.c0(),
+        friction_a: f.a(),
+        friction_b: f.b(),
+        converter_gain_a_per_v: me.core.gain_a_per_v(),
+        current_limit_a: me.core.limit_a(),
+        full_torque_nmm: me.full_torque_nmm,
+        effects: &effects,
+    };
+    let title = title.replace("*/", "* /").replace('\n', " ");
+    match language {
+        "rust" => Ok(crate::export::rust_source(&data, &title)),
+        "c" => Ok(crate::export::c_header(&data, &title, prefix)),
+        other => Err(BmrError::new_err(format!(
+            "export: language {other:?}: expected 'rust' or 'c'"
+        ))),
+    }
+}
+
+/// Validate a model's `extensions` against the vocabulary: every name known, every parameter known and in range.
+/// Returns the entries as `[{"name", "params"}]` with every parameter filled in (defaults included).
+#[pyfunction]
+fn check_extensions<'py>(
+    py: Python<'py>,
+    extensions: &Bound<'py, PyAny>,
+) -> PyResult<Bound<'py, PyList>> {
+    extensions_to_py(py, &parse_extensions(Some(extensions))?)
+}
+
+fn output_map_of(curvature: f64, scale_nmm: f64) -> PyResult<OutputMap> {
+    OutputMap::curvature(curvature, scale_nmm).map_err(bmr_err)
+}
+
+/// The `non_congruent` output map (the compensator's own table) applied to core torques (N·mm).
+#[pyfunction]
+fn output_map<'py>(
+    py: Python<'py>,
+    core_nmm: PyArrayLike1<'py, f64, AllowTypeChange>,
+    curvature: f64,
+    scale_nmm: f64,
+) -> PyResult<Bound<'py, PyArray1<f64>>> {
+    let m = output_map_of(curvature, scale_nmm)?;
+    let x = to_vec(core_nmm);
+    Ok(to_numpy(py, x.iter().map(|&v| m.forward(v)).collect()))
+}
+
+/// The inverse of `output_map`: the core torques (N·mm) giving field torques `field_nmm`.
+#[pyfunction]
+fn output_map_inverse<'py>(
+    py: Python<'py>,
+    field_nmm: PyArrayLike1<'py, f64, AllowTypeChange>,
+    curvature: f64,
+    scale_nmm: f64,
+) -> PyResult<Bound<'py, PyArray1<f64>>> {
+    let mut m = output_map_of(curvature, scale_nmm)?;
+    let x = to_vec(field_nmm);
+    Ok(to_numpy(py, x.iter().map(|&v| m.inverse(v)).collect()))
+}
+
 pub(crate) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_function(wrap_pyfunction!(check_extensions, m)?)?;
+    m.add_function(wrap_pyfunction!(export_source, m)?)?;
+    m.add_function(wrap_pyfunction!(output_map, m)?)?;
+    m.add_function(wrap_pyfunction!(output_map_inverse, m)?)?;
     m.add_class::<PyCompensator>()?;
     m.add_class::<PyCommand>()?;
     m.add_class::<PyCompensatorState>()?;
+    m.add_class::<PySimulation>()?;
     Ok(())
 }

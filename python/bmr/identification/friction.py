@@ -39,12 +39,11 @@ class FrictionFit:
     scores: dict[int, float] = field(default_factory=dict)
 
     def __call__(self, theta_rad: np.ndarray | float) -> np.ndarray:
-        """Friction torque (N·mm) at rotor angle(s) ``theta_rad``."""
+        """Friction torque (N·mm) at rotor angle(s) ``theta_rad`` (the core's friction series)."""
         theta = np.asarray(theta_rad, dtype=float)
-        y = np.full(theta.shape, float(self.c0))
-        for k in range(self.order):
-            y += self.a[k] * np.sin((k + 1) * theta) + self.b[k] * np.cos((k + 1) * theta)
-        return y
+        a = [float(x) for x in self.a[: self.order]]
+        b = [float(x) for x in self.b[: self.order]]
+        return _core.friction_series(theta.reshape(-1), float(self.c0), a, b).reshape(theta.shape)
 
     def to_friction(self) -> Any:
         """The core ``bmr.Friction`` with these coefficients."""

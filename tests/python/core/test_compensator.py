@@ -103,7 +103,7 @@ def test_friction_vectorised_and_amplitude_phase_round_trip(friction):
     assert np.allclose(amp, [25, 8, 4]) and np.allclose(ph, [0.3, 1.1, -0.7])
     f2 = bmr.Friction(friction.c0, friction.a, friction.b)
     assert np.array_equal(f2(th), friction(th))
-    with pytest.raises(bmr.BmrError, match="at most 12"):
-        bmr.Friction(0, [1.0] * 13, [])
+    with pytest.raises(bmr.BmrError, match=f"at most {bmr._core.FRICTION_MAX_ORDER}"):
+        bmr.Friction(0, [1.0] * (bmr._core.FRICTION_MAX_ORDER + 1), [])
     with pytest.raises(bmr.BmrError):
         bmr.Friction.from_amplitude_phase(0, [1.0], [])
