@@ -16,6 +16,11 @@
 //! Reversals are found with a dead-band on the input and saturation by a tolerance (as in
 //! [`crate::reversals`]). `no_std`, allocation-free.
 
+/// Reversal dead-band of accommodation as a share of the input span (the plant, the stages and the diagnosis use it).
+pub const DEADBAND_SHARE: f64 = 0.01;
+/// Saturation tolerance of accommodation as a share of the input span.
+pub const SATURATION_SHARE: f64 = 0.002;
+
 /// The accommodation state machine (see the module doc). [`Accommodation::step`] once per sample.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Accommodation {
@@ -89,7 +94,11 @@ impl Accommodation {
         self.direction = 0;
         self.started = false;
         self.at_end = false;
+        self.ext_u = 0.0;
+        self.ext_v = 0.0;
+        self.rev_v = [0.0; 2];
         self.reversals = 0;
+        self.last_v = 0.0;
         self.shift = 0.0;
     }
 

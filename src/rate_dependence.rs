@@ -88,6 +88,13 @@ impl RateDependence {
         self.pole = 0.0;
     }
 
+    /// The compensator reached the core input it asked for ([`RateDependence::input_for`] was commanded without
+    /// limiting): hold it exactly as the state (no round-off drift between the two).
+    #[inline]
+    pub fn reached(&mut self, u_core: f64) {
+        self.u_core = u_core;
+    }
+
     /// The core input of the last step.
     pub fn core_input(&self) -> f64 {
         self.u_core

@@ -251,13 +251,14 @@ impl VirtualDevice {
                 } => creep = Creep::log_uniform(fraction, tau_min_s, tau_max_s, dt_s, 0.0),
                 Effect::NonCongruent { curvature: c, .. } => curvature = c,
                 Effect::Accommodation { kappa, cycles } => {
+                    use crate::accommodation::{DEADBAND_SHARE, SATURATION_SHARE};
                     accommodation = Accommodation::new(
                         kappa,
                         cycles,
                         config.input_centre - half,
                         config.input_centre + half,
-                        0.02 * half,
-                        0.004 * half,
+                        DEADBAND_SHARE * 2.0 * half,
+                        SATURATION_SHARE * 2.0 * half,
                         config.output_offset,
                     )
                 }
@@ -368,10 +369,15 @@ impl VirtualDevice {
             &mut self.creep,
             (driven - c) / self.config.input_half_span,
         );
+        // The input the core saw, back in input units (accommodation follows it).
+        let core_input = self
+            .rate
+            .as_ref()
+            .map_or(driven, |r| c + r.core_input() * self.config.input_half_span);
         let cfg = &self.config;
         let mut y = cfg.output_offset + cfg.output_scale * output_map(b, self.curvature);
         if let Some(a) = self.accommodation.as_mut() {
-            y += a.step(applied, y);
+            y += a.step(core_input, y);
         }
         if self.thermal_loss != 0.0 {
             let x = self.heating.step(applied - c);

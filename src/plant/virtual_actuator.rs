@@ -407,8 +407,17 @@ impl VirtualActuator {
                 .flatten()
         };
         let accommodation = fx.accommodation.and_then(|(kappa, cycles)| {
-            // Reversals beyond 1 % of the current span; saturation within 0.2 % of it (as the diagnosis).
-            Accommodation::new(kappa, cycles, -full, full, 0.02 * full, 0.004 * full, 0.0)
+            use crate::accommodation::{DEADBAND_SHARE, SATURATION_SHARE};
+            let span = 2.0 * full;
+            Accommodation::new(
+                kappa,
+                cycles,
+                -full,
+                full,
+                DEADBAND_SHARE * span,
+                SATURATION_SHARE * span,
+                0.0,
+            )
         });
         let mut calibration_rng = calibration_stream(seed);
         let (run_gain, run_offset_nmm) =
@@ -629,7 +638,10 @@ impl VirtualActuator {
         // Both rotors turn at the same speed in opposite directions: their viscous drags oppose.
         let mut field = (yield2 + viscous_nmm) - (yield1 + viscous_nmm);
         if let Some(a) = self.accommodation.as_mut() {
-            field += a.step(applied, field);
+            // Along the field the steel sees: the coils' core inputs recombined as a nominal current.
+            let core1 = self.rate1.as_ref().map_or(field1_a, |r| r.core_input());
+            let core2 = self.rate2.as_ref().map_or(field2_a, |r| r.core_input());
+            field += a.step(core2 - core1, field);
         }
 
         if self.fx.thermal_loss != 0.0 {

@@ -47,7 +47,8 @@ from bmr.identification.friction import FrictionFit
 __all__ = ["FORMAT", "LOOP_STAGES", "Model"]
 
 # Extensions the compensator can undo, in the order the physics acts (the others are measurement-only or notes).
-LOOP_STAGES = ("core_tables", "time_delay", "coil_lag", "non_congruent", "thermal_drift", "torque_ripple",
+LOOP_STAGES = ("core_tables", "time_delay", "coil_lag", "rate_dependence", "creep", "non_congruent",
+               "accommodation", "thermal_drift", "torque_ripple",
                "friction_harmonics", "friction_current")
 
 FORMAT = "bmr-model/2"
@@ -262,7 +263,8 @@ class Model:
         if not on:
             return Compensator(self.hysteresis, friction, **kwargs)
         effects = [e for e in self.extensions if e["name"] in on and e["name"] != "core_tables"]
-        needs_dt = any(e["name"] in ("time_delay", "coil_lag", "thermal_drift") for e in effects)
+        needs_dt = any(e["name"] in ("time_delay", "coil_lag", "thermal_drift", "creep", "rate_dependence")
+                       for e in effects)
         if needs_dt and dt_s is None:
             raise BmrError(f"this model's extensions ({', '.join(on)}) need the control period: pass dt_s")
         core = self.core_hysteresis(refined="core_tables" in on)
