@@ -99,7 +99,24 @@ def fit_everett(
     ridge: float = 1e-9,
     max_iter: int = 500,
 ) -> dict:
-    """Regularised NNLS Everett table: model, offsets, rss, rms, n_rows, iterations."""
+    """Regularised NNLS Everett table: model, offsets, rss, rms, n_rows, iterations, passive."""
+
+class EverettRegression:
+    """The ``fit_everett`` least squares prepared for one input history (regressors and normal matrix built
+    once); ``fit`` identifies the table for any outputs of the same runs, optionally warm-started."""
+    def __init__(
+        self,
+        grid: np.ndarray,
+        inputs: Sequence[tuple[np.ndarray, np.ndarray, int]],
+        n_offsets: int = 1,
+        *,
+        smoothing: float = 1e-4,
+        ridge: float = 1e-9,
+        max_iter: int = 500,
+    ) -> None: ...
+    @property
+    def n_rows(self) -> int: ...
+    def fit(self, outputs: Sequence[np.ndarray], warm_start: np.ndarray | None = None) -> dict: ...
 EFFECTS: tuple[str, ...]
 """Names of the virtual actuator's switchable effects (the diagnosis vocabulary)."""
 PRESETS: tuple[str, ...]
