@@ -7,7 +7,7 @@ use crate::identification::{
     EverettFitOptions, EverettGrid, EverettModel, EverettRun, fit_everett as fit_everett_rs,
     fit_friction,
 };
-use crate::python::BmrError;
+use crate::python::identification_err;
 
 /// One training run as passed from Python: input, output, row weights, offset column.
 type RunArrays<'py> = (
@@ -37,7 +37,7 @@ fn fit_friction_order<'py>(
     let torque = to_vec(&torque_nmm);
     let fit = py
         .detach(|| fit_friction(&theta, &torque, order))
-        .map_err(|e| BmrError::new_err(format!("friction fit: {e}")))?;
+        .map_err(|e| identification_err("friction fit", e))?;
     let p = fit.n_params();
     let d = PyDict::new(py);
     d.set_item("order", fit.order)?;
@@ -75,9 +75,39 @@ impl PyEverettModel {
         masses: PyReadonlyArray1<'_, f64>,
         offset: f64,
     ) -> PyResult<Self> {
-        let grid = EverettGrid::new(to_vec(&grid)).map_err(BmrError::new_err)?;
-        let inner = EverettModel::new(grid, to_vec(&masses), offset).map_err(BmrError::new_err)?;
+        let grid =
+            EverettGrid::new(to_vec(&grid)).map_err(|e| identification_err("EverettModel", e))?;
+        let inner = EverettModel::new(grid, to_vec(&masses), offset)
+            .map_err(|e| identification_err("EverettModel", e))?;
         Ok(Self { inner })
+    }
+
+    fn __copy__(slf: PyRef<'_, Self>) -> PyRef<'_, Self> {
+        slf // immutable: a copy is the object itself
+    }
+
+    fn __deepcopy__<'py>(slf: PyRef<'py, Self>, _memo: &Bound<'py, PyAny>) -> PyRef<'py, Self> {
+        slf
+    }
+
+    /// Pickled as its constructor arguments.
+    #[allow(clippy::type_complexity)]
+    fn __reduce__<'py>(
+        slf: &Bound<'py, Self>,
+    ) -> PyResult<(
+        Bound<'py, PyAny>,
+        (Bound<'py, PyArray1<f64>>, Bound<'py, PyArray1<f64>>, f64),
+    )> {
+        let py = slf.py();
+        let me = slf.get();
+        Ok((
+            slf.get_type().into_any(),
+            (
+                PyArray1::from_slice(py, me.inner.grid().nodes()),
+                PyArray1::from_slice(py, me.inner.masses()),
+                me.inner.offset(),
+            ),
+        ))
     }
 
     /// Input grid nodes.
@@ -127,7 +157,7 @@ impl PyEverettModel {
     ) -> PyResult<Bound<'py, PyArray1<f64>>> {
         let u = to_vec(&u);
         if let Some(i) = u.iter().position(|v| !v.is_finite()) {
-            return Err(BmrError::new_err(format!(
+            return Err(crate::python::BmrError::new_err(format!(
                 "input sample {i} is not finite ({})",
                 u[i]
             )));
@@ -146,9 +176,14 @@ impl PyEverettModel {
         subdivisions: usize,
     ) -> PyResult<Bound<'py, PyTuple>> {
         if subdivisions == 0 {
-            return Err(BmrError::new_err("subdivisions must be at least 1"));
+            return Err(crate::python::BmrError::new_err(
+                "subdivisions must be at least 1",
+            ));
         }
-        let (asc, desc) = self.inner.first_order_curves_subdivided(subdivisions);
+        let (asc, desc) = self
+            .inner
+            .first_order_curves_subdivided(subdivisions)
+            .map_err(|e| identification_err("first_order_curves", e))?;
         let conv = |fam: Vec<(Vec<f64>, Vec<f64>)>| -> PyResult<Bound<'py, PyList>> {
             let items: Vec<Bound<'py, PyTuple>> = fam
                 .into_iter()
@@ -186,7 +221,8 @@ fn fit_everett<'py>(
     ridge: f64,
     max_iter: usize,
 ) -> PyResult<Bound<'py, PyDict>> {
-    let grid = EverettGrid::new(to_vec(&grid)).map_err(BmrError::new_err)?;
+    let grid =
+        EverettGrid::new(to_vec(&grid)).map_err(|e| identification_err("Everett table fit", e))?;
     let data: Vec<RunData> = runs
         .iter()
         .map(|(u, y, w, o)| (to_vec(u), to_vec(y), to_vec(w), *o))
@@ -209,7 +245,7 @@ fn fit_everett<'py>(
                 .collect();
             fit_everett_rs(&grid, &views, n_offsets, options)
         })
-        .map_err(|e| BmrError::new_err(format!("Everett table fit: {e}")))?;
+        .map_err(|e| identification_err("Everett table fit", e))?;
     let d = PyDict::new(py);
     d.set_item("offsets", PyArray1::from_slice(py, &fit.offsets))?;
     d.set_item("rss", fit.rss)?;
