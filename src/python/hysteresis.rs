@@ -1,5 +1,5 @@
 //! `bmr.Hysteresis`: the CBH operator with a 64-point memory.
-use numpy::{AllowTypeChange, PyArray1, PyArrayLike1};
+use numpy::PyArray1;
 use pyo3::prelude::*;
 use pyo3::types::{PyBytes, PyDict, PyList, PyString, PyTuple};
 
@@ -7,7 +7,7 @@ use crate::cbh::{Hysteresis, Initial, State, state_words_io};
 use crate::congruency::congruency;
 use crate::error::FamilyKind;
 use crate::everett::Family;
-use crate::python::arrays::{DETACH_LEN, extract_f64_array, to_numpy, to_vec};
+use crate::python::arrays::{DETACH_LEN, extract_f64_array, to_numpy};
 use crate::python::{BmrError, borrow, borrow_mut, bytes_to_words, table_err, words_to_bytes};
 use crate::table_builder::BuildOptions;
 
@@ -33,11 +33,16 @@ fn parse_initial(obj: &Bound<'_, PyAny>) -> PyResult<Initial> {
             ))),
         };
     }
+    let shape_err = || {
+        pyo3::exceptions::PyTypeError::new_err(
+            "initial: expected 'negative', 'positive', ('ascending', u) or ('descending', u)",
+        )
+    };
     if let Ok(t) = obj.cast::<PyTuple>()
         && t.len() == 2
     {
-        let kind: String = t.get_item(0)?.extract()?;
-        let u: f64 = t.get_item(1)?.extract()?;
+        let kind: String = t.get_item(0)?.extract().map_err(|_| shape_err())?;
+        let u: f64 = t.get_item(1)?.extract().map_err(|_| shape_err())?;
         if !u.is_finite() {
             return Err(BmrError::new_err(format!(
                 "initial=({kind:?}, {u}): the input must be finite"
@@ -51,21 +56,21 @@ fn parse_initial(obj: &Bound<'_, PyAny>) -> PyResult<Initial> {
             ))),
         };
     }
-    Err(BmrError::new_err(
-        "initial: expected 'negative', 'positive', ('ascending', u) or ('descending', u)",
-    ))
+    Err(shape_err())
 }
 
 /// A family argument: a sequence of `(u, y)` pairs of 1-D arrays.
 fn parse_family(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<Vec<(Vec<f64>, Vec<f64>)>> {
     let seq = obj.try_iter().map_err(|_| {
-        BmrError::new_err(format!("{name}: expected a sequence of (u, y) array pairs"))
+        pyo3::exceptions::PyTypeError::new_err(format!(
+            "{name}: expected a sequence of (u, y) array pairs"
+        ))
     })?;
     let mut out = Vec::new();
     for (i, item) in seq.enumerate() {
         let item = item?;
         let pair: (Bound<'_, PyAny>, Bound<'_, PyAny>) = item.extract().map_err(|_| {
-            BmrError::new_err(format!(
+            pyo3::exceptions::PyTypeError::new_err(format!(
                 "{name} curve {i}: expected a (u, y) pair of 1-D arrays"
             ))
         })?;
@@ -258,10 +263,10 @@ impl PyHysteresis {
     /// Apply an array of inputs, continuing from the current state; returns the outputs.
     fn run<'py>(
         slf: &Bound<'py, Self>,
-        u: PyArrayLike1<'py, f64, AllowTypeChange>,
+        u: &Bound<'py, PyAny>,
     ) -> PyResult<Bound<'py, PyArray1<f64>>> {
         let py = slf.py();
-        let inputs = to_vec(u);
+        let inputs = extract_f64_array(u, "u")?;
         let mut out = vec![0.0; inputs.len()];
         let mut me = borrow_mut(slf)?;
         if inputs.len() > DETACH_LEN {

@@ -8,6 +8,7 @@ use crate::python::arrays::{extract_f64_array, to_numpy};
 use crate::python::errors::InUseError;
 use crate::python::{BmrError, bmr_err, bytes_to_words, limit_err, words_to_bytes};
 use numpy::PyArray1;
+use pyo3::exceptions::PyTypeError;
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList, PyString, PyTuple};
 use std::sync::{Mutex, MutexGuard, TryLockError};
@@ -21,7 +22,7 @@ fn apply_effects(set: &mut EffectSet, spec: &Bound<'_, PyAny>) -> PyResult<()> {
     if let Ok(dict) = spec.cast::<PyDict>() {
         for (name, params) in dict.iter() {
             let name: String = name.extract().map_err(|_| {
-                BmrError::new_err(format!("effect names must be strings, got {name}"))
+                PyTypeError::new_err(format!("effects: effect names must be strings, got {name}"))
             })?;
             let kind = EffectKind::from_name(&name).map_err(bmr_err)?;
             if params.is_none() {
@@ -29,17 +30,21 @@ fn apply_effects(set: &mut EffectSet, spec: &Bound<'_, PyAny>) -> PyResult<()> {
                 continue;
             }
             let params = params.cast::<PyDict>().map_err(|_| {
-                BmrError::new_err(format!(
-                    "effect {name}: parameters must be a dict {{param: value}} or None"
+                PyTypeError::new_err(format!(
+                    "effects: effect {name}: parameters must be a dict {{param: value}} or None"
                 ))
             })?;
             let mut given: Vec<(String, f64)> = Vec::new();
             for (k, v) in params.iter() {
                 let k: String = k.extract().map_err(|_| {
-                    BmrError::new_err(format!("effect {name}: parameter names must be strings"))
+                    PyTypeError::new_err(format!(
+                        "effects: effect {name}: parameter names must be strings"
+                    ))
                 })?;
                 let v: f64 = v.extract().map_err(|_| {
-                    BmrError::new_err(format!("effect {name}: {k} = {v} is not a number"))
+                    PyTypeError::new_err(format!(
+                        "effects: effect {name}: {k} = {v} is not a number"
+                    ))
                 })?;
                 given.push((k, v));
             }
@@ -52,10 +57,10 @@ fn apply_effects(set: &mut EffectSet, spec: &Bound<'_, PyAny>) -> PyResult<()> {
         vec![s.to_string()]
     } else if spec.cast::<PyList>().is_ok() || spec.cast::<PyTuple>().is_ok() {
         spec.extract().map_err(|_| {
-            BmrError::new_err("effects list must hold strings like \"coil_lag:tau_s=0.02\"")
+            PyTypeError::new_err("effects: a list must hold strings like \"coil_lag:tau_s=0.02\"")
         })?
     } else {
-        return Err(BmrError::new_err(
+        return Err(PyTypeError::new_err(
             "effects must be None, a dict {name: {param: value}} or a list of \"name:key=value\" strings",
         ));
     };
@@ -170,8 +175,12 @@ impl PyVirtualActuator {
     ) -> PyResult<Self> {
         let seed: u64 = match seed {
             None => 0,
-            Some(s) => s.extract().map_err(|_| {
-                BmrError::new_err(format!("seed must be an integer in [0, 2**64), got {s}"))
+            Some(s) => s.extract().map_err(|e: PyErr| {
+                if e.is_instance_of::<PyTypeError>(s.py()) {
+                    PyTypeError::new_err(format!("seed must be an integer, got {s}"))
+                } else {
+                    BmrError::new_err(format!("seed must be an integer in [0, 2**64), got {s}"))
+                }
             })?,
         };
         let mut config = preset_config(preset).map_err(bmr_err)?;
@@ -182,16 +191,16 @@ impl PyVirtualActuator {
         let mut applied = Vec::new();
         if let Some(over) = overrides.filter(|o| !o.is_none()) {
             let over = over.cast::<PyDict>().map_err(|_| {
-                BmrError::new_err("overrides must be a dict {\"group.parameter\": value}")
+                PyTypeError::new_err("overrides must be a dict {\"group.parameter\": value}")
             })?;
             for (k, v) in over.iter() {
                 let k: String = k.extract().map_err(|_| {
-                    BmrError::new_err(format!(
+                    PyTypeError::new_err(format!(
                         "overrides: parameter names must be strings, got {k}"
                     ))
                 })?;
                 let v: f64 = v.extract().map_err(|_| {
-                    BmrError::new_err(format!("overrides: {k} = {v} is not a number"))
+                    PyTypeError::new_err(format!("overrides: {k} = {v} is not a number"))
                 })?;
                 config.set(&k, v).map_err(bmr_err)?;
                 applied.push((k, v));
