@@ -7,12 +7,13 @@
 //! (mass per cell area, or per diagonal length for the reversible part) and `D` takes first differences between
 //! neighbouring cells (smoothness). `λ_s = smoothing · tr(Q)/tr(DᵀD)` and `λ_r = ridge · tr(Q)/n` make both
 //! weights dimensionless.
-use alloc::format;
-use alloc::string::String;
 use alloc::vec::Vec;
 
+use super::error::{IdentificationError, RunError};
 use super::everett_regressors::{EverettGrid, NormalEquations, simulate_everett};
 use super::nnls::nnls_gram_warm;
+use crate::from_curves::CurveData;
+use crate::limits::{self, MAX_CURVE_POINTS, MAX_SOLVER_ITERATIONS};
 
 /// A Preisach model: Everett table on a grid (from nonnegative cell masses) and the output at negative saturation.
 #[derive(Clone, Debug, PartialEq)]
@@ -23,29 +24,33 @@ pub struct EverettModel {
     offset: f64,
 }
 
-/// A family of first-order curves: one `(u, y)` table per reversal.
-pub type CurveFamily = Vec<(Vec<f64>, Vec<f64>)>;
-
 impl EverettModel {
     /// Build from cell masses (packed like [`EverettGrid::cell_index`], finite, nonnegative) and the output at
     /// negative saturation `offset`.
-    pub fn new(grid: EverettGrid, masses: Vec<f64>, offset: f64) -> Result<Self, String> {
+    pub fn new(
+        grid: EverettGrid,
+        masses: Vec<f64>,
+        offset: f64,
+    ) -> Result<Self, IdentificationError> {
         if masses.len() != grid.n_cells() {
-            return Err(format!(
-                "Everett model on {} intervals needs {} cell masses, got {}",
-                grid.n_intervals(),
-                grid.n_cells(),
-                masses.len()
-            ));
+            return Err(IdentificationError::MassCount {
+                intervals: grid.n_intervals(),
+                expected: grid.n_cells(),
+                got: masses.len(),
+            });
         }
         if let Some(i) = masses.iter().position(|m| !m.is_finite() || *m < 0.0) {
-            return Err(format!(
-                "cell mass {i} must be finite and nonnegative, got {}",
-                masses[i]
-            ));
+            return Err(IdentificationError::NegativeMass {
+                index: i,
+                value: masses[i],
+            });
         }
         if !offset.is_finite() {
-            return Err(format!("offset must be finite, got {offset}"));
+            return Err(IdentificationError::NonFinite {
+                what: "offset",
+                index: 0,
+                value: offset,
+            });
         }
         let node_values = grid.masses_to_nodes(&masses);
         Ok(Self {
@@ -91,18 +96,51 @@ impl EverettModel {
         )
     }
 
+    /// The CBH operator of this Everett table (its first-order curves with `subdivisions` reversals per grid
+    /// interval, see [`Self::first_order_curves_subdivided`]), built without leaving Rust.
+    pub fn hysteresis<const N: usize>(
+        &self,
+        subdivisions: usize,
+        opts: &crate::table_builder::BuildOptions,
+        initial: crate::cbh::Initial,
+    ) -> Result<crate::cbh::Hysteresis<Vec<f64>, N>, IdentificationError> {
+        let (asc, desc) = self.first_order_curves_subdivided(subdivisions)?;
+        Ok(crate::cbh::Hysteresis::from_curve_data(
+            &asc, &desc, opts, initial,
+        )?)
+    }
+
     /// First-order curves at every grid node: ascending from each reversal minimum `g_i` (i < N) up to
     /// positive saturation (`y(m) + E(m, u)`), descending from each reversal maximum `g_j` (j > 0) down to
     /// negative saturation (`y(M) − E(u, M)`), in traversal order. The first of each family is the major branch.
-    pub fn first_order_curves(&self) -> (CurveFamily, CurveFamily) {
-        self.first_order_curves_subdivided(1)
+    pub fn first_order_curves(&self) -> (Vec<CurveData>, Vec<CurveData>) {
+        // At most MAX_EVERETT_INTERVALS intervals: the points stay within MAX_CURVE_POINTS.
+        self.curves_with_subdivisions(1)
     }
 
     /// As [`Self::first_order_curves`], with reversals also at `subdivisions − 1` evenly spaced points inside
     /// every grid interval. The curves stay exact (piecewise linear in `u` with nodes at the reversal and the
     /// grid nodes beyond it); more reversals make a CBH operator built from them follow the Everett table
-    /// closely between grid reversals as well.
-    pub fn first_order_curves_subdivided(&self, subdivisions: usize) -> (CurveFamily, CurveFamily) {
+    /// closely between grid reversals as well. The points of both families are at most [`MAX_CURVE_POINTS`].
+    pub fn first_order_curves_subdivided(
+        &self,
+        subdivisions: usize,
+    ) -> Result<(Vec<CurveData>, Vec<CurveData>), IdentificationError> {
+        let n = self.grid.n_intervals();
+        // Each family: n·k curves of at most n + 2 points.
+        let points = limits::product(
+            2,
+            limits::product(limits::product(n, subdivisions.max(1)), n + 2),
+        );
+        limits::check(
+            "points of the first-order curves (both families)",
+            points,
+            MAX_CURVE_POINTS,
+        )?;
+        Ok(self.curves_with_subdivisions(subdivisions))
+    }
+
+    fn curves_with_subdivisions(&self, subdivisions: usize) -> (Vec<CurveData>, Vec<CurveData>) {
         let k = subdivisions.max(1);
         let g = self.grid.nodes();
         let n = self.grid.n_intervals();
@@ -197,19 +235,36 @@ pub fn fit_everett(
     runs: &[EverettRun<'_>],
     n_offsets: usize,
     options: EverettFitOptions,
-) -> Result<EverettFit, String> {
+) -> Result<EverettFit, IdentificationError> {
     check_options(n_offsets, options)?;
-    let mut ne = NormalEquations::new(grid, n_offsets);
+    let mut ne = NormalEquations::new(grid, n_offsets)?;
     for (k, run) in runs.iter().enumerate() {
         ne.add_run(grid, run.u, run.y, run.weight, run.offset_col)
-            .map_err(|e| format!("run {k}: {e}"))?;
+            .map_err(|error| IdentificationError::Run { run: k, error })?;
     }
     if ne.n_rows == 0 {
-        return Err(String::from("no samples with positive weight to fit"));
+        return Err(IdentificationError::NoSamples);
     }
     ne.finish();
     let q = mass_space_matrix(grid, &ne, options)?;
     solve(grid, &DataTerm::of(&ne, &ne.rhs, ne.yy), &q, options, None)
+}
+
+fn check_options(n_offsets: usize, options: EverettFitOptions) -> Result<(), IdentificationError> {
+    if n_offsets == 0 {
+        return Err(IdentificationError::NoOffsets);
+    }
+    for (name, value) in [("smoothing", options.smoothing), ("ridge", options.ridge)] {
+        if !(value.is_finite() && value >= 0.0) {
+            return Err(IdentificationError::BadParameter { name, value });
+        }
+    }
+    limits::check(
+        "solver iterations (max_iter)",
+        options.max_iter,
+        MAX_SOLVER_ITERATIONS,
+    )?;
+    Ok(())
 }
 
 /// The data term of the least squares: node-space Gram matrix, right-hand side, `Σ w y²` and the row counts.
@@ -235,19 +290,6 @@ impl<'a> DataTerm<'a> {
     }
 }
 
-fn check_options(n_offsets: usize, options: EverettFitOptions) -> Result<(), String> {
-    if n_offsets == 0 {
-        return Err(String::from("at least one offset column is needed"));
-    }
-    if !(options.smoothing >= 0.0 && options.ridge >= 0.0) {
-        return Err(format!(
-            "smoothing and ridge must be nonnegative (got {}, {})",
-            options.smoothing, options.ridge
-        ));
-    }
-    Ok(())
-}
-
 /// The regularised quadratic in mass space: `Q = Cᵀ G C + λ_s DᵀD + λ_r I` on the node block (`C` maps masses
 /// to node values), `Cᵀ G` on the node/offset block, `G` on the offset block. Depends on the input history and
 /// the row weights only, not on the output.
@@ -255,11 +297,11 @@ fn mass_space_matrix(
     grid: &EverettGrid,
     ne: &NormalEquations,
     options: EverettFitOptions,
-) -> Result<Vec<f64>, String> {
+) -> Result<Vec<f64>, IdentificationError> {
     let nn = ne.n_nodes;
     let m = ne.n_cols();
-    // The Gram matrix is symmetric to the bit (`NormalEquations::finish` mirrors it), so its rows are its columns:
-    // T = G C row by row (row k = Cᵀ G[k, ..nn]), then B = Cᵀ G = Tᵀ on the node block and Q = B C.
+    // The Gram matrix is symmetric to the bit (`NormalEquations::finish` mirrors it), so its rows are its
+    // columns: T = G C row by row (row k = Cᵀ G[k, ..nn]), then B = Cᵀ G = Tᵀ on the node block and Q = B C.
     let mut t = alloc::vec![0.0; m * nn];
     adjoint_rows(grid, &ne.gram, m, nn, &mut t);
     let mut b_nodes = alloc::vec![0.0; nn * nn]; // B = Cᵀ Gnn, row-major
@@ -297,7 +339,7 @@ fn mass_space_matrix(
     }
     for o in nn..m {
         if q[o * m + o] <= 0.0 {
-            return Err(format!("offset column {} has no samples", o - nn));
+            return Err(IdentificationError::EmptyOffset { column: o - nn });
         }
         q[o * m + o] *= 1.0 + 1e-12;
     }
@@ -308,7 +350,6 @@ fn mass_space_matrix(
 /// `out` (row length `nn`), four rows at a time.
 fn adjoint_rows(grid: &EverettGrid, a: &[f64], stride: usize, nn: usize, out: &mut [f64]) {
     const L: usize = 4;
-    let rows = out.len() / nn;
     let mut scratch = alloc::vec![0.0; L * grid.n_intervals()];
     let mut chunks = out.chunks_exact_mut(L * nn);
     let mut k = 0;
@@ -324,22 +365,21 @@ fn adjoint_rows(grid: &EverettGrid, a: &[f64], stride: usize, nn: usize, out: &m
         let row = k + r;
         grid.nodes_to_masses_adjoint_into(&a[row * stride..row * stride + nn], o, &mut scratch);
     }
-    debug_assert_eq!(k + (rows - k), rows);
 }
 
-/// Solve the nonnegative quadratic for the right-hand side in `ne` (optionally warm-started from a passive
+/// Solve the nonnegative quadratic for the right-hand side of `data` (optionally warm-started from a passive
 /// set) and measure the data-term residual.
 fn solve(
     grid: &EverettGrid,
-    ne: &DataTerm<'_>,
+    data: &DataTerm<'_>,
     q: &[f64],
     options: EverettFitOptions,
     warm_start: Option<&[bool]>,
-) -> Result<EverettFit, String> {
-    let nn = ne.n_nodes;
-    let m = ne.rhs.len();
-    let mut c = grid.nodes_to_masses_adjoint(&ne.rhs[..nn]);
-    c.extend_from_slice(&ne.rhs[nn..]);
+) -> Result<EverettFit, IdentificationError> {
+    let nn = data.n_nodes;
+    let m = data.rhs.len();
+    let mut c = grid.nodes_to_masses_adjoint(&data.rhs[..nn]);
+    c.extend_from_slice(&data.rhs[nn..]);
     let constrained: Vec<bool> = (0..m).map(|i| i < nn).collect();
     let sol = nnls_gram_warm(q, &c, &constrained, options.max_iter, warm_start)?;
     let masses: Vec<f64> = sol.x[..nn].iter().map(|&v| v.max(0.0)).collect();
@@ -350,17 +390,17 @@ fn solve(
     z.extend_from_slice(&offsets);
     let mut zgz = 0.0;
     for i in 0..m {
-        let gi = &ne.gram[i * m..(i + 1) * m];
+        let gi = &data.gram[i * m..(i + 1) * m];
         zgz += z[i] * gi.iter().zip(&z).map(|(a, b)| a * b).sum::<f64>();
     }
-    let zr: f64 = z.iter().zip(ne.rhs).map(|(a, b)| a * b).sum();
-    let rss = (ne.yy - 2.0 * zr + zgz).max(0.0);
+    let zr: f64 = z.iter().zip(data.rhs).map(|(a, b)| a * b).sum();
+    let rss = (data.yy - 2.0 * zr + zgz).max(0.0);
     Ok(EverettFit {
-        rms: (rss / ne.weight_sum).sqrt(),
+        rms: (rss / data.weight_sum).sqrt(),
         model,
         offsets,
         rss,
-        n_rows: ne.n_rows,
+        n_rows: data.n_rows,
         iterations: sol.iterations,
         passive: sol.passive,
     })
@@ -406,9 +446,9 @@ impl EverettRegression {
         inputs: &[EverettInput<'_>],
         n_offsets: usize,
         options: EverettFitOptions,
-    ) -> Result<Self, String> {
+    ) -> Result<Self, IdentificationError> {
         check_options(n_offsets, options)?;
-        let mut normal = NormalEquations::new(grid, n_offsets);
+        let mut normal = NormalEquations::new(grid, n_offsets)?;
         let (mut row_ptr, mut row_sample, mut row_weight) =
             (alloc::vec![0], Vec::new(), Vec::new());
         let (mut col, mut val) = (Vec::new(), Vec::new());
@@ -425,11 +465,11 @@ impl EverettRegression {
                     row_weight.push(w);
                     Ok(())
                 })
-                .map_err(|e| format!("run {k}: {e}"))?;
+                .map_err(|error| IdentificationError::Run { run: k, error })?;
             base += run.u.len();
         }
         if normal.n_rows == 0 {
-            return Err(String::from("no samples with positive weight to fit"));
+            return Err(IdentificationError::NoSamples);
         }
         normal.finish();
         let q = mass_space_matrix(grid, &normal, options)?;
@@ -452,6 +492,11 @@ impl EverettRegression {
         self.normal.n_rows
     }
 
+    /// Number of unknowns (cell masses and offsets), the length of a warm start.
+    pub fn n_unknowns(&self) -> usize {
+        self.normal.n_cols()
+    }
+
     /// Identify the table for the outputs of the runs (one slice per run, each as long as its input);
     /// `warm_start`: a passive set from an earlier fit (e.g. [`EverettFit::passive`]) to start the nonnegative
     /// solver from. The result does not depend on the warm start (the solution is unique), only the work does.
@@ -459,41 +504,54 @@ impl EverettRegression {
         &self,
         outputs: &[&[f64]],
         warm_start: Option<&[bool]>,
-    ) -> Result<EverettFit, String> {
+    ) -> Result<EverettFit, IdentificationError> {
         if outputs.len() != self.run_lengths.len() {
-            return Err(format!(
-                "{} outputs for {} runs",
-                outputs.len(),
-                self.run_lengths.len()
-            ));
+            return Err(IdentificationError::LengthMismatch {
+                first: "runs",
+                first_len: self.run_lengths.len(),
+                second: "outputs",
+                second_len: outputs.len(),
+            });
         }
         let mut flat = Vec::with_capacity(self.run_lengths.iter().sum());
         for (k, (y, &n)) in outputs.iter().zip(&self.run_lengths).enumerate() {
             if y.len() != n {
-                return Err(format!(
-                    "run {k}: input has {n} samples, output {}",
-                    y.len()
-                ));
+                return Err(IdentificationError::Run {
+                    run: k,
+                    error: RunError::Lengths {
+                        inputs: n,
+                        outputs: y.len(),
+                        weights: n,
+                    },
+                });
             }
             flat.extend_from_slice(y);
         }
         if let Some(w) = warm_start
-            && w.len() != self.normal.n_cols()
+            && w.len() != self.n_unknowns()
         {
-            return Err(format!(
-                "warm start has {} entries, the problem {} unknowns",
-                w.len(),
-                self.normal.n_cols()
-            ));
+            return Err(IdentificationError::LengthMismatch {
+                first: "unknowns",
+                first_len: self.n_unknowns(),
+                second: "warm start",
+                second_len: w.len(),
+            });
         }
-        let mut rhs = alloc::vec![0.0; self.normal.n_cols()];
+        let mut rhs = alloc::vec![0.0; self.n_unknowns()];
         let mut yy = 0.0;
         for r in 0..self.row_sample.len() {
             let i = self.row_sample[r];
             let y = flat[i];
             if !y.is_finite() {
-                let (k, j) = self.locate(i);
-                return Err(format!("run {k}: output sample {j} is not finite ({y})"));
+                let (run, sample) = self.locate(i);
+                return Err(IdentificationError::Run {
+                    run,
+                    error: RunError::NonFinite {
+                        what: "output",
+                        sample,
+                        value: y,
+                    },
+                });
             }
             let w = self.row_weight[r];
             for e in self.row_ptr[r]..self.row_ptr[r + 1] {
@@ -646,7 +704,7 @@ mod tests {
         assert!((asc[0].1[0] - 1.0).abs() < 1e-12);
         assert!(model.everett(0.5, 0.4) == 0.0);
         // Subdivided reversals: same major branches, four times the curves, each exact against `everett`.
-        let (asc4, desc4) = model.first_order_curves_subdivided(4);
+        let (asc4, desc4) = model.first_order_curves_subdivided(4).unwrap();
         assert_eq!((asc4.len(), desc4.len()), (24, 24));
         assert_eq!(asc4[0], asc[0]);
         assert_eq!(desc4[0], desc[0]);
@@ -655,6 +713,37 @@ mod tests {
         let mid = 0.5 * (u[0] + u[1]);
         let y_mid = y[0] + 0.5 * (y[1] - y[0]);
         assert!((y_mid - (y[0] + model.everett(m, mid))).abs() < 1e-12);
+    }
+
+    #[test]
+    fn sizes_are_bounded_before_allocation() {
+        use crate::limits::{MAX_EVERETT_INTERVALS, MAX_EVERETT_UNKNOWNS};
+        let limit = |e: IdentificationError| matches!(e, IdentificationError::Limit(_));
+        assert!(limit(
+            EverettGrid::uniform(0.0, 1.0, MAX_EVERETT_INTERVALS + 1).unwrap_err()
+        ));
+        let grid = EverettGrid::uniform(0.0, 1.0, 8).unwrap();
+        let run = EverettRun {
+            u: &[0.0, 1.0],
+            y: &[0.0, 1.0],
+            weight: &[1.0, 1.0],
+            offset_col: 0,
+        };
+        let fit = |n_offsets, max_iter| {
+            let opts = EverettFitOptions {
+                max_iter,
+                ..Default::default()
+            };
+            fit_everett(&grid, &[run], n_offsets, opts)
+        };
+        assert!(limit(fit(MAX_EVERETT_UNKNOWNS, 10).unwrap_err()));
+        assert!(limit(fit(usize::MAX, 10).unwrap_err()));
+        assert!(limit(fit(1, usize::MAX).unwrap_err()));
+        let model = EverettModel::new(grid.clone(), alloc::vec![0.1; grid.n_cells()], 0.0).unwrap();
+        assert!(limit(
+            model.first_order_curves_subdivided(1 << 40).unwrap_err()
+        ));
+        assert!(model.first_order_curves_subdivided(3).is_ok());
     }
 
     #[test]

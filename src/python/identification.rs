@@ -1,27 +1,25 @@
-//! Python bindings of the identification least squares: `fit_friction_order`, `EverettModel`, `fit_everett`.
-use numpy::{PyArray1, PyArray2, PyArrayMethods, PyReadonlyArray1};
+//! Python bindings of the identification least squares: `fit_friction_order`, `EverettModel`, `fit_everett`,
+//! `EverettRegression`.
+use numpy::{AllowTypeChange, PyArray1, PyArray2, PyArrayLike1, PyArrayMethods};
 use pyo3::prelude::*;
-use pyo3::types::{PyDict, PyList, PyTuple};
+use pyo3::types::{PyDict, PyTuple};
 
+use crate::cbh::Initial;
 use crate::identification::{
     EverettFit, EverettFitOptions, EverettGrid, EverettInput, EverettModel, EverettRegression,
     EverettRun, fit_everett as fit_everett_rs, fit_friction,
 };
-use crate::python::BmrError;
+use crate::python::arrays::{curves_to_py, to_vec};
+use crate::python::hysteresis::PyHysteresis;
+use crate::python::{BmrError, identification_err};
+use crate::table_builder::BuildOptions;
 
+/// A 1-D float array argument (lists and integer arrays accepted).
+type Array<'py> = PyArrayLike1<'py, f64, AllowTypeChange>;
 /// One training run as passed from Python: input, output, row weights, offset column.
-type RunArrays<'py> = (
-    PyReadonlyArray1<'py, f64>,
-    PyReadonlyArray1<'py, f64>,
-    PyReadonlyArray1<'py, f64>,
-    usize,
-);
+type RunArrays<'py> = (Array<'py>, Array<'py>, Array<'py>, usize);
 /// The same run copied out of Python (so the fit can run without the interpreter lock).
 type RunData = (Vec<f64>, Vec<f64>, Vec<f64>, usize);
-
-fn to_vec(a: &PyReadonlyArray1<'_, f64>) -> Vec<f64> {
-    a.as_array().iter().copied().collect()
-}
 
 /// Least-squares friction fit of one harmonic order: returns a dict with c0, a, b, their standard errors,
 /// covariance (p × p), rss, n and order. Raises BmrError on bad input or rank deficiency.
@@ -29,15 +27,15 @@ fn to_vec(a: &PyReadonlyArray1<'_, f64>) -> Vec<f64> {
 #[pyo3(signature = (theta_rad, torque_nmm, order))]
 fn fit_friction_order<'py>(
     py: Python<'py>,
-    theta_rad: PyReadonlyArray1<'py, f64>,
-    torque_nmm: PyReadonlyArray1<'py, f64>,
+    theta_rad: Array<'py>,
+    torque_nmm: Array<'py>,
     order: usize,
 ) -> PyResult<Bound<'py, PyDict>> {
-    let theta = to_vec(&theta_rad);
-    let torque = to_vec(&torque_nmm);
+    let theta = to_vec(theta_rad);
+    let torque = to_vec(torque_nmm);
     let fit = py
         .detach(|| fit_friction(&theta, &torque, order))
-        .map_err(|e| BmrError::new_err(format!("friction fit: {e}")))?;
+        .map_err(|e| identification_err("friction fit", e))?;
     let p = fit.n_params();
     let d = PyDict::new(py);
     d.set_item("order", fit.order)?;
@@ -70,14 +68,40 @@ impl PyEverettModel {
     /// output `offset`.
     #[new]
     #[pyo3(signature = (grid, masses, offset))]
-    fn new(
-        grid: PyReadonlyArray1<'_, f64>,
-        masses: PyReadonlyArray1<'_, f64>,
-        offset: f64,
-    ) -> PyResult<Self> {
-        let grid = EverettGrid::new(to_vec(&grid)).map_err(BmrError::new_err)?;
-        let inner = EverettModel::new(grid, to_vec(&masses), offset).map_err(BmrError::new_err)?;
+    fn new(grid: Array<'_>, masses: Array<'_>, offset: f64) -> PyResult<Self> {
+        let grid =
+            EverettGrid::new(to_vec(grid)).map_err(|e| identification_err("EverettModel", e))?;
+        let inner = EverettModel::new(grid, to_vec(masses), offset)
+            .map_err(|e| identification_err("EverettModel", e))?;
         Ok(Self { inner })
+    }
+
+    fn __copy__(slf: PyRef<'_, Self>) -> PyRef<'_, Self> {
+        slf // immutable: a copy is the object itself
+    }
+
+    fn __deepcopy__<'py>(slf: PyRef<'py, Self>, _memo: &Bound<'py, PyAny>) -> PyRef<'py, Self> {
+        slf
+    }
+
+    /// Pickled as its constructor arguments.
+    #[allow(clippy::type_complexity)]
+    fn __reduce__<'py>(
+        slf: &Bound<'py, Self>,
+    ) -> PyResult<(
+        Bound<'py, PyAny>,
+        (Bound<'py, PyArray1<f64>>, Bound<'py, PyArray1<f64>>, f64),
+    )> {
+        let py = slf.py();
+        let me = slf.get();
+        Ok((
+            slf.get_type().into_any(),
+            (
+                PyArray1::from_slice(py, me.inner.grid().nodes()),
+                PyArray1::from_slice(py, me.inner.masses()),
+                me.inner.offset(),
+            ),
+        ))
     }
 
     /// Input grid nodes.
@@ -122,12 +146,12 @@ impl PyEverettModel {
     fn simulate<'py>(
         &self,
         py: Python<'py>,
-        u: PyReadonlyArray1<'py, f64>,
+        u: Array<'py>,
         offset: Option<f64>,
     ) -> PyResult<Bound<'py, PyArray1<f64>>> {
-        let u = to_vec(&u);
+        let u = to_vec(u);
         if let Some(i) = u.iter().position(|v| !v.is_finite()) {
-            return Err(BmrError::new_err(format!(
+            return Err(crate::python::BmrError::new_err(format!(
                 "input sample {i} is not finite ({})",
                 u[i]
             )));
@@ -146,19 +170,29 @@ impl PyEverettModel {
         subdivisions: usize,
     ) -> PyResult<Bound<'py, PyTuple>> {
         if subdivisions == 0 {
+            return Err(crate::python::BmrError::new_err(
+                "subdivisions must be at least 1",
+            ));
+        }
+        let (asc, desc) = self
+            .inner
+            .first_order_curves_subdivided(subdivisions)
+            .map_err(|e| identification_err("first_order_curves", e))?;
+        PyTuple::new(py, [curves_to_py(py, asc)?, curves_to_py(py, desc)?])
+    }
+
+    /// The CBH operator (`bmr.Hysteresis`, memory of 64 reversals, starting after negative saturation) of this
+    /// table, built in Rust from its first-order curves with `subdivisions` reversals per grid interval.
+    #[pyo3(signature = (subdivisions=4))]
+    fn hysteresis(&self, subdivisions: usize) -> PyResult<PyHysteresis> {
+        if subdivisions == 0 {
             return Err(BmrError::new_err("subdivisions must be at least 1"));
         }
-        let (asc, desc) = self.inner.first_order_curves_subdivided(subdivisions);
-        let conv = |fam: Vec<(Vec<f64>, Vec<f64>)>| -> PyResult<Bound<'py, PyList>> {
-            let items: Vec<Bound<'py, PyTuple>> = fam
-                .into_iter()
-                .map(|(u, y)| {
-                    PyTuple::new(py, [PyArray1::from_vec(py, u), PyArray1::from_vec(py, y)])
-                })
-                .collect::<PyResult<_>>()?;
-            PyList::new(py, items)
-        };
-        PyTuple::new(py, [conv(asc)?, conv(desc)?])
+        let op = self
+            .inner
+            .hysteresis(subdivisions, &BuildOptions::default(), Initial::Negative)
+            .map_err(|e| identification_err("EverettModel.hysteresis", e))?;
+        Ok(PyHysteresis { op })
     }
 
     fn __repr__(&self) -> String {
@@ -179,17 +213,18 @@ impl PyEverettModel {
 #[pyo3(signature = (grid, runs, n_offsets=1, *, smoothing=1e-4, ridge=1e-9, max_iter=500))]
 fn fit_everett<'py>(
     py: Python<'py>,
-    grid: PyReadonlyArray1<'py, f64>,
+    grid: Array<'py>,
     runs: Vec<RunArrays<'py>>,
     n_offsets: usize,
     smoothing: f64,
     ridge: f64,
     max_iter: usize,
 ) -> PyResult<Bound<'py, PyDict>> {
-    let grid = EverettGrid::new(to_vec(&grid)).map_err(BmrError::new_err)?;
+    let grid =
+        EverettGrid::new(to_vec(grid)).map_err(|e| identification_err("Everett table fit", e))?;
     let data: Vec<RunData> = runs
-        .iter()
-        .map(|(u, y, w, o)| (to_vec(u), to_vec(y), to_vec(w), *o))
+        .into_iter()
+        .map(|(u, y, w, o)| (to_vec(u), to_vec(y), to_vec(w), o))
         .collect();
     let options = EverettFitOptions {
         smoothing,
@@ -209,7 +244,7 @@ fn fit_everett<'py>(
                 .collect();
             fit_everett_rs(&grid, &views, n_offsets, options)
         })
-        .map_err(|e| BmrError::new_err(format!("Everett table fit: {e}")))?;
+        .map_err(|e| identification_err("Everett table fit", e))?;
     fit_dict(py, fit)
 }
 
@@ -242,17 +277,18 @@ impl PyEverettRegression {
     #[pyo3(signature = (grid, inputs, n_offsets=1, *, smoothing=1e-4, ridge=1e-9, max_iter=500))]
     fn new(
         py: Python<'_>,
-        grid: PyReadonlyArray1<'_, f64>,
-        inputs: Vec<(PyReadonlyArray1<'_, f64>, PyReadonlyArray1<'_, f64>, usize)>,
+        grid: Array<'_>,
+        inputs: Vec<(Array<'_>, Array<'_>, usize)>,
         n_offsets: usize,
         smoothing: f64,
         ridge: f64,
         max_iter: usize,
     ) -> PyResult<Self> {
-        let grid = EverettGrid::new(to_vec(&grid)).map_err(BmrError::new_err)?;
+        let grid = EverettGrid::new(to_vec(grid))
+            .map_err(|e| identification_err("Everett table fit", e))?;
         let data: Vec<(Vec<f64>, Vec<f64>, usize)> = inputs
-            .iter()
-            .map(|(u, w, o)| (to_vec(u), to_vec(w), *o))
+            .into_iter()
+            .map(|(u, w, o)| (to_vec(u), to_vec(w), o))
             .collect();
         let options = EverettFitOptions {
             smoothing,
@@ -271,7 +307,7 @@ impl PyEverettRegression {
                     .collect();
                 EverettRegression::new(&grid, &views, n_offsets, options)
             })
-            .map_err(|e| BmrError::new_err(format!("Everett table fit: {e}")))?;
+            .map_err(|e| identification_err("Everett table fit", e))?;
         Ok(Self { inner })
     }
 
@@ -286,17 +322,16 @@ impl PyEverettRegression {
     fn fit<'py>(
         &self,
         py: Python<'py>,
-        outputs: Vec<PyReadonlyArray1<'py, f64>>,
-        warm_start: Option<PyReadonlyArray1<'py, bool>>,
+        outputs: Vec<Array<'py>>,
+        warm_start: Option<Vec<bool>>,
     ) -> PyResult<Bound<'py, PyDict>> {
-        let ys: Vec<Vec<f64>> = outputs.iter().map(to_vec).collect();
-        let warm: Option<Vec<bool>> = warm_start.map(|w| w.as_array().iter().copied().collect());
+        let ys: Vec<Vec<f64>> = outputs.into_iter().map(to_vec).collect();
         let fit = py
             .detach(|| {
                 let views: Vec<&[f64]> = ys.iter().map(Vec::as_slice).collect();
-                self.inner.fit(&views, warm.as_deref())
+                self.inner.fit(&views, warm_start.as_deref())
             })
-            .map_err(|e| BmrError::new_err(format!("Everett table fit: {e}")))?;
+            .map_err(|e| identification_err("Everett table fit", e))?;
         fit_dict(py, fit)
     }
 
