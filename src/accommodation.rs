@@ -102,6 +102,48 @@ impl Accommodation {
         self.shift = 0.0;
     }
 
+    /// The evolving state as numbers (direction, flags and counts included), for saving.
+    pub fn state(&self) -> [f64; 11] {
+        [
+            f64::from(self.direction),
+            f64::from(u8::from(self.started)),
+            f64::from(u8::from(self.at_end)),
+            self.ext_u,
+            self.ext_v,
+            self.rev_v[0],
+            self.rev_v[1],
+            f64::from(self.reversals),
+            self.last_v,
+            self.shift,
+            0.0,
+        ]
+    }
+
+    /// Restore a state written by [`Accommodation::state`] (`false`, nothing changed, if it is not valid).
+    pub fn set_state(&mut self, s: &[f64; 11]) -> bool {
+        let flag = |x: f64| x == 0.0 || x == 1.0;
+        let ok = s.iter().all(|x| x.is_finite())
+            && [-1.0, 0.0, 1.0].contains(&s[0])
+            && flag(s[1])
+            && flag(s[2])
+            && s[7] >= 0.0
+            && s[7] <= f64::from(u32::MAX)
+            && libm::trunc(s[7]) == s[7];
+        if !ok {
+            return false;
+        }
+        self.direction = s[0] as i8;
+        self.started = s[1] == 1.0;
+        self.at_end = s[2] == 1.0;
+        self.ext_u = s[3];
+        self.ext_v = s[4];
+        self.rev_v = [s[5], s[6]];
+        self.reversals = s[7] as u32;
+        self.last_v = s[8];
+        self.shift = s[9];
+        true
+    }
+
     /// The current shift (output units).
     pub fn shift(&self) -> f64 {
         self.shift

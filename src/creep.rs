@@ -118,6 +118,27 @@ impl Creep {
         self.n
     }
 
+    /// The relaxations' states (the unused tail is zero), for saving a state.
+    pub fn states(&self) -> [f64; MAX_CREEP_TERMS] {
+        let mut out = [0.0; MAX_CREEP_TERMS];
+        for (o, r) in out.iter_mut().zip(&self.relax).take(self.n) {
+            *o = r.output();
+        }
+        out
+    }
+
+    /// Restore the relaxations' states written by [`Creep::states`] (`false`, nothing changed, if one is not
+    /// finite).
+    pub fn set_states(&mut self, states: &[f64; MAX_CREEP_TERMS]) -> bool {
+        if !states.iter().all(|x| x.is_finite()) {
+            return false;
+        }
+        for (r, &v) in self.relax.iter_mut().zip(states).take(self.n) {
+            r.set_output(v);
+        }
+        true
+    }
+
     /// Back to rest at `y0` (every relaxation settled).
     pub fn reset(&mut self, y0: f64) {
         self.relax.iter_mut().for_each(|r| r.set_output(y0));

@@ -125,6 +125,22 @@ impl<S: AsRef<[f64]> + AsMut<[f64]>> DelayLine<S> {
         let i = (self.head + self.len - k) % self.len;
         self.buf.as_ref()[i]
     }
+    /// The values in the line, oldest first (what the next `samples` steps return, in order).
+    pub fn values(&self) -> impl Iterator<Item = f64> + '_ {
+        (1..=self.len).rev().map(move |k| self.ago(k))
+    }
+
+    /// Fill the line with `values`, oldest first (as [`DelayLine::values`] gives them); `false` (nothing changed)
+    /// unless there are exactly `samples` of them.
+    pub fn set_values(&mut self, values: &[f64]) -> bool {
+        if values.len() != self.len {
+            return false;
+        }
+        self.buf.as_mut()[..self.len].copy_from_slice(values);
+        self.head = 0;
+        true
+    }
+
     /// Fill the line with `value`.
     pub fn fill(&mut self, value: f64) {
         let n = self.len;

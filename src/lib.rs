@@ -28,6 +28,7 @@ pub mod from_curves;
 pub mod history;
 pub mod inverse;
 pub mod model_data;
+pub mod limits;
 #[cfg(feature = "alloc")]
 pub mod paper_inverse;
 #[cfg(feature = "std")]
@@ -49,6 +50,7 @@ pub use everett::{Family, Strip};
 pub use friction::{Friction, FrictionError};
 pub use inverse::InverseInput;
 pub use reversals::{ReversalFinder, ReversalOrder, ReversalPoint};
+pub use limits::LimitError;
 #[cfg(feature = "alloc")]
 pub use table_builder::{BuildOptions, MeasuredCurve, build_tables};
 

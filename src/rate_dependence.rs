@@ -95,6 +95,21 @@ impl RateDependence {
         self.u_core = u_core;
     }
 
+    /// The evolving state `[u_core, last_u_core, last_y, relative slope]`, for saving.
+    pub fn state(&self) -> [f64; 4] {
+        [self.u_core, self.last_u_core, self.last_y, self.rel_slope]
+    }
+
+    /// Restore a state written by [`RateDependence::state`] (`false`, nothing changed, if it is not valid).
+    pub fn set_state(&mut self, s: [f64; 4]) -> bool {
+        if !(s.iter().all(|x| x.is_finite()) && (0.0..=MAX_RELATIVE_SLOPE).contains(&s[3])) {
+            return false;
+        }
+        [self.u_core, self.last_u_core, self.last_y, self.rel_slope] = s;
+        self.update_pole();
+        true
+    }
+
     /// The core input of the last step.
     pub fn core_input(&self) -> f64 {
         self.u_core

@@ -1,16 +1,17 @@
-//! Python bindings of the identification least squares: `fit_friction_order`, `EverettModel`, `fit_everett`.
+//! Python bindings of the identification least squares: `fit_friction_order`, `EverettModel`, `fit_everett`,
+//! `EverettRegression`.
 use numpy::{AllowTypeChange, PyArray1, PyArray2, PyArrayLike1, PyArrayMethods};
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyTuple};
 
 use crate::cbh::Initial;
 use crate::identification::{
-    EverettFitOptions, EverettGrid, EverettModel, EverettRun, fit_everett as fit_everett_rs,
-    fit_friction,
+    EverettFit, EverettFitOptions, EverettGrid, EverettInput, EverettModel, EverettRegression,
+    EverettRun, fit_everett as fit_everett_rs, fit_friction,
 };
 use crate::python::arrays::{curves_to_py, to_vec};
 use crate::python::hysteresis::PyHysteresis;
-use crate::python::{BmrError, bmr_err};
+use crate::python::{BmrError, identification_err};
 use crate::table_builder::BuildOptions;
 
 /// A 1-D float array argument (lists and integer arrays accepted).
@@ -34,7 +35,7 @@ fn fit_friction_order<'py>(
     let torque = to_vec(torque_nmm);
     let fit = py
         .detach(|| fit_friction(&theta, &torque, order))
-        .map_err(|e| BmrError::new_err(format!("friction fit: {e}")))?;
+        .map_err(|e| identification_err("friction fit", e))?;
     let p = fit.n_params();
     let d = PyDict::new(py);
     d.set_item("order", fit.order)?;
@@ -68,9 +69,39 @@ impl PyEverettModel {
     #[new]
     #[pyo3(signature = (grid, masses, offset))]
     fn new(grid: Array<'_>, masses: Array<'_>, offset: f64) -> PyResult<Self> {
-        let grid = EverettGrid::new(to_vec(grid)).map_err(BmrError::new_err)?;
-        let inner = EverettModel::new(grid, to_vec(masses), offset).map_err(BmrError::new_err)?;
+        let grid =
+            EverettGrid::new(to_vec(grid)).map_err(|e| identification_err("EverettModel", e))?;
+        let inner = EverettModel::new(grid, to_vec(masses), offset)
+            .map_err(|e| identification_err("EverettModel", e))?;
         Ok(Self { inner })
+    }
+
+    fn __copy__(slf: PyRef<'_, Self>) -> PyRef<'_, Self> {
+        slf // immutable: a copy is the object itself
+    }
+
+    fn __deepcopy__<'py>(slf: PyRef<'py, Self>, _memo: &Bound<'py, PyAny>) -> PyRef<'py, Self> {
+        slf
+    }
+
+    /// Pickled as its constructor arguments.
+    #[allow(clippy::type_complexity)]
+    fn __reduce__<'py>(
+        slf: &Bound<'py, Self>,
+    ) -> PyResult<(
+        Bound<'py, PyAny>,
+        (Bound<'py, PyArray1<f64>>, Bound<'py, PyArray1<f64>>, f64),
+    )> {
+        let py = slf.py();
+        let me = slf.get();
+        Ok((
+            slf.get_type().into_any(),
+            (
+                PyArray1::from_slice(py, me.inner.grid().nodes()),
+                PyArray1::from_slice(py, me.inner.masses()),
+                me.inner.offset(),
+            ),
+        ))
     }
 
     /// Input grid nodes.
@@ -120,7 +151,7 @@ impl PyEverettModel {
     ) -> PyResult<Bound<'py, PyArray1<f64>>> {
         let u = to_vec(u);
         if let Some(i) = u.iter().position(|v| !v.is_finite()) {
-            return Err(BmrError::new_err(format!(
+            return Err(crate::python::BmrError::new_err(format!(
                 "input sample {i} is not finite ({})",
                 u[i]
             )));
@@ -139,9 +170,14 @@ impl PyEverettModel {
         subdivisions: usize,
     ) -> PyResult<Bound<'py, PyTuple>> {
         if subdivisions == 0 {
-            return Err(BmrError::new_err("subdivisions must be at least 1"));
+            return Err(crate::python::BmrError::new_err(
+                "subdivisions must be at least 1",
+            ));
         }
-        let (asc, desc) = self.inner.first_order_curves_subdivided(subdivisions);
+        let (asc, desc) = self
+            .inner
+            .first_order_curves_subdivided(subdivisions)
+            .map_err(|e| identification_err("first_order_curves", e))?;
         PyTuple::new(py, [curves_to_py(py, asc)?, curves_to_py(py, desc)?])
     }
 
@@ -155,7 +191,7 @@ impl PyEverettModel {
         let op = self
             .inner
             .hysteresis(subdivisions, &BuildOptions::default(), Initial::Negative)
-            .map_err(bmr_err)?;
+            .map_err(|e| identification_err("EverettModel.hysteresis", e))?;
         Ok(PyHysteresis { op })
     }
 
@@ -184,7 +220,8 @@ fn fit_everett<'py>(
     ridge: f64,
     max_iter: usize,
 ) -> PyResult<Bound<'py, PyDict>> {
-    let grid = EverettGrid::new(to_vec(grid)).map_err(BmrError::new_err)?;
+    let grid =
+        EverettGrid::new(to_vec(grid)).map_err(|e| identification_err("Everett table fit", e))?;
     let data: Vec<RunData> = runs
         .into_iter()
         .map(|(u, y, w, o)| (to_vec(u), to_vec(y), to_vec(w), o))
@@ -207,20 +244,106 @@ fn fit_everett<'py>(
                 .collect();
             fit_everett_rs(&grid, &views, n_offsets, options)
         })
-        .map_err(|e| BmrError::new_err(format!("Everett table fit: {e}")))?;
+        .map_err(|e| identification_err("Everett table fit", e))?;
+    fit_dict(py, fit)
+}
+
+/// The result dict of `fit_everett` and `EverettRegression.fit`.
+fn fit_dict(py: Python<'_>, fit: EverettFit) -> PyResult<Bound<'_, PyDict>> {
     let d = PyDict::new(py);
     d.set_item("offsets", PyArray1::from_slice(py, &fit.offsets))?;
     d.set_item("rss", fit.rss)?;
     d.set_item("rms", fit.rms)?;
     d.set_item("n_rows", fit.n_rows)?;
     d.set_item("iterations", fit.iterations)?;
+    d.set_item("passive", PyArray1::from_slice(py, &fit.passive))?;
     d.set_item("model", Py::new(py, PyEverettModel { inner: fit.model })?)?;
     Ok(d)
+}
+
+/// The Everett-table least squares of `fit_everett` prepared for one input history: `inputs` is a list of
+/// `(u, weight, offset_col)`. The regressors and the regularised normal matrix are built once; `fit(outputs)`
+/// then identifies the table for any outputs of the same runs (one array per run) at the cost of a right-hand
+/// side and a nonnegative solve, optionally warm-started from an earlier result's `passive` set (same answer,
+/// fewer iterations).
+#[pyclass(name = "EverettRegression", module = "bmr._core", frozen)]
+pub struct PyEverettRegression {
+    inner: EverettRegression,
+}
+
+#[pymethods]
+impl PyEverettRegression {
+    #[new]
+    #[pyo3(signature = (grid, inputs, n_offsets=1, *, smoothing=1e-4, ridge=1e-9, max_iter=500))]
+    fn new(
+        py: Python<'_>,
+        grid: Array<'_>,
+        inputs: Vec<(Array<'_>, Array<'_>, usize)>,
+        n_offsets: usize,
+        smoothing: f64,
+        ridge: f64,
+        max_iter: usize,
+    ) -> PyResult<Self> {
+        let grid = EverettGrid::new(to_vec(grid))
+            .map_err(|e| identification_err("Everett table fit", e))?;
+        let data: Vec<(Vec<f64>, Vec<f64>, usize)> = inputs
+            .into_iter()
+            .map(|(u, w, o)| (to_vec(u), to_vec(w), o))
+            .collect();
+        let options = EverettFitOptions {
+            smoothing,
+            ridge,
+            max_iter,
+        };
+        let inner = py
+            .detach(|| {
+                let views: Vec<EverettInput<'_>> = data
+                    .iter()
+                    .map(|(u, w, o)| EverettInput {
+                        u,
+                        weight: w,
+                        offset_col: *o,
+                    })
+                    .collect();
+                EverettRegression::new(&grid, &views, n_offsets, options)
+            })
+            .map_err(|e| identification_err("Everett table fit", e))?;
+        Ok(Self { inner })
+    }
+
+    /// Number of regression rows.
+    #[getter]
+    fn n_rows(&self) -> usize {
+        self.inner.n_rows()
+    }
+
+    /// Identify the table for `outputs` (one array per run); returns the dict of `fit_everett`.
+    #[pyo3(signature = (outputs, warm_start=None))]
+    fn fit<'py>(
+        &self,
+        py: Python<'py>,
+        outputs: Vec<Array<'py>>,
+        warm_start: Option<Vec<bool>>,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        let ys: Vec<Vec<f64>> = outputs.into_iter().map(to_vec).collect();
+        let fit = py
+            .detach(|| {
+                let views: Vec<&[f64]> = ys.iter().map(Vec::as_slice).collect();
+                self.inner.fit(&views, warm_start.as_deref())
+            })
+            .map_err(|e| identification_err("Everett table fit", e))?;
+        fit_dict(py, fit)
+    }
+
+    fn __repr__(&self) -> String {
+        format!("EverettRegression(rows={})", self.inner.n_rows())
+    }
 }
 
 pub(crate) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(fit_friction_order, m)?)?;
     m.add_function(wrap_pyfunction!(fit_everett, m)?)?;
     m.add_class::<PyEverettModel>()?;
+    m.add_class::<PyEverettRegression>()?;
     Ok(())
 }
