@@ -27,8 +27,8 @@ pub mod friction;
 pub mod from_curves;
 pub mod history;
 pub mod inverse;
-pub mod model_data;
 pub mod limits;
+pub mod model_data;
 #[cfg(feature = "alloc")]
 pub mod paper_inverse;
 #[cfg(feature = "std")]
@@ -49,8 +49,8 @@ pub use error::{FamilyKind, TableError};
 pub use everett::{Family, Strip};
 pub use friction::{Friction, FrictionError};
 pub use inverse::InverseInput;
-pub use reversals::{ReversalFinder, ReversalOrder, ReversalPoint};
 pub use limits::LimitError;
+pub use reversals::{ReversalFinder, ReversalOrder, ReversalPoint};
 #[cfg(feature = "alloc")]
 pub use table_builder::{BuildOptions, MeasuredCurve, build_tables};
 

@@ -84,11 +84,11 @@ impl Converter {
     }
 
     pub(crate) fn save_state(&self, out: &mut Vec<u64>) {
-        out.push(self.current_a.to_bits());
+        out.push(self.lag.output().to_bits());
     }
 
     pub(crate) fn load_state(&mut self, r: &mut super::StateReader<'_>) -> Result<(), PlantError> {
-        self.current_a = r.float()?;
+        self.lag.set_output(r.float()?);
         Ok(())
     }
 }

@@ -8,7 +8,7 @@ use crate::congruency::congruency;
 use crate::error::FamilyKind;
 use crate::everett::Family;
 use crate::python::arrays::{DETACH_LEN, curves_to_py, extract_f64_array, to_numpy};
-use crate::python::{BmrError, bmr_err, borrow, borrow_mut, bytes_to_words, table_err, words_to_bytes};
+use crate::python::{BmrError, borrow, borrow_mut, bytes_to_words, table_err, words_to_bytes};
 use crate::rate_dependence::RateDependence;
 use crate::table_builder::BuildOptions;
 
