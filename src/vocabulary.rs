@@ -229,6 +229,14 @@ pub static MODEL_ENTRIES: &[EffectSpec] = &[
         )],
     },
     EffectSpec {
+        name: "learned_discrepancy",
+        acts: Acts::Sensor,
+        doc: "A term no named effect explains, learned by sparse regression of the residual on signals of the run \
+              (its `terms`: signal names of bmr._core.CANDIDATES with coefficients in the declared units, an \
+              `intercept` and the reversal `deadband`); added to the predicted output, never compensated.",
+        params: &[],
+    },
+    EffectSpec {
         name: "offset",
         acts: Acts::Sensor,
         doc: "Constant torque-sensor offset fitted by the diagnosis (measurement only).",

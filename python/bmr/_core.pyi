@@ -11,6 +11,8 @@ _Curve = Tuple[npt.ArrayLike, npt.ArrayLike]
 _Initial = Union[str, Tuple[str, float]]
 
 __all__ = [
+    "ACCOMMODATION_DEADBAND_SHARE",
+    "ACCOMMODATION_SATURATION_SHARE",
     "ACTUATOR_PARAMETERS",
     "BmrError",
     "BundleError",
@@ -277,6 +279,10 @@ def candidate_signals(t_s: ArrayLike, u: ArrayLike, y: ArrayLike, *, deadband: f
                       theta_rad: ArrayLike | None = None, harmonics: int = 0) -> np.ndarray:
     """``n × m`` candidate library of one run (columns named in :data:`CANDIDATES`, then angle harmonics)."""
 
+ACCOMMODATION_DEADBAND_SHARE: float
+"""Reversal dead-band of accommodation as a share of the input span."""
+ACCOMMODATION_SATURATION_SHARE: float
+"""Saturation tolerance of accommodation as a share of the input span."""
 CANDIDATES: tuple[tuple[str, str, str], ...]
 """The candidate library's run signals: ``(name, unit template, definition)``; ``{u}``/``{y}`` stand for the
 input/output unit."""
@@ -311,6 +317,9 @@ class VirtualActuator:
     def reset(self) -> None: ...
     def start_run(self, rest_s: float = 0.0) -> None:
         """A new recording after resting ``rest_s`` s at zero current (inf: settled, coils cold)."""
+    @property
+    def run_calibration(self) -> tuple[float, float]:
+        """This recording's sensor ``(gain, offset_nmm)`` (``run_gain_offset``)."""
     def true_friction(self, theta_rad: _ArrayLike) -> np.ndarray: ...
     def theta_ahead(self, n: int) -> np.ndarray: ...
     @property
@@ -480,6 +489,8 @@ class VirtualDevice:
     def quantities(self) -> tuple[tuple[str, str], tuple[str, str]]: ...
     @property
     def input_range(self) -> tuple[float, float]: ...
+    @property
+    def run_calibration(self) -> tuple[float, float]: ...
     @property
     def noise(self) -> float: ...
     @property

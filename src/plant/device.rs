@@ -321,6 +321,11 @@ impl VirtualDevice {
         self.index as f64 * self.dt_s
     }
 
+    /// This recording's sensor gain and offset (output units) of `run_gain_offset` (1 and 0 when it is off).
+    pub fn run_calibration(&self) -> (f64, f64) {
+        (self.run_gain, self.run_offset)
+    }
+
     /// A new recording after a rest of `rest_s` seconds at the input centre (see
     /// [`super::VirtualActuator::start_run`]).
     pub fn start_run(&mut self, rest_s: f64) -> Result<(), PlantError> {

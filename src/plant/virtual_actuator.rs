@@ -668,6 +668,11 @@ impl VirtualActuator {
         Ok(())
     }
 
+    /// This recording's sensor calibration: gain and offset (N·mm) of `run_gain_offset` (1 and 0 when it is off).
+    pub fn run_calibration(&self) -> (f64, f64) {
+        (self.run_gain, self.run_offset_nmm)
+    }
+
     /// Noise-free seal friction (N·mm) at zero current and angle `theta_rad`, including any extra harmonic.
     pub fn true_friction_nmm(&self, theta_rad: f64) -> f64 {
         self.friction_nmm(theta_rad, 0.0)

@@ -161,5 +161,13 @@ pub(crate) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
         .map(|c| PyTuple::new(m.py(), [c.name, c.unit, c.doc]))
         .collect::<PyResult<_>>()?;
     m.add("CANDIDATES", PyTuple::new(m.py(), items)?)?;
+    m.add(
+        "ACCOMMODATION_DEADBAND_SHARE",
+        crate::accommodation::DEADBAND_SHARE,
+    )?;
+    m.add(
+        "ACCOMMODATION_SATURATION_SHARE",
+        crate::accommodation::SATURATION_SHARE,
+    )?;
     Ok(())
 }

@@ -334,6 +334,13 @@ impl PyVirtualActuator {
         self.sim()?.start_run(rest_s).map_err(bmr_err)
     }
 
+    /// This recording's sensor calibration ``(gain, offset_nmm)`` (``run_gain_offset``; ``(1, 0)`` when off): the
+    /// hidden truth a calibration study compares the diagnosis with.
+    #[getter]
+    fn run_calibration(&self) -> PyResult<(f64, f64)> {
+        Ok(self.sim()?.run_calibration())
+    }
+
     /// Back to the state right after construction (demagnetised, cold, t = 0, same noise stream).
     fn reset(&self) -> PyResult<()> {
         self.sim()?.reset();

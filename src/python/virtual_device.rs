@@ -128,6 +128,12 @@ impl PyVirtualDevice {
         PyTuple::new(py, [i, o])
     }
 
+    /// This recording's sensor calibration ``(gain, offset)`` (``run_gain_offset``; ``(1, 0)`` when off).
+    #[getter]
+    fn run_calibration(&self) -> (f64, f64) {
+        self.inner.run_calibration()
+    }
+
     /// ``(low, high)`` input saturation ends.
     #[getter]
     fn input_range(&self) -> (f64, f64) {

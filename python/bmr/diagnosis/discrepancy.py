@@ -30,10 +30,15 @@ import numpy as np
 
 from bmr import _core
 
-__all__ = ["CandidateLibrary", "LearnedTerms", "candidate_library", "learn", "unit_text", "THRESHOLDS"]
+__all__ = ["CandidateLibrary", "LearnedTerms", "candidate_library", "coefficient_unit", "learn", "unit_text",
+           "THRESHOLDS"]
 
 # Thresholds on a term's RMS contribution, in multiples of the noise floor.
 THRESHOLDS = (0.03, 0.06, 0.12, 0.25, 0.5, 1.0)
+# A learned term stays only if dropping it costs at least this share of the held-out sum of squares, and an
+# equation keeps at most MAX_TERMS terms (the least useful go first): parsimony, as in SINDy.
+MIN_TERM_GAIN = 0.005
+MAX_TERMS = 5
 _RIDGE = 1e-8
 
 
@@ -44,13 +49,20 @@ def unit_text(template: str, input_unit: str, output_unit: str) -> str:
     return text.replace("^2", "²").replace("*", "·")
 
 
-def _coefficient_unit(output_unit: str, column_unit: str) -> str:
-    if column_unit == "1":
+def coefficient_unit(template: str, input_unit: str, output_unit: str) -> str:
+    """The unit of a term's coefficient: the output unit over the signal's (``"{u}*s"`` → ``"N·mm/(A·s)"``; a
+    signal that carries the output, ``"{y}*s"``, → ``"1/s"``; a dimensionless one → the output unit)."""
+    factors = [f for f in template.split("*") if f]
+    if "{y}" in factors:
+        factors.remove("{y}")
+        rest = unit_text("*".join(factors), input_unit, output_unit) if factors else "1"
+        if rest == "1":
+            return "1"
+        return f"1/({rest})" if ("·" in rest or "/" in rest) else f"1/{rest}"
+    column = unit_text(template, input_unit, output_unit)
+    if column == "1":
         return output_unit
-    if column_unit == output_unit:
-        return "1"
-    return f"{output_unit}/({column_unit})" if ("·" in column_unit or "/" in column_unit) else \
-        f"{output_unit}/{column_unit}"
+    return f"{output_unit}/({column})" if ("·" in column or "/" in column) else f"{output_unit}/{column}"
 
 
 @dataclass
@@ -178,7 +190,7 @@ def _select(m: _Moments, blocks: np.ndarray, thresholds: Sequence[float]) -> tup
             s[j] = False
             trials.append((_heldout_sse(m, blocks, s).sum(), int(j)))
         sse, j = min(trials)
-        if sse > base:
+        if sse > base * (1.0 + MIN_TERM_GAIN) and int(support[1:].sum()) <= MAX_TERMS:
             break
         support[j] = False
         dropped.append(j)
@@ -293,7 +305,8 @@ def learn(library: CandidateLibrary, residual: np.ndarray, block: np.ndarray, fo
         col_unit = unit_text(units[j - 1], input_unit, output_unit)
         terms.append({"name": names[j - 1], "unit": col_unit,
                       "coefficient": float(beta[j] / scale[usable][j - 1]),
-                      "coefficient_unit": _coefficient_unit(output_unit, col_unit), "doc": docs[j - 1],
+                      "coefficient_unit": coefficient_unit(units[j - 1], input_unit, output_unit),
+                      "doc": docs[j - 1],
                       "contribution_rms": float(abs(beta[j])),
                       "heldout_gain_if_dropped": float(1.0 - math.sqrt(base / without)) if without > 0 else 0.0})
     terms.sort(key=lambda t: -t["contribution_rms"])

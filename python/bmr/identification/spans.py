@@ -20,15 +20,19 @@ SATURATION_TOL = 0.002
 
 
 def input_range_of(currents: Sequence[np.ndarray], window: int = 21) -> tuple[float, float]:
-    """The saturation ends reached by measured currents: the extremes of their ``window``-sample running mean
-    (a noisy signal's single extreme samples overshoot the commanded saturation by several sigmas; the running
-    mean of a ramp's apex stays within half a window of steps of it)."""
+    """The saturation ends reached by measured inputs: the extreme samples pulled in by the overshoot that the
+    inputs' sample noise explains — at most the gap to the extremes of their ``window``-sample running mean (a
+    noisy signal's single extreme samples overshoot the commanded saturation by several sigmas; the running mean of
+    a ramp's apex stays within half a window of steps of it) and at most three noise sigmas (sparse logs, such as
+    one sample per current step, keep their extreme samples)."""
+    arrays = [np.asarray(u, dtype=float) for u in currents]
+    noise = sample_noise(arrays) if arrays else 0.0
     lo, hi = math.inf, -math.inf
-    for u in currents:
-        u = np.asarray(u, dtype=float)
+    for u in arrays:
         w = max(1, min(window, u.size))
         mean = np.convolve(u, np.full(w, 1.0 / w), mode="valid")
-        lo, hi = min(lo, float(mean.min())), max(hi, float(mean.max()))
+        lo = min(lo, float(u.min()) + min(float(mean.min()) - float(u.min()), 3.0 * noise))
+        hi = max(hi, float(u.max()) - min(float(u.max()) - float(mean.max()), 3.0 * noise))
     return lo, hi
 
 

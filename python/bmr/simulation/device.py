@@ -124,6 +124,10 @@ def device_bundle(preset: str = "piezo", *, effects: Mapping[str, Any] | Sequenc
         if i > 0 or rest_s:
             dev.start_run(float(rest_s or 0.0))
         opening = _opening(lo, hi, open_step)
+        meta = dict(meta)
+        if "run_gain_offset" in dev.effects:
+            gain, offset = dev.run_calibration
+            meta["calibration"] = {"gain": gain, "offset": offset}
         runs.append(_record(dev, q, name, kind, role, np.concatenate([opening, body]), opening.size, meta))
     sim = {"device": preset, "seed": int(seed), "effects": {k: dict(v) for k, v in dev.effects.items()},
            "noise": dev.noise, "rest_s": rest_s, "overrides": {k: float(v) for k, v in (overrides or {}).items()}}

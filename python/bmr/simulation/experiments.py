@@ -465,7 +465,11 @@ def simulate_bundle(preset: str = "bmr2013", *, effects: Mapping[str, Any] | Seq
     for i, fn in enumerate(plan):
         if i > 0:
             actuator.start_run(float(rest_s or 0.0))
+        calibration = actuator.run_calibration
         runs.append(fn(actuator))
+        if "run_gain_offset" in actuator.effects:
+            # The recording's hidden calibration (ground truth for calibration studies).
+            runs[-1].meta["calibration"] = {"gain": calibration[0], "offset_nmm": calibration[1]}
         if on_run is not None:
             on_run(runs[-1])
     meta = {"simulator": {"preset": preset, "seed": int(seed), "quick": bool(quick),
