@@ -27,11 +27,13 @@ Usage::
     python benches/diagnosis_calibration.py [--seeds 2] [--sizes 0.5,1,2] [--plants rig_preisach,rig_soft,piezo]
         [--effects a,b] [--no-pairs] [--workers 2] [--json OUT]
 
-Bundles are diagnosed with ``bmr.diagnose_many`` (Dask) when it exists, else one after the other.
+Bundles are made and diagnosed on Dask workers (``bmr.diagnose_many``; ``--workers 0``: one after the other in
+this process).
 """
 from __future__ import annotations
 
 import argparse
+import functools
 import json
 import math
 import sys
@@ -93,6 +95,11 @@ def _plants() -> dict[str, tuple[Callable[[Any, int], Any], dict[str, tuple[dict
     }
 
 
+def _make_bundle(plant: str, effects: Any, seed: int) -> Any:
+    """The bundle of one case, made where it is diagnosed (a module-level function: it pickles)."""
+    return _plants()[plant][0](effects, seed)
+
+
 def effect_at(medium: dict[str, tuple[dict[str, float], str, list[str]]], name: str, size: float
               ) -> dict[str, float]:
     params, _, scaled = medium[name]
@@ -102,41 +109,37 @@ def effect_at(medium: dict[str, tuple[dict[str, float], str, list[str]]], name: 
     return out
 
 
-def _diagnose_all(bundles: list[Any], workers: int) -> list[Any]:
-    try:
-        from bmr import diagnose_many  # type: ignore[attr-defined]
-    except ImportError:
-        diagnose_many = None
-    if diagnose_many is not None and workers > 1:
-        return list(diagnose_many(bundles, workers=workers, progress=False, closed_loop=False))
-    from bmr.diagnosis.procedure import diagnose
+def _diagnose_all(makers: list[Any], workers: int) -> list[dict[str, Any] | str]:
+    """The ``bmr-diagnosis/1`` JSON of every bundle (a bundle-making callable, run where the diagnosis runs), or
+    the error message of a bundle that failed: on Dask through ``bmr.diagnose_many`` (``workers`` local worker
+    processes; 0: one after the other here)."""
+    from bmr.diagnosis.many import diagnose_many
 
-    out = []
-    for b in bundles:
-        try:
-            out.append(diagnose(b, progress=False, closed_loop=False))
-        except Exception as exc:  # noqa: BLE001 - a failed bundle is recorded, never loses the others
-            out.append(exc)
+    table = diagnose_many(makers, workers=workers, progress=True, closed_loop=False)
+    out: list[dict[str, Any] | str] = []
+    for _, row in table.sort_values("index").iterrows():
+        out.append(json.loads(row["diagnosis"]) if row["status"] == "ok" else str(row["error"]))
     return out
 
 
-def _row(case: dict[str, Any], d: Any, medium: dict[str, Any]) -> dict[str, Any]:
+def _row(case: dict[str, Any], d: dict[str, Any] | str, medium: dict[str, Any]) -> dict[str, Any]:
     row = dict(case)
-    if isinstance(d, Exception):
-        row.update(error=str(d), found=[], detected=False, wrong=False, false_alarm=False)
+    if isinstance(d, str):
+        row.update(error=d, found=[], detected=False, wrong=False, false_alarm=False)
         return row
-    names = [e["name"] for e in d.effects]
+    names = [e["name"] for e in d["effects"]]
     physical = [n for n in names if n in PHYSICAL]
     truth = case["effects"]
-    row.update(found=names, nominal=d.nominal_heldout_rms_nmm, final=d.residual_rms_nmm, noise=d.noise_floor_nmm,
-               wall_s=d.wall_time_s, learned=bool(getattr(d, "learned", None)))
+    learned = d.get("learned") or {}
+    row.update(found=names, nominal=d["nominal_heldout_rms_nmm"], final=d["residual_rms_nmm"],
+               noise=d["noise_floor_nmm"], wall_s=d["wall_time_s"], learned=bool(learned.get("accepted")))
     if truth:
         row["detected"] = all(n in physical for n in truth)
         row["wrong"] = any(n not in truth for n in physical)
         errs = []
         for name, params in truth.items():
             key = medium[name][1]
-            got = next((e["params"].get(key) for e in d.effects if e["name"] == name), None)
+            got = next((e["params"].get(key) for e in d["effects"] if e["name"] == name), None)
             errs.append(abs(got - params[key]) / abs(params[key]) if got is not None else math.nan)
         row["param_err"] = float(np.nanmax(errs)) if not all(math.isnan(e) for e in errs) else math.nan
     else:
@@ -177,8 +180,8 @@ def main(argv: list[str] | None = None) -> int:
                                       "effects": {a: effect_at(medium, a, 1.0), b: effect_at(medium, b, 1.0)}})
     t0 = time.perf_counter()
     c0 = time.process_time()
-    bundles = [plants[c["plant"]][0](c["effects"] or None, c["seed"]) for c in cases]
-    results = _diagnose_all(bundles, args.workers)
+    makers = [functools.partial(_make_bundle, c["plant"], c["effects"] or None, c["seed"]) for c in cases]
+    results = _diagnose_all(makers, args.workers)
     rows = [_row(c, d, plants[c["plant"]][1]) for c, d in zip(cases, results)]
     wall, cpu = time.perf_counter() - t0, time.process_time() - c0
     for r in rows:
@@ -187,6 +190,16 @@ def main(argv: list[str] | None = None) -> int:
     walls = np.array([r["wall_s"] for r in rows if "wall_s" in r])
     print(f"\n{len(rows)} bundles in {wall:.0f} s wall ({cpu:.0f} s CPU in this process); diagnosis wall time per "
           f"bundle: median {np.median(walls):.1f} s, max {walls.max():.1f} s\n")
+    clean = [r for r in rows if r["label"] == "clean" and "error" not in r]
+    single = [r for r in rows if r["label"] not in ("clean",) and " + " not in r["label"] and "error" not in r]
+    pairs = [r for r in rows if " + " in r["label"] and "error" not in r]
+    for what, sel in (("single effects", single), ("pairs", pairs)):
+        if sel:
+            print(f"{what}: detection {np.mean([r['detected'] for r in sel]):.2f}, wrong name "
+                  f"{np.mean([r['wrong'] for r in sel]):.2f} over {len(sel)} bundles")
+    if clean:
+        print(f"clean bundles: false alarm {np.mean([r['false_alarm'] for r in clean]):.2f} over {len(clean)}; "
+              f"learned term kept in {sum(r['learned'] for r in clean)}\n")
     print("| plant | effect | size | detection | wrong name | false alarm | median param. error | held-out RMS "
           "nominal → extended (noise) |")
     print("|---|---|---|---|---|---|---|---|")

@@ -39,6 +39,8 @@ THRESHOLDS = (0.03, 0.06, 0.12, 0.25, 0.5, 1.0)
 # equation keeps at most MAX_TERMS terms (the least useful go first): parsimony, as in SINDy.
 MIN_TERM_GAIN = 0.005
 MAX_TERMS = 5
+# Signals more correlated than this with an earlier one of the library are left out of the regression.
+COLLINEAR = 0.999
 _RIDGE = 1e-8
 
 
@@ -262,6 +264,22 @@ def learn(library: CandidateLibrary, residual: np.ndarray, block: np.ndarray, fo
     names = [n for n, ok in zip(library.names, usable) if ok]
     units = [u for u, ok in zip(library.units, usable) if ok]
     docs = [d for d, ok in zip(library.docs, usable) if ok]
+    # Near-duplicate signals (|u| of a one-sided input is u; the model output of a nearly linear device follows u)
+    # would share a term with opposite, unstable coefficients: keep the first of each near-collinear group.
+    zc = x[:, usable] - x[:, usable].mean(axis=0)
+    norm = np.sqrt(np.sum(zc * zc, axis=0))
+    keep_cols: list[int] = []
+    for j in range(zc.shape[1]):
+        if norm[j] <= 1e-12 * max(float(np.max(norm)), 1e-300):
+            continue
+        if all(abs(float(zc[:, j] @ zc[:, i])) < COLLINEAR * norm[j] * norm[i] for i in keep_cols):
+            keep_cols.append(j)
+    idx = np.flatnonzero(usable)[keep_cols]
+    usable = np.zeros_like(usable)
+    usable[idx] = True
+    names = [library.names[i] for i in idx]
+    units = [library.units[i] for i in idx]
+    docs = [library.docs[i] for i in idx]
     z = np.column_stack([np.ones(r.size), x[:, usable] / scale[usable]])
     p = z.shape[1]
     gram = np.zeros((folds, p, p))

@@ -512,7 +512,8 @@ class RunGainOffset(Effect):
         ind = data.cache.get(("run_indicator", y_field.size), make)
         if value == "offset":
             return ind
-        return np.column_stack([ind * y_field[:, None], ind])
+        # The calibration scales what the sensor reads: the field output and the friction alike.
+        return np.column_stack([ind * (y_field + data.friction_nmm)[:, None], ind])
 
     def params(self, value, beta, path):
         beta = np.asarray(beta, dtype=float)

@@ -38,8 +38,8 @@ from bmr.diagnosis.effects import ANGLE_EFFECTS, LIBRARY, PHYSICAL
 from bmr.diagnosis.field import FieldPath
 from bmr.diagnosis.noise import from_residual
 from bmr.diagnosis.extended_model import ExtendedModel, extensions_from_selection, with_extensions
-from bmr.diagnosis.residuals import prepare, structure
-from bmr.diagnosis.selection import MIN_EXCESS, MIN_GAIN, NOISE_MARGIN, Fitter, forward_selection, t975
+from bmr.diagnosis.residuals import prepare, signal_label, structure
+from bmr.diagnosis.selection import MIN_EXCESS, NOISE_MARGIN, Fitter, forward_selection, t975
 from bmr.identification.procedure import identify
 from bmr.identification.model import LOOP_STAGES, Model
 from bmr.report.diagnosis import figures, html_page, html_section
@@ -48,6 +48,8 @@ from bmr.simulation.experiments import MULTIPEAK_SEED, reference_multipeak, trac
 __all__ = ["FORMAT", "Diagnosis", "diagnose", "closed_loop_gain", "run_cli", "PHYSICAL"]
 
 FORMAT = "bmr-diagnosis/1"
+# A learned equation (no mechanism behind it) must earn more held-out gain than a named effect.
+LEARNED_MIN_GAIN = 0.05
 # Nominal friction: the paper's 3 harmonics (eq 21-22); higher ones are the friction_harmonics effect.
 NOMINAL_FRICTION_ORDER = 3
 
@@ -153,13 +155,6 @@ class Diagnosis:
         return (f"Diagnosis(cause={self.cause!r}, effects={[e['name'] for e in self.effects]}{learned}, "
                 f"held-out RMS {self.nominal_heldout_rms_nmm:.3g} -> {self.residual_rms_nmm:.3g} {unit}, "
                 f"noise {self.noise_floor_nmm:.3g} {unit} ({self.noise['method']}))")
-
-
-def signal_label(signal: str, quantities: Any) -> str:
-    """A residual-structure signal in the device's words: ``input_level`` → ``current level``."""
-    name = quantities.input.name
-    return {"input_level": f"{name} level", "input_rate": f"{name} rate",
-            "time_since_reversal": "time since the last reversal"}.get(signal, signal.replace("_", " "))
 
 
 def _rms(x: np.ndarray) -> float:
@@ -317,7 +312,7 @@ def _learn_discrepancy(data: Any, residual: np.ndarray, lo: float, hi: float, qu
     excess = res.rms_before ** 2 - data.noise_floor_nmm ** 2
     explained = (res.rms_before ** 2 - res.rms_after ** 2) / excess if excess > 0 else 0.0
     accepted = bool(res.terms) and res.folds_positive * 2 > k and res.mean_gain - half > 0 and \
-        res.mean_gain >= MIN_GAIN and explained >= MIN_EXCESS
+        res.mean_gain >= LEARNED_MIN_GAIN and explained >= MIN_EXCESS
     out = res.to_dict()
     out.update({"accepted": accepted, "gain_interval": [res.mean_gain - half, res.mean_gain + half],
                 "excess_explained": float(explained), "deadband": deadband,

@@ -26,12 +26,19 @@ from bmr._core import BmrError
 from bmr.data.bundle import Bundle, Run
 from bmr.identification.spans import SATURATION_TOL, evaluation_start
 
-__all__ = ["EvalRun", "EvalData", "BoundedCache", "prepare", "noise_floor", "reversal_order", "structure",
+__all__ = ["EvalRun", "EvalData", "BoundedCache", "prepare", "noise_floor", "reversal_order", "signal_label", "structure",
            "SIGNALS", "MAX_FIT_ROWS"]
 
 # Signals the residual structure is studied against.
 SIGNALS = ("angle", "time", "input_level", "input_rate", "reversal_order", "time_since_reversal")
 """Signals the residual structure is studied against (``input_*``: the declared input, e.g. current or voltage)."""
+
+
+def signal_label(signal: str, quantities: Any) -> str:
+    """A residual-structure signal in the device's words: ``input_level`` → ``current level``."""
+    name = quantities.input.name
+    return {"input_level": f"{name} level", "input_rate": f"{name} rate",
+            "time_since_reversal": "time since the last reversal"}.get(signal, signal.replace("_", " "))
 
 MAX_FIT_ROWS = 200_000
 """Rows used by the least-squares fits of the selection (an even stride in every fold block when the evaluated

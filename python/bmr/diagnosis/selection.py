@@ -296,6 +296,12 @@ def evaluate(fitter: Fitter, config: Configuration, eff: Effect, before: Heldout
     fits = [fitter.solve(*_with(config, eff, v, data)) for v in grid]
     train_sse = np.array([f.sse_train[:data.folds] for f in fits])
     train_sse = np.where(np.isnan(train_sse), np.inf, train_sse)
+    # Grid values may differ in their number of columns (nested variants, e.g. per-run offsets with or without
+    # per-run gains): rank them on the training blocks by the Bayesian information criterion.
+    n_train = np.maximum(np.sum(fits[0].n_test) - fits[0].n_test, 2.0)
+    widths = np.array([sum(f.widths) for f in fits], dtype=float)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        train_sse = n_train * np.log(np.maximum(train_sse, 1e-300) / n_train) + widths[:, None] * np.log(n_train)
     reidentifies = type(eff).update_path is not Effect.update_path
     gains, sse_after, sse_before, n_test, values = [], [], [], [], []
     for k in range(data.folds):
@@ -343,7 +349,10 @@ def refit(fitter: Fitter, config: Configuration, eff: Effect) -> tuple[Configura
     grid = eff.grid(data)
 
     def sse(v: Any) -> float:
-        return float(fitter.solve(*_with(config, eff, v, data)).sse_train[data.folds])
+        # The information criterion of the fit on all data (as the selection ranks grid values).
+        ff = fitter.solve(*_with(config, eff, v, data))
+        n = max(float(np.sum(ff.n_test)), 2.0)
+        return float(n * math.log(max(float(ff.sse_train[data.folds]), 1e-300) / n) + sum(ff.widths) * math.log(n))
 
     scores = [sse(v) for v in grid]
     i = int(np.argmin(scores))

@@ -54,9 +54,16 @@ def _check_params(name: str, truth: dict[str, float], got: dict[str, float]) -> 
         assert truth["tau_s"] / 3 <= got["tau_s"] <= truth["tau_s"] * 3
 
 
-@pytest.mark.parametrize("name", PHYSICAL)
+# The actuator's effects (the material and measurement effects are in test_discovery); coil_lag is the fast
+# representative of the default tier, the others run in the slow one.
+ACTUATOR_EFFECTS = ("coil_lag", "thermal_drift", "friction_current", "friction_harmonics", "torque_ripple",
+                    "sensor_drift", "time_delay", "non_congruent")
+
+
+@pytest.mark.parametrize("name", [n if n == "coil_lag" else pytest.param(n, marks=pytest.mark.slow)
+                                  for n in ACTUATOR_EFFECTS])
 def test_hidden_effect_is_named_fitted_and_removed(name: str) -> None:
-    seed = 100 + PHYSICAL.index(name)
+    seed = 100 + ACTUATOR_EFFECTS.index(name)
     truth = _draw(name, np.random.default_rng(seed))
     bundle = diagnosis_bundle(PRESET, effects={name: truth}, seed=seed)
     d = diagnose(bundle, progress=False, closed_loop=False)
@@ -73,7 +80,8 @@ def test_hidden_effect_is_named_fitted_and_removed(name: str) -> None:
     assert row["folds_positive"] * 2 > d.folds and row["gain"] > 0
 
 
-@pytest.mark.parametrize("preset,seed", [(PRESET, 7), (PRESET, 8), ("ideal", 0)])
+@pytest.mark.parametrize("preset,seed", [(PRESET, 7), pytest.param(PRESET, 8, marks=pytest.mark.slow),
+                                         pytest.param("ideal", 0, marks=pytest.mark.slow)])
 def test_clean_bundles_raise_no_physical_alarm(preset: str, seed: int) -> None:
     d = diagnose(diagnosis_bundle(preset, seed=seed), progress=False, closed_loop=False)
     assert d.cause in ("none", "table_resolution")
