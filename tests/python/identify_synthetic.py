@@ -6,7 +6,7 @@ import numpy as np
 import pandas as pd
 
 import bmr
-from bmr.bundle import Bundle, Run
+from bmr.data.bundle import Bundle, Run
 
 I_MAX_A = 1.25
 

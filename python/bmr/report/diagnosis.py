@@ -2,23 +2,15 @@
 figures embedded as base64)."""
 from __future__ import annotations
 
-import base64
 import html
-import io
 from typing import Any
 
 import numpy as np
 
+from bmr import plot
+from bmr.plot import COLORS, png_base64
+
 __all__ = ["figures", "html_section", "html_page"]
-
-
-def _png(fig: Any) -> str:
-    import matplotlib.pyplot as plt
-
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=90, bbox_inches="tight")
-    plt.close(fig)
-    return base64.b64encode(buf.getvalue()).decode("ascii")
 
 
 def _binned(x: np.ndarray, r: np.ndarray, bins: int = 36) -> tuple[np.ndarray, np.ndarray]:
@@ -35,29 +27,29 @@ def _binned(x: np.ndarray, r: np.ndarray, bins: int = 36) -> tuple[np.ndarray, n
 
 def figures(d: Any) -> dict[str, str]:
     """``{title: base64 PNG}``: residual against time per run, against angle, current level and current rate
-    (nominal vs extended), and held-out RMS along the selection."""
-    import matplotlib
+    (nominal vs extended), and held-out RMS along the selection (bmr figure style)."""
+    with plot.style():
+        return _figures(d)
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
 
+def _figures(d: Any) -> dict[str, str]:
     out: dict[str, str] = {}
     s = d._signals
     runs = s["runs"]
-    fig, axes = plt.subplots(len(runs), 1, figsize=(8, 1.9 * len(runs) + 0.4), squeeze=False)
+    fig, axes = plot.figure("wide", nrows=len(runs), height=1.9 * len(runs) + 0.6, squeeze=False)
     for ax, (name, t, rn, re) in zip(axes[:, 0], runs):
         step = max(1, t.size // 4000)
-        ax.plot(t[::step], rn[::step], lw=0.5, color="tab:red", label="nominal")
-        ax.plot(t[::step], re[::step], lw=0.5, color="tab:blue", label="extended")
+        ax.plot(t[::step], rn[::step], lw=0.5, color=COLORS["nominal"], label="nominal")
+        ax.plot(t[::step], re[::step], lw=0.5, color=COLORS["extended"], label="extended")
         ax.axhline(d.noise_floor_nmm, color="k", lw=0.5, ls=":")
         ax.axhline(-d.noise_floor_nmm, color="k", lw=0.5, ls=":")
-        ax.set_ylabel(f"{name}\nN·mm", fontsize=8)
-    axes[0, 0].legend(fontsize=7, loc="upper right")
+        ax.set_ylabel(f"{name}\nN·mm")
+    axes[0, 0].legend(loc="upper right")
     axes[-1, 0].set_xlabel("time in the bundle (s)")
-    fig.suptitle("Residual (measured − simulated) from the first saturation on; dotted: ±noise floor", fontsize=9)
-    out["Residual against time"] = _png(fig)
+    fig.suptitle("Residual (measured − simulated) from the first saturation on; dotted: ±noise floor")
+    out["Residual against time"] = png_base64(fig)
 
-    fig, axes = plt.subplots(1, 3, figsize=(11, 3))
+    fig, axes = plot.figure("panel3", ncols=3)
     for ax, key, label in zip(axes, ("theta", "current", "rate"),
                               ("rotor angle (rad)", "current (A)", "current rate (A/s)")):
         x = s[key]
@@ -65,25 +57,27 @@ def figures(d: Any) -> dict[str, str]:
             # Steps of a multi-step run have huge rates for one sample: keep the bulk of the range.
             lo, hi = np.quantile(x, [0.01, 0.99])
             x = np.clip(x, lo, hi)
-        for r, color, lab in ((s["nominal"], "tab:red", "nominal"), (s["extended"], "tab:blue", "extended")):
+        for r, color, lab in ((s["nominal"], COLORS["nominal"], "nominal"),
+                              (s["extended"], COLORS["extended"], "extended")):
             c, m = _binned(x, r)
             ax.plot(c, m, "o-", ms=2.5, lw=0.8, color=color, label=lab)
         ax.axhline(0, color="k", lw=0.5)
         ax.set_xlabel(label)
     axes[0].set_ylabel("mean residual (N·mm)")
-    axes[0].legend(fontsize=7)
-    fig.suptitle("Where the simulation is wrong: residual conditional means", fontsize=9)
-    out["Residual against angle, current and rate"] = _png(fig)
+    axes[0].legend()
+    fig.suptitle("Where the simulation is wrong: residual conditional means")
+    out["Residual against angle, current and rate"] = png_base64(fig)
 
     steps = [("nominal", d.nominal_heldout_rms_nmm)] + [(e["name"], e["heldout_rms_after_nmm"]) for e in d.effects]
-    fig, ax = plt.subplots(figsize=(6, 2.8))
-    ax.bar(range(len(steps)), [v for _, v in steps], color=["tab:red"] + ["tab:blue"] * (len(steps) - 1))
+    fig, ax = plot.figure("wide", height=2.9)
+    ax.bar(range(len(steps)), [v for _, v in steps],
+           color=[COLORS["nominal"]] + [COLORS["extended"]] * (len(steps) - 1))
     ax.axhline(d.noise_floor_nmm, color="k", ls=":", lw=1, label="noise floor")
     ax.set_xticks(range(len(steps)))
-    ax.set_xticklabels(["nominal"] + ["+ " + n for n, _ in steps[1:]], rotation=20, fontsize=8)
+    ax.set_xticklabels(["nominal"] + ["+ " + n for n, _ in steps[1:]], rotation=20)
     ax.set_ylabel("held-out RMS (N·mm)")
-    ax.legend(fontsize=7)
-    out["Held-out RMS along the selection"] = _png(fig)
+    ax.legend()
+    out["Held-out RMS along the selection"] = png_base64(fig)
     return out
 
 

@@ -10,7 +10,7 @@ import pandas as pd
 import pytest
 
 import bmr
-from bmr import experiments as ex
+from bmr.simulation import experiments as ex
 from bmr.cli import main
 
 FS = 500.0
@@ -261,7 +261,7 @@ def test_bad_bundle_non_monotonic_time(written, tmp_path):
 
 
 def test_tracking_with_the_identified_compensator_opens_from_saturation():
-    from bmr.identify import identify
+    from bmr.identification.procedure import identify
 
     model = identify(ex.simulate_bundle(quick=True))
     act = _act()

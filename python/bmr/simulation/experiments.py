@@ -1,7 +1,7 @@
 """The paper's experiment protocols on the virtual actuator, bundles of them, and ``bmr simulate``.
 
 Each protocol drives a :class:`bmr.VirtualActuator` (continuing from its current state) and returns a
-:class:`bmr.bundle.Run`. Every run opens with an excursion to both saturations — nominal current
+:class:`bmr.Run`. Every run opens with an excursion to both saturations — nominal current
 ``0 → +full → −full → 0`` — so the steel state of both coils is known from the first saturation on; the run's
 ``meta["opening_end_s"]`` says where the protocol proper begins.
 
@@ -25,7 +25,7 @@ import numpy as np
 import pandas as pd
 
 from bmr._core import BmrError, VirtualActuator
-from bmr.bundle import Bundle, Run, write_bundle
+from bmr.data.bundle import Bundle, Run, write_bundle
 
 FULL_CURRENT_A = 1.25
 """Saturating nominal current of the protocols (±10 units of 0.125 A on the paper's rig)."""
@@ -434,8 +434,9 @@ def simulate_bundle(preset: str = "bmr2013", *, effects: Mapping[str, Any] | Seq
                     seed: int = 0, quick: bool = False, compensator: Any = None,
                     sample_rate_hz: float = BUNDLE_SAMPLE_RATE_HZ,
                     on_run: Callable[[Run], Any] | None = None,
-                    overrides: Mapping[str, float] | None = None) -> Bundle:
-    """The paper's experiment set on a fresh virtual actuator, as a :class:`bmr.bundle.Bundle`.
+                    overrides: Mapping[str, float] | None = None,
+                    extra_runs: Sequence[Callable[[VirtualActuator], Run]] = ()) -> Bundle:
+    """The paper's experiment set on a fresh virtual actuator, as a :class:`bmr.Bundle`.
 
     Runs, in order, on one actuator (its thermal state and sensor drift carry over; each run's opening
     excursion resets the steel state): ``off_state``, ``multi_step`` (1 200 s), ``first_order_ascending`` and
@@ -446,12 +447,13 @@ def simulate_bundle(preset: str = "bmr2013", *, effects: Mapping[str, Any] | Seq
     simulator's preset, seed and active effects under ``"simulator"`` (ground truth for calibration studies).
     ``on_run(run)`` is called after each run (progress reporting). Logged at ``sample_rate_hz`` (500 Hz).
     ``overrides`` changes physical parameters by dotted name (``bmr.ACTUATOR_PARAMETERS``), e.g. the noise level.
+    ``extra_runs``: further protocols (callables taking the actuator, returning a run) appended after the set.
     """
     actuator = VirtualActuator(preset, seed=seed, sample_rate_hz=sample_rate_hz, effects=effects,
                                overrides=dict(overrides) if overrides else None)
-    plan = _plan(bool(quick), compensator, actuator.sample_rate_hz)
+    plan = [fn for _name, fn in _plan(bool(quick), compensator, actuator.sample_rate_hz)] + list(extra_runs)
     runs: list[Run] = []
-    for _name, fn in plan:
+    for fn in plan:
         runs.append(fn(actuator))
         if on_run is not None:
             on_run(runs[-1])

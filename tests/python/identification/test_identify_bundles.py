@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 import bmr
-from bmr.bundle import Bundle, Run
-from bmr.experiments import simulate_bundle
+from bmr.data.bundle import Bundle, Run
+from bmr.simulation.experiments import simulate_bundle
 
 HIDDEN = {"order": 9, "amplitude_nmm": 4.0, "phase_rad": 0.5}
 NOISE_NMM = 1.5

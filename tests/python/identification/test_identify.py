@@ -9,8 +9,8 @@ import pandas as pd
 import pytest
 
 import bmr
-from bmr.bundle import Run, write_bundle
-from bmr.identify import find_reversals, paper_current_curves
+from bmr.data.bundle import Run, write_bundle
+from bmr.identification.forc import find_reversals, paper_current_curves
 
 from identify_synthetic import FRICTION, friction_nmm, plant_everett, synthetic_bundle
 

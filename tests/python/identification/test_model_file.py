@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 import bmr
-from bmr.model import FORMAT
+from bmr.identification.model import FORMAT
 
 from identify_synthetic import synthetic_bundle
 

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 import bmr
-from bmr import experiments as ex
+from bmr.simulation import experiments as ex
 
 FS = 500.0
 FULL = 1.25

@@ -20,7 +20,7 @@ import numpy as np
 import pandas as pd
 
 from bmr._core import BmrError
-from bmr.bundle import OPTIONAL_COLUMNS, REQUIRED_COLUMNS, Bundle, Run
+from bmr.data.bundle import OPTIONAL_COLUMNS, REQUIRED_COLUMNS, Bundle, Run, nominal_sample_rate
 
 __all__ = ["UNITS", "convert_units", "read_table", "bundle_from_files", "supported_units"]
 
@@ -168,8 +168,7 @@ def bundle_from_files(
     if not runs:
         raise BmrError("bundle_from_files needs at least one file")
     if sample_rate_hz is None:
-        dt = np.diff(runs[0].t)
-        sample_rate_hz = float(1.0 / np.median(dt)) if dt.size else float("nan")
+        sample_rate_hz = nominal_sample_rate(runs[0].t)
     return Bundle(actuator=actuator, sample_rate_hz=float(sample_rate_hz), runs=runs)
 
 

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 import bmr
-from bmr import experiments as ex
+from bmr.simulation import experiments as ex
 
 FULL = 1.25
 

@@ -8,9 +8,10 @@ from __future__ import annotations
 
 import json
 import math
+import numbers
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable, Iterator
+from typing import Any, Callable, Iterable, Iterator
 
 import numpy as np
 import pandas as pd
@@ -47,6 +48,12 @@ class Run:
             raise BmrError(f"run {self.name!r}: unknown kind {self.kind!r}; expected one of {', '.join(RUN_KINDS)}")
         validate_run_data(self.name, self.data)
 
+    def __repr__(self) -> str:
+        n = len(self.data)
+        t = self.data["t_s"].to_numpy(dtype=float) if "t_s" in self.data.columns and n else np.zeros(0)
+        span = f", {t[-1] - t[0]:.6g} s" if t.size > 1 else ""
+        return f"Run({self.name!r}, kind={self.kind!r}, {n} samples{span}, columns: {', '.join(self.data.columns)})"
+
     def column(self, name: str) -> np.ndarray:
         if name not in self.data.columns:
             raise BmrError(f"run {self.name!r} has no column {name!r} (columns: {', '.join(self.data.columns)})")
@@ -79,13 +86,29 @@ class Bundle:
     meta: dict[str, Any] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
-        if not (isinstance(self.sample_rate_hz, (int, float)) and math.isfinite(self.sample_rate_hz)
-                and self.sample_rate_hz > 0):
-            raise BmrError(f"sample_rate_hz must be a positive finite number, got {self.sample_rate_hz!r}")
+        rate = self.sample_rate_hz
+        # Any real number (numpy scalars included), but not a bool: `true` in a manifest is not 1 Hz.
+        if isinstance(rate, bool) or not isinstance(rate, numbers.Real) or not (math.isfinite(rate) and rate > 0):
+            raise BmrError(f"sample_rate_hz must be a positive finite number of Hz, got {rate!r}")
+        self.sample_rate_hz = float(rate)
         names = [r.name for r in self.runs]
         dupes = sorted({n for n in names if names.count(n) > 1})
         if dupes:
             raise BmrError(f"duplicate run names in bundle: {', '.join(dupes)}")
+
+    def __repr__(self) -> str:
+        kinds: dict[str, int] = {}
+        for r in self.runs:
+            kinds[r.kind] = kinds.get(r.kind, 0) + 1
+        samples = sum(len(r.data) for r in self.runs)
+        duration = 0.0
+        for r in self.runs:
+            if "t_s" in r.data.columns and len(r.data) > 1:
+                t = r.data["t_s"].to_numpy(dtype=float)
+                duration += float(t[-1] - t[0])
+        what = ", ".join(f"{n} {k}" for k, n in kinds.items())
+        return (f"Bundle({self.actuator!r}: {len(self.runs)} runs ({what}), {samples} samples, "
+                f"{duration:.6g} s at {self.sample_rate_hz:g} Hz)")
 
     def __iter__(self) -> Iterator[Run]:
         return iter(self.runs)
@@ -120,6 +143,41 @@ class Bundle:
 
     def evaluation_runs(self) -> list[Run]:
         return [r for r in self.runs if r.kind not in IDENTIFICATION_KINDS]
+
+
+def nominal_sample_rate(t_s: np.ndarray) -> float:
+    """The logging rate (Hz) of a uniformly sampled time column, rounded to what its timestamps resolve: a log at
+    500 Hz whose times are stored with finite precision gives 500.0, not 499.99999999999955. NaN for fewer than
+    two samples."""
+    t = np.asarray(t_s, dtype=float)
+    if t.size < 2 or not t[-1] > t[0]:
+        return float("nan")
+    span = float(t[-1] - t[0])
+    rate = (t.size - 1) / span
+    # Timestamp resolution: the coarsest decimal step that all times sit on (to within float round-off).
+    scale = max(abs(float(t[0])), abs(float(t[-1])), span)
+    # Times on no decimal grid (accumulated float steps): their round-off, which grows with the sample count.
+    resolution = t.size * float(np.finfo(float).eps) * scale
+    for d in range(-9, 16):
+        step = 10.0 ** -d
+        if step > span:
+            continue
+        # Allowed deviation: float round-off of the stored times, in units of the step.
+        if np.all(np.abs(t / step - np.round(t / step)) <= max(1e-9, 8 * np.finfo(float).eps * scale / step)):
+            resolution = step
+            break
+    # Relative precision of the rate: one timestamp step over the whole span.
+    digits = max(3, min(15, int(math.floor(-math.log10(resolution / span)))))
+    return float(f"{rate:.{digits}g}")
+
+
+def runs_of(runs: "Bundle | Run | Iterable[Run]") -> list[Run]:
+    """The runs of a bundle, a single run or any iterable of runs, as a list."""
+    if isinstance(runs, Bundle):
+        return list(runs.runs)
+    if isinstance(runs, Run):
+        return [runs]
+    return list(runs)
 
 
 def validate_run_data(name: str, data: pd.DataFrame) -> None:

@@ -30,13 +30,17 @@ from typing import Any
 
 import numpy as np
 
-from bmr._core import BmrError
-from bmr.bundle import Bundle, read_bundle
+from bmr._core import BmrError, VirtualActuator
+from bmr.data.bundle import Bundle, read_bundle
 from bmr.diagnosis.effects import PHYSICAL
 from bmr.diagnosis.field import FieldPath
 from bmr.diagnosis.extended_model import ExtendedModel, extensions_from_selection, with_extensions
 from bmr.diagnosis.residuals import prepare, structure
 from bmr.diagnosis.selection import Fitter, forward_selection
+from bmr.identification.procedure import identify
+from bmr.identification.model import Model
+from bmr.report.diagnosis import figures, html_page, html_section
+from bmr.simulation.experiments import MULTIPEAK_SEED, reference_multipeak, tracking
 
 __all__ = ["FORMAT", "Diagnosis", "diagnose", "closed_loop_gain", "run_cli", "PHYSICAL"]
 
@@ -110,20 +114,14 @@ class Diagnosis:
 
     def figures(self) -> dict[str, str]:
         """``{title: base64 PNG}`` (computed once)."""
-        from bmr.diagnosis.report import figures
-
         if self._figures is None:
             self._figures = figures(self)
         return self._figures
 
     def html_section(self) -> str:
-        from bmr.diagnosis.report import html_section
-
         return html_section(self)
 
     def write_report(self, path: str | Path) -> Path:
-        from bmr.diagnosis.report import html_page
-
         p = Path(path)
         try:
             p.write_text(html_page(self))
@@ -152,8 +150,6 @@ def _rms(x: np.ndarray) -> float:
 def nominal_model(bundle: Bundle) -> Any:
     """The paper's model of a bundle: friction (3 harmonics) from the off-state run, CBH tables from the
     first-order curves (least-squares tables when the bundle has no first-order runs)."""
-    from bmr.identify import identify
-
     method = "forc" if bundle.by_kind("first_order_ascending", "first_order_descending") else "lstsq"
     return identify(bundle, method=method, max_order=NOMINAL_FRICTION_ORDER)
 
@@ -175,8 +171,6 @@ def diagnose(bundle: Bundle | str | Path, model: Any = None, *, folds: int = 5, 
     if model is None:
         model = nominal_model(bundle)
     elif isinstance(model, (str, Path)):
-        from bmr.model import Model
-
         model = Model.load(model)
     lo, hi = model.hysteresis.input_range
     data = prepare(bundle, (lo, hi), folds, friction=model.friction)
@@ -246,9 +240,6 @@ def closed_loop_gain(d: Diagnosis, preset: str, *, effects: Any = None, seed: in
     """Tracking error (RMS of measured − reference torque, N·mm, after the opening) of the nominal and the
     extended compensator on the same simulated plant (``preset`` with ``effects``, same seed) tracking the
     multi-peak torque reference; ``ratio`` = extended / nominal."""
-    from bmr import VirtualActuator
-    from bmr.experiments import MULTIPEAK_SEED, reference_multipeak, tracking
-
     ref = reference_multipeak(MULTIPEAK_SEED, sample_rate_hz=sample_rate_hz, duration_s=duration_s)
     out: dict[str, Any] = {"preset": preset, "reference": "multipeak", "duration_s": duration_s}
     dt = 1.0 / sample_rate_hz

@@ -26,8 +26,9 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from bmr._core import BmrError
-from bmr.identify import FrictionFit
+from bmr._core import BmrError, Compensator, Hysteresis
+from bmr.identification.forc import paper_current_curves
+from bmr.identification.friction import FrictionFit
 
 __all__ = ["FORMAT", "Model"]
 
@@ -82,8 +83,6 @@ class Model:
     def from_curves(cls, ascending: Sequence[tuple[Any, Any]], descending: Sequence[tuple[Any, Any]],
                     friction: FrictionFit | None = None, *, initial: str = "negative", **kwargs: Any) -> "Model":
         """Build the ``bmr.Hysteresis`` from first-order curves (``from_curves`` form) and wrap it."""
-        from bmr import Hysteresis
-
         asc = [(np.asarray(u, float), np.asarray(y, float)) for u, y in ascending]
         desc = [(np.asarray(u, float), np.asarray(y, float)) for u, y in descending]
         return cls(Hysteresis.from_curves(asc, desc, initial=initial), friction, curves=(asc, desc), **kwargs)
@@ -115,8 +114,6 @@ class Model:
     def compensator(self, **kwargs: Any) -> Any:
         """A ``bmr.Compensator`` for this model (friction and converter gain filled in; ``kwargs`` pass through,
         e.g. ``inverse="paper"``)."""
-        from bmr import Compensator
-
         friction = self.friction.to_friction() if self.friction is not None else None
         kwargs.setdefault("converter_gain", self.converter_gain_a_per_v)
         lo, hi = self.limits["current_a"]
@@ -125,8 +122,6 @@ class Model:
 
     def current_curves(self) -> tuple[list[tuple[np.ndarray, np.ndarray]], list[tuple[np.ndarray, np.ndarray]]]:
         """The paper's current curves (torque → current) from the stored torque curves."""
-        from bmr.identify import paper_current_curves
-
         asc, desc = self.hysteresis.curves()
         return paper_current_curves(asc, desc)
 
@@ -202,8 +197,6 @@ class Model:
         if not isinstance(ext, list) or not all(isinstance(e, dict) and "name" in e for e in ext):
             raise BmrError(f"{source}: 'extensions' must be a list of objects with a 'name'")
         try:
-            from bmr import Hysteresis
-
             h = Hysteresis.from_curves(asc, desc, initial=str(hyst.get("initial", "negative")))
         except BmrError as exc:
             raise BmrError(f"{source}: hysteresis tables rejected: {exc}") from None

@@ -11,9 +11,9 @@ import numpy as np
 import pytest
 
 import bmr
-from bmr.diagnose import Diagnosis, diagnose
+from bmr.diagnosis.procedure import Diagnosis, diagnose
 from bmr.diagnosis.effects import PHYSICAL
-from bmr.diagnosis.excitation import diagnosis_bundle
+from bmr.simulation.excitation import diagnosis_bundle
 
 PRESET = "rig_preisach"
 
@@ -99,7 +99,7 @@ def test_extended_compensator_tracks_better_on_the_plant(lag_diagnosis: Diagnosi
     assert c is not None and "ratio" in c, c
     assert c["extended_rms_nmm"] < 0.6 * c["nominal_rms_nmm"], c
     # The same measurement by hand with a harder reference: the lead on the command matters more at speed.
-    from bmr.experiments import reference_triangle, tracking
+    from bmr.simulation.experiments import reference_triangle, tracking
 
     ref = reference_triangle(sample_rate_hz=500.0, rate_nmm_per_s=400.0, duration_s=8.0)
     errs = {}
@@ -146,7 +146,7 @@ def test_json_html_model_file_and_extended_simulation(lag_diagnosis: Diagnosis, 
 
 
 def test_cli_writes_json_and_report(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    from bmr.bundle import write_bundle
+    from bmr.data.bundle import write_bundle
     from bmr.cli import main
 
     bundle = diagnosis_bundle(PRESET, effects={"friction_harmonics": {"order": 6.0, "amplitude_nmm": 6.0}}, seed=3)
@@ -172,7 +172,7 @@ def test_bad_input_is_a_clear_error(tmp_path: Path) -> None:
         diagnose(bundle, tmp_path / "missing.json", progress=False)
     with pytest.raises(bmr.BmrError):
         diagnose(42, progress=False)  # type: ignore[arg-type]
-    from bmr.diagnosis.excitation import minor_loop_vertices
+    from bmr.simulation.excitation import minor_loop_vertices
 
     with pytest.raises(bmr.BmrError, match="centres"):
         minor_loop_vertices(centres=0)

@@ -8,7 +8,7 @@ import pandas as pd
 import pytest
 
 import bmr
-from bmr.io import convert_units
+from bmr.data.readers import convert_units
 
 N = 50
 T = np.arange(N) * 0.01

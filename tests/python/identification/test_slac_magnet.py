@@ -7,11 +7,7 @@ from pathlib import Path
 
 import pytest
 
-ROOT = Path(__file__).resolve().parents[1]
-DATA = ROOT / ".." / "shared" / "data" / "slac-quad-4194"
-
-pytestmark = pytest.mark.skipif(not DATA.is_dir(), reason=f"SLAC magnet data not found at {DATA} "
-                                "(the shared data folder sits beside the repository clone)")
+ROOT = Path(__file__).resolve().parents[3]
 
 
 def _example():
@@ -21,9 +17,9 @@ def _example():
     return mod
 
 
-def test_preisach_model_beats_single_valued_curve_on_held_out_runs(tmp_path):
+def test_preisach_model_beats_single_valued_curve_on_held_out_runs(tmp_path, slac_data):
     out = tmp_path / "slac.json"
-    assert _example().main(["--data", str(DATA), "--json", str(out)]) == 0
+    assert _example().main(["--data", str(slac_data), "--json", str(out)]) == 0
     res = json.loads(out.read_text())
     for key in ("heldout_runs", "rms_t", "rms_over_sigma", "baseline_rms_t", "congruency_mismatch_t"):
         assert key in res

@@ -11,8 +11,8 @@ from typing import Any
 import numpy as np
 
 from bmr._core import BmrError
-from bmr.bundle import Run
-from bmr.experiments import FULL_CURRENT_A, OPENING_RATE_A_PER_S, custom, ramp_path
+from bmr.data.bundle import Bundle, Run
+from bmr.simulation.experiments import FULL_CURRENT_A, OPENING_RATE_A_PER_S, custom, ramp_path, simulate_bundle
 
 __all__ = ["minor_loop_vertices", "minor_loops", "diagnosis_bundle"]
 
@@ -54,18 +54,10 @@ def minor_loops(actuator: Any, *, rate_a_per_s: float = 1.0, name: str = "minor_
 
 
 def diagnosis_bundle(preset: str = "rig_preisach", *, effects: Any = None, seed: int = 0, quick: bool = True,
-                     sample_rate_hz: float = 500.0) -> Any:
-    """The paper's experiment set (:func:`bmr.experiments.simulate_bundle`) plus one :func:`minor_loops` run,
-    all on one virtual actuator (``preset`` with ``effects``, ``seed``): the bundle the diagnosis is calibrated
-    on."""
-    from bmr import VirtualActuator
-    from bmr.bundle import Bundle
-    from bmr.experiments import _plan
-
-    actuator = VirtualActuator(preset, seed=seed, sample_rate_hz=sample_rate_hz, effects=effects)
-    runs = [fn(actuator) for _name, fn in _plan(bool(quick), None, actuator.sample_rate_hz)]
-    runs.append(minor_loops(actuator, opening_rate_a_per_s=2.5 if quick else OPENING_RATE_A_PER_S))
-    meta = {"simulator": {"preset": preset, "seed": int(seed), "quick": bool(quick),
-                          "effects": {k: dict(v) for k, v in actuator.effects.items()},
-                          "noise_nmm": actuator.noise_nmm}}
-    return Bundle(actuator=actuator.name, sample_rate_hz=actuator.sample_rate_hz, runs=runs, meta=meta)
+                     sample_rate_hz: float = 500.0) -> Bundle:
+    """The paper's experiment set (:func:`bmr.simulation.experiments.simulate_bundle`) plus one
+    :func:`minor_loops` run, all on one virtual actuator (``preset`` with ``effects``, ``seed``): the bundle the
+    diagnosis is calibrated on."""
+    opening = 2.5 if quick else OPENING_RATE_A_PER_S
+    return simulate_bundle(preset, effects=effects, seed=seed, quick=quick, sample_rate_hz=sample_rate_hz,
+                           extra_runs=[lambda a: minor_loops(a, opening_rate_a_per_s=opening)])
