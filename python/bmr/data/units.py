@@ -206,6 +206,9 @@ def format_number(x: float, digits: int = 3) -> str:
     if not math.isfinite(x):
         return str(x)
     if x == 0 or 1e-2 <= abs(x) < 1e5:
+        exponent = math.floor(math.log10(abs(x))) if x else 0
+        if exponent >= digits:  # 14300, not 1.43e+04
+            return f"{round(x, digits - 1 - exponent):.0f}"
         return f"{x:.{digits}g}"
     mantissa, exponent = f"{x:.{max(digits - 1, 0)}e}".split("e")
     if "." in mantissa:
