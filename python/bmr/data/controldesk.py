@@ -105,8 +105,12 @@ def read(path: str | Path) -> list[Table]:
             x_name = _text(getattr(axis, "Name", "")) if "Name" in axis._fieldnames else ""
             if x_name:
                 aliases.setdefault(x_name.lower(), []).append(time_name)
+            counts: dict[str, int] = {}
+            for name, *_ in chans:
+                counts[name.lower()] = counts.get(name.lower(), 0) + 1
             for name, path_text, data, unit in chans:
-                key = name if name not in columns else f"{path_text}/{name}"
+                # A name that several channels share is keyed by its path (the bare name then is ambiguous).
+                key = f"{path_text}/{name}" if counts[name.lower()] > 1 or name == time_name else name
                 if data.size != t.size:
                     raise BmrError(f"{p}: {var}: channel {name!r} has {data.size} samples but its time axis "
                                    f"X({xi}) has {t.size} (truncated capture?)")
