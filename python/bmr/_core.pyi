@@ -25,7 +25,9 @@ __all__ = [
     "VirtualActuator",
     "effect_parameters",
     "fit_everett",
+    "find_reversals",
     "fit_friction_order",
+    "reversal_order",
 ]
 
 class BmrError(ValueError):
@@ -96,6 +98,17 @@ class Friction:
     def amplitude_phase(self) -> tuple[np.ndarray, np.ndarray]: ...
 
 # --- identification (least squares, faer) ---
+# --- reversal points (dead-band extrema), streaming in Rust ---
+def find_reversals(u: _ArrayLike, deadband: float) -> np.ndarray:
+    """Indices (int64) of the reversal extrema of ``u``: a maximum (minimum) is confirmed once the input has come
+    back from it by more than ``deadband`` (input units, > 0); the run's start is no reversal."""
+
+def reversal_order(
+    u: _ArrayLike, lo: float, hi: float, deadband: float | None = None, *, saturation_tol: float | None = None
+) -> np.ndarray:
+    """Reversal order (int64) of every sample: 0 after the input came within ``saturation_tol`` (default 0.2 % of
+    ``hi - lo``) of ``lo`` or ``hi``, +1 at every later reversal beyond ``deadband`` (default 1 % of ``hi - lo``)."""
+
 def fit_friction_order(theta_rad: np.ndarray, torque_nmm: np.ndarray, order: int) -> dict:
     """Friction c0 + Σ a_k sin kθ + b_k cos kθ of one order: c0, a, b, *_stderr, covariance, rss, n, order."""
 

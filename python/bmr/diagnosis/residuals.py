@@ -15,6 +15,7 @@ from typing import Any, Sequence
 
 import numpy as np
 
+from bmr import _core
 from bmr._core import BmrError
 from bmr.data.bundle import Bundle, Run
 from bmr.identification.spans import SATURATION_TOL, evaluation_start
@@ -155,38 +156,10 @@ def prepare(bundle: Bundle, input_range: tuple[float, float], folds: int, fricti
 
 def reversal_order(u: np.ndarray, lo: float, hi: float, deadband_a: float | None = None) -> np.ndarray:
     """Order of the reversal curve each sample lies on: 0 on the major loop (after a saturation), 1 on a
-    first-order curve, 2 after a further reversal, … (a simple dead-band reversal counter, reset at saturation)."""
-    u = np.asarray(u, dtype=float)
-    span = hi - lo
-    db = 0.01 * span if deadband_a is None else deadband_a
-    tol = SATURATION_TOL * span
-    order = np.zeros(u.size, dtype=np.int64)
-    k = 0
-    direction = 0
-    extreme = u[0] if u.size else 0.0
-    for i in range(u.size):
-        x = u[i]
-        if x >= hi - tol or x <= lo + tol:
-            k = 0
-            direction = 1 if x >= hi - tol else -1
-            extreme = x
-        elif direction >= 0:
-            if x > extreme:
-                extreme = x
-                direction = 1
-            elif extreme - x > db:
-                k += 1 if direction != 0 else 0
-                direction = -1
-                extreme = x
-        else:
-            if x < extreme:
-                extreme = x
-            elif x - extreme > db:
-                k += 1
-                direction = 1
-                extreme = x
-        order[i] = k
-    return order
+    first-order curve, 2 after a further reversal, … (a dead-band reversal counter, reset at saturation;
+    ``bmr._core.reversal_order``)."""
+    return _core.reversal_order(np.asarray(u, dtype=float), lo, hi, deadband_a,
+                                saturation_tol=SATURATION_TOL * (hi - lo))
 
 
 def _binned_strength(x: np.ndarray, r: np.ndarray, bins: int = 20, min_count: int = 20) -> float:
