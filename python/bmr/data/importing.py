@@ -18,7 +18,7 @@ from __future__ import annotations
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Iterable, Sequence
+from typing import Any, Iterable
 
 import numpy as np
 import pandas as pd
@@ -27,7 +27,7 @@ from bmr import _core
 from bmr._core import BmrError
 from bmr.data.bundle import Bundle, Run, write_bundle
 from bmr.data.quantities import ANGLE, Quantities, Quantity
-from bmr.data.signals import SampleRate, sample_noise, sample_rate
+from bmr.data.signals import SampleRate, default_deadband, sample_rate
 from bmr.data.tables import Table, read_tables
 from bmr.data.units import format_number, unit
 
@@ -179,13 +179,6 @@ def _time(table: Table, spec: ColumnSpec | None, rate_hz: float | None, notes: l
 
 
 # ---------------------------------------------------------------------------------------------- protocol
-def default_deadband(inputs: Sequence[np.ndarray]) -> float:
-    """1 % of the input span, or 10× the inputs' sample noise (pooled over runs) if that is larger."""
-    span = float(max(np.max(u) for u in inputs) - min(np.min(u) for u in inputs))
-    noise = sample_noise(list(inputs))
-    return max(0.01 * span, 10.0 * noise, 1e-12 * max(span, 1.0))
-
-
 def _first_order_curves(u: np.ndarray, rev: np.ndarray, lo: float, hi: float, tol: float, rising: bool) -> int:
     """Reversals that start a first-order curve: a minimum between two visits of the top end (ascending), or a
     maximum between two visits of the bottom end (descending). The run's start and end count as visits."""

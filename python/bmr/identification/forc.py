@@ -11,6 +11,7 @@ import numpy as np
 
 from bmr._core import BmrError, find_reversals
 from bmr.data.bundle import Run, runs_of
+from bmr.data.signals import default_deadband
 from bmr.identification.spans import input_range_of, sample_noise
 
 __all__ = ["Curve", "FirstOrderCurves", "find_reversals", "extract_first_order_curves", "paper_current_curves"]
@@ -29,11 +30,6 @@ class FirstOrderCurves:
 
     def __len__(self) -> int:
         return len(self.ascending) + len(self.descending)
-
-
-def _default_deadband(u: np.ndarray) -> float:
-    """1 % of the input span, or 10 × the sample noise of ``u`` if larger."""
-    return max(0.01 * float(np.ptp(u)), 10.0 * sample_noise(u), 1e-12)
 
 
 def _monotone_fit(u: np.ndarray, y: np.ndarray, nodes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -142,7 +138,7 @@ def extract_first_order_curves(
     lo, hi = input_range if input_range is not None else input_range_of([r.input for r in runs])
     if not hi > lo:
         raise BmrError(f"runs {', '.join(r.name for r in runs)}: the input never varies; no curves to extract")
-    db = deadband_a if deadband_a is not None else _default_deadband(all_u)
+    db = deadband_a if deadband_a is not None else default_deadband([all_u])
     # Repeats of one curve (e.g. the major branches of several runs) have reversals a few noise sigmas apart.
     pool_tol = min(db, max(0.005 * (hi - lo), 4.0 * sample_noise(all_u)))
     sat_tol = saturation_tol_a if saturation_tol_a is not None else max(2.0 * db, 0.02 * (hi - lo))
