@@ -15,22 +15,40 @@ MAX_RUNS = 8
 
 
 def prediction_figure(prediction: Any, path: Path) -> Path:
-    """Write the PNG to ``path``: one row per run (at most ``MAX_RUNS``), loop on the left, residual on the
-    right, in the declared units."""
+    """Write the PNG to ``path``: one row per run (at most ``MAX_RUNS``), loop on the left (less a straight line
+    when the loop is thin), residual on the right, in the declared units."""
     q = prediction.quantities
     runs = prediction.runs[:MAX_RUNS]
+    # A thin loop (hysteresis a few % of the span, as in magnets) is invisible on the full scale: draw every output
+    # less the straight line through the ends of the single-valued baseline instead.
+    width = max(float(np.nanmax(np.abs(r.baseline_residual[r.evaluated]), initial=0.0)) for r in runs)
+    thin_loop = width < 0.05 * prediction.output_span
+    u_all = np.concatenate([r.input for r in runs])
+    b_all = np.concatenate([r.baseline for r in runs])
+    i_lo, i_hi = int(np.argmin(u_all)), int(np.argmax(u_all))
+    slope = (b_all[i_hi] - b_all[i_lo]) / (u_all[i_hi] - u_all[i_lo]) if u_all[i_hi] > u_all[i_lo] else 0.0
+
+    def line(u: np.ndarray) -> np.ndarray:
+        return b_all[i_lo] + slope * (u - u_all[i_lo]) if thin_loop else np.zeros_like(u)
+
     with plot.style():
         fig, axes = plot.figure("panel3", nrows=len(runs), ncols=2, height=2.6 * len(runs) + 0.6, squeeze=False)
         for row, r in zip(axes, runs):
             ax, ax_r = row
             ev = r.evaluated
-            u, y, yhat, base = plot.thin(r.input, r.output, r.predicted, r.baseline)
+            trend = line(r.input)
+            u, y, yhat, base = plot.thin(r.input, r.output - trend, r.predicted - trend, r.baseline - trend)
             few = r.input.size <= 400
-            # Measured drawn wide underneath: where the prediction is right it shows as a grey halo.
-            ax.plot(u, y, "o-" if few else "-", ms=4, color=plot.COLORS["measured"], lw=2.0, label="measured")
-            ax.plot(u, base, "--", color=plot.COLORS["alternative"], label="single-valued baseline")
-            ax.plot(u, yhat, ".-" if few else "-", ms=3, color=plot.COLORS["model"], label="predicted")
-            ax.set(xlabel=q.input.label, ylabel=q.output.label)
+            if few:  # sparse logs (a few samples per reversal): points, joined by faint lines in time order
+                ax.plot(u, y, "o-", ms=5, lw=0.5, color=plot.COLORS["measured"], label="measured")
+                ax.plot(u, base, "x", ms=5, color=plot.COLORS["alternative"], label="single-valued baseline")
+                ax.plot(u, yhat, ".-", ms=5, lw=0.5, color=plot.COLORS["model"], label="predicted")
+            else:  # measured drawn wide underneath: where the prediction is right it shows as a grey halo
+                ax.plot(u, y, "-", lw=2.0, color=plot.COLORS["measured"], label="measured")
+                ax.plot(u, base, "--", color=plot.COLORS["alternative"], label="single-valued baseline")
+                ax.plot(u, yhat, "-", color=plot.COLORS["model"], label="predicted")
+            ylabel = f"{q.output.name} − straight line ({q.output.unit})" if thin_loop else q.output.label
+            ax.set(xlabel=q.input.label, ylabel=ylabel)
             ax.set_title(f"{r.name}: output against input", loc="left")
             # The model's residual on its own scale (the baseline's, often 100x larger, is in the title).
             t = r.time - r.time[0]
