@@ -1,4 +1,5 @@
-"""bmr: accurate torque control of bi-directional magneto-rheological actuators.
+"""bmr: accurate torque control of bi-directional magneto-rheological actuators, and hysteresis models of any
+hysteretic device identified from its measured data.
 
 Core (Rust): ``Hysteresis`` (CBH operator), ``Friction`` (angle-periodic seal friction), ``Compensator``
 (exact or paper inverse + friction feedforward, coil split, current limit), ``VirtualActuator`` (a physical
@@ -7,13 +8,15 @@ Experiment protocols and bundles of them: ``bmr.experiments`` (:mod:`bmr.simulat
 Package layout, in data-flow order: :mod:`bmr.data` (bundles, lab readers) → :mod:`bmr.identification`
 (friction, first-order curves, least-squares tables, ``Model``) → :mod:`bmr.diagnosis` → :mod:`bmr.report`;
 :mod:`bmr.simulation` drives the virtual actuator; :mod:`bmr.demo` and :mod:`bmr.cli` tie them together.
-Identification: ``identify`` (friction + CBH tables from a bundle) giving a ``Model`` (``bmr-model/1`` files),
+Identification: ``identify`` (friction + CBH tables from a bundle) giving a ``Model`` (``bmr-model/2`` files),
 ``fit_friction``, ``extract_first_order_curves``, ``fit_tables_lstsq`` / ``EverettModel`` (least-squares
-Preisach tables). Lab readers: ``read_table``, ``bundle_from_files``.
+Preisach tables); ``predict`` (held-out errors of a model on a bundle). Lab data: ``import_logs`` (raw logs of
+any device, with declared ``Quantities``, into a bundle), ``read_tables`` (instrument formats), ``read_table``,
+``bundle_from_files`` (actuator logs with a column mapping).
 Diagnosis: ``diagnose`` (what the model gets wrong, the named cause, the extended model, the held-out gain) giving a
 ``Diagnosis`` (``bmr-diagnosis/1`` JSON, HTML report).
-Units: current in A (nominal current spans both coils: negative = coil 1, positive = coil 2), torque in N·mm,
-angles in rad, time in s, converter voltages in V.
+Units: the actuator's current in A (nominal current spans both coils: negative = coil 1, positive = coil 2),
+torque in N·mm, angles in rad, time in s, converter voltages in V; other devices declare theirs (``Quantities``).
 """
 from bmr._core import (
     ACTUATOR_PARAMETERS,
@@ -31,7 +34,18 @@ from bmr._core import (
     effect_parameters,
     fit_everett,
 )
-from bmr.data import Bundle, Run, bundle_from_files, read_bundle, read_table, write_bundle
+from bmr.data import (
+    Bundle,
+    Quantities,
+    Quantity,
+    Run,
+    bundle_from_files,
+    import_logs,
+    read_bundle,
+    read_table,
+    read_tables,
+    write_bundle,
+)
 from bmr.diagnosis import Diagnosis, diagnose
 from bmr.identification import (
     FrictionFit,
@@ -40,6 +54,7 @@ from bmr.identification import (
     fit_friction,
     fit_tables_lstsq,
     identify,
+    predict,
 )
 from bmr.simulation import experiments
 
@@ -59,6 +74,8 @@ __all__ = [
     "Hysteresis",
     "HysteresisState",
     "Model",
+    "Quantities",
+    "Quantity",
     "Run",
     "VirtualActuator",
     "bundle_from_files",
@@ -71,8 +88,11 @@ __all__ = [
     "fit_friction",
     "fit_tables_lstsq",
     "identify",
+    "import_logs",
+    "predict",
     "read_bundle",
     "read_table",
+    "read_tables",
     "write_bundle",
 ]
 __version__ = "0.1.0"

@@ -77,7 +77,7 @@ def _parser() -> argparse.ArgumentParser:
                    help="hysteresis tables from first-order reversal curves (forc, the paper's method), by least "
                         "squares from any excitation (lstsq), or both, keeping the one with the lower held-out "
                         "error (default: forc)")
-    i.add_argument("-o", "--out", required=True, help="model file to write (bmr-model/1 JSON)")
+    i.add_argument("-o", "--out", required=True, help="model file to write (bmr-model/2 JSON: tables, friction, the bundle's quantities and units)")
 
     g = sub.add_parser("diagnose", help="find what the model gets wrong in a bundle and name the cause")
     g.add_argument("bundle", help=BUNDLE_HELP)
@@ -89,8 +89,8 @@ def _parser() -> argparse.ArgumentParser:
     g.add_argument("--json", dest="json_out", help="write the bmr-diagnosis/1 JSON here")
     g.add_argument("--report", help="write an HTML report here")
     r = sub.add_parser("predict", help="predict a bundle's held-out runs with a model: RMS and max error per run")
-    r.add_argument("model", help="model file (bmr-model JSON)")
-    r.add_argument("bundle", help="bundle folder")
+    r.add_argument("model", help="model file (bmr-model JSON, from `bmr identify`)")
+    r.add_argument("bundle", help=BUNDLE_HELP)
     r.add_argument("--runs", action="append", default=[], metavar="RUN[,RUN...]",
                    help="runs to predict (default: the bundle's evaluation runs)")
     r.add_argument("--offset", choices=("none", "first-sample"), default="none",

@@ -4,14 +4,16 @@
 * :mod:`~bmr.identification.friction` — angle-periodic seal friction (paper eq 22);
 * :mod:`~bmr.identification.forc` — first-order reversal curves cut from protocol runs (the paper's path);
 * :mod:`~bmr.identification.lstsq` — Preisach (Everett) tables by least squares from any excitation;
-* :mod:`~bmr.identification.model` — the identified model and its ``bmr-model/1`` file;
-* :mod:`~bmr.identification.procedure` — ``identify()`` and ``bmr identify``: all of the above on a bundle.
+* :mod:`~bmr.identification.model` — the identified model and its ``bmr-model/2`` file;
+* :mod:`~bmr.identification.procedure` — ``identify()`` and ``bmr identify``: all of the above on a bundle;
+* :mod:`~bmr.identification.prediction` — ``predict()`` and ``bmr predict``: a model's held-out errors.
 """
 from bmr.identification.forc import FirstOrderCurves, extract_first_order_curves, paper_current_curves
 from bmr.identification.friction import FrictionFit, fit_friction
 from bmr.identification.procedure import identify
 from bmr.identification.lstsq import LstsqTables, fit_tables_lstsq
 from bmr.identification.model import Model
+from bmr.identification.prediction import Prediction, RunPrediction, predict
 
 __all__ = ["FirstOrderCurves", "FrictionFit", "LstsqTables", "Model", "extract_first_order_curves", "fit_friction",
-           "fit_tables_lstsq", "identify", "paper_current_curves"]
+           "fit_tables_lstsq", "identify", "paper_current_curves", "predict", "Prediction", "RunPrediction"]
