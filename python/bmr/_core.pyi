@@ -76,6 +76,8 @@ class Hysteresis:
     def output_range(self) -> tuple[float, float]: ...
     def consistency(self) -> dict[str, float]: ...
     def curves(self) -> tuple[list[tuple[np.ndarray, np.ndarray]], list[tuple[np.ndarray, np.ndarray]]]: ...
+    def current_curves(self) -> tuple[list[tuple[np.ndarray, np.ndarray]], list[tuple[np.ndarray, np.ndarray]]]:
+        """The paper's current curves (torque, current): the stored curves with their axes swapped."""
 
 @final
 class Friction:
@@ -128,6 +130,8 @@ class EverettModel:
     def first_order_curves(
         self, subdivisions: int = 1
     ) -> tuple[list[tuple[np.ndarray, np.ndarray]], list[tuple[np.ndarray, np.ndarray]]]: ...
+    def hysteresis(self, subdivisions: int = 4) -> Hysteresis:
+        """The CBH operator of this table, built in Rust (no curve lists cross the boundary)."""
 
 def fit_everett(
     grid: np.ndarray,

@@ -13,6 +13,7 @@ use alloc::vec::Vec;
 
 use super::everett_regressors::{EverettGrid, NormalEquations, simulate_everett};
 use super::nnls::nnls_gram;
+use crate::from_curves::CurveData;
 
 /// A Preisach model: Everett table on a grid (from nonnegative cell masses) and the output at negative saturation.
 #[derive(Clone, Debug, PartialEq)]
@@ -22,9 +23,6 @@ pub struct EverettModel {
     node_values: Vec<f64>,
     offset: f64,
 }
-
-/// A family of first-order curves: one `(u, y)` table per reversal.
-pub type CurveFamily = Vec<(Vec<f64>, Vec<f64>)>;
 
 impl EverettModel {
     /// Build from cell masses (packed like [`EverettGrid::cell_index`], finite, nonnegative) and the output at
@@ -91,10 +89,22 @@ impl EverettModel {
         )
     }
 
+    /// The CBH operator of this Everett table (its first-order curves with `subdivisions` reversals per grid
+    /// interval, see [`Self::first_order_curves_subdivided`]), built without leaving Rust.
+    pub fn hysteresis<const N: usize>(
+        &self,
+        subdivisions: usize,
+        opts: &crate::table_builder::BuildOptions,
+        initial: crate::cbh::Initial,
+    ) -> Result<crate::cbh::Hysteresis<Vec<f64>, N>, crate::error::TableError> {
+        let (asc, desc) = self.first_order_curves_subdivided(subdivisions);
+        crate::cbh::Hysteresis::from_curve_data(&asc, &desc, opts, initial)
+    }
+
     /// First-order curves at every grid node: ascending from each reversal minimum `g_i` (i < N) up to
     /// positive saturation (`y(m) + E(m, u)`), descending from each reversal maximum `g_j` (j > 0) down to
     /// negative saturation (`y(M) − E(u, M)`), in traversal order. The first of each family is the major branch.
-    pub fn first_order_curves(&self) -> (CurveFamily, CurveFamily) {
+    pub fn first_order_curves(&self) -> (Vec<CurveData>, Vec<CurveData>) {
         self.first_order_curves_subdivided(1)
     }
 
@@ -102,7 +112,10 @@ impl EverettModel {
     /// every grid interval. The curves stay exact (piecewise linear in `u` with nodes at the reversal and the
     /// grid nodes beyond it); more reversals make a CBH operator built from them follow the Everett table
     /// closely between grid reversals as well.
-    pub fn first_order_curves_subdivided(&self, subdivisions: usize) -> (CurveFamily, CurveFamily) {
+    pub fn first_order_curves_subdivided(
+        &self,
+        subdivisions: usize,
+    ) -> (Vec<CurveData>, Vec<CurveData>) {
         let k = subdivisions.max(1);
         let g = self.grid.nodes();
         let n = self.grid.n_intervals();

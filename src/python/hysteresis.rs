@@ -5,7 +5,7 @@ use pyo3::types::{PyDict, PyList, PyString, PyTuple};
 
 use crate::cbh::{Hysteresis, Initial, State};
 use crate::congruency::congruency;
-use crate::python::arrays::{DETACH_LEN, extract_f64_array, to_numpy, to_vec};
+use crate::python::arrays::{DETACH_LEN, curves_to_py, extract_f64_array, to_numpy, to_vec};
 use crate::python::{BmrError, bmr_err};
 use crate::table_builder::BuildOptions;
 
@@ -72,17 +72,6 @@ fn parse_family(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<Vec<(Vec<f64>, V
         out.push((u, y));
     }
     Ok(out)
-}
-
-fn curves_to_py<'py>(
-    py: Python<'py>,
-    curves: Vec<(Vec<f64>, Vec<f64>)>,
-) -> PyResult<Bound<'py, PyList>> {
-    let items: Vec<_> = curves
-        .into_iter()
-        .map(|(u, y)| PyTuple::new(py, [to_numpy(py, u), to_numpy(py, y)]))
-        .collect::<PyResult<_>>()?;
-    PyList::new(py, items)
 }
 
 /// Snapshot of a `Hysteresis` state (an opaque copy; restore it into the operator it came from).
@@ -239,6 +228,17 @@ impl PyHysteresis {
     /// The stored tables as `(ascending, descending)` curve lists in `from_curves` form.
     fn curves<'py>(&self, py: Python<'py>) -> PyResult<(Bound<'py, PyList>, Bound<'py, PyList>)> {
         let (a, d) = self.op.curves();
+        Ok((curves_to_py(py, a)?, curves_to_py(py, d)?))
+    }
+
+    /// The paper's current curves (eq 17-20): the stored first-order curves with inputs and outputs swapped,
+    /// `(torque, current)` pairs with torque strictly monotone along each curve; the paper's inverse operator is
+    /// built from them.
+    fn current_curves<'py>(
+        &self,
+        py: Python<'py>,
+    ) -> PyResult<(Bound<'py, PyList>, Bound<'py, PyList>)> {
+        let (a, d) = self.op.current_curves();
         Ok((curves_to_py(py, a)?, curves_to_py(py, d)?))
     }
 

@@ -8,7 +8,7 @@
 * :mod:`~bmr.identification.procedure` — ``identify()`` and ``bmr identify``: all of the above on a bundle;
 * :mod:`~bmr.identification.prediction` — ``predict()`` and ``bmr predict``: a model's held-out errors.
 """
-from bmr.identification.forc import FirstOrderCurves, extract_first_order_curves, paper_current_curves
+from bmr.identification.forc import FirstOrderCurves, extract_first_order_curves
 from bmr.identification.friction import FrictionFit, fit_friction
 from bmr.identification.procedure import identify
 from bmr.identification.lstsq import LstsqTables, fit_tables_lstsq
@@ -16,4 +16,4 @@ from bmr.identification.model import Model
 from bmr.identification.prediction import Prediction, RunPrediction, predict
 
 __all__ = ["FirstOrderCurves", "FrictionFit", "LstsqTables", "Model", "extract_first_order_curves", "fit_friction",
-           "fit_tables_lstsq", "identify", "paper_current_curves", "predict", "Prediction", "RunPrediction"]
+           "fit_tables_lstsq", "identify", "predict", "Prediction", "RunPrediction"]

@@ -1,11 +1,11 @@
 """First-order reversal curves (the paper's identification path): find the reversals of the protocol runs with a
 dead-band, cut the first-order curves, fit each one monotonically (local linear smoothing on a node grid, then
-isotonic regression: no invented wiggles) and hand them to ``bmr.Hysteresis.from_curves``; and the paper's
-current curves (the torque curves with their axes swapped) for its inverse operator."""
+isotonic regression: no invented wiggles) and hand them to ``bmr.Hysteresis.from_curves``. (The paper's current curves, the torque curves with their axes
+swapped, are ``bmr.Hysteresis.current_curves()``.)"""
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any, Iterable, Sequence
+from typing import TYPE_CHECKING, Any, Iterable
 
 import numpy as np
 
@@ -14,7 +14,10 @@ from bmr.data.bundle import Run, runs_of
 from bmr.data.signals import default_deadband
 from bmr.identification.spans import input_range_of, sample_noise
 
-__all__ = ["Curve", "FirstOrderCurves", "find_reversals", "extract_first_order_curves", "paper_current_curves"]
+if TYPE_CHECKING:
+    from bmr.identification.friction import FrictionFit
+
+__all__ = ["Curve", "FirstOrderCurves", "find_reversals", "extract_first_order_curves"]
 
 Curve = tuple[np.ndarray, np.ndarray]
 
@@ -185,23 +188,3 @@ def extract_first_order_curves(
                        f"first-order curves (dead-band {runs[0].quantities.input.format(db, 4)}); both families need "
                        "at least the major branch")
     return FirstOrderCurves(ascending, descending, (lo, hi))
-
-
-def paper_current_curves(ascending: Sequence[Curve], descending: Sequence[Curve]
-                         ) -> tuple[list[Curve], list[Curve]]:
-    """The paper's current curves ``I^a(T_min, T)``, ``I^d(T_max, T)`` (eq 17-20): each torque curve with its
-    axes swapped, in the same traversal order, flat stretches (no torque change) collapsed so torque is
-    strictly monotone along each curve."""
-    def swap(curves: Sequence[Curve], rising: bool) -> list[Curve]:
-        out = []
-        for u, y in curves:
-            u, y = np.asarray(u, float), np.asarray(y, float)
-            keep = [0]
-            for i in range(1, y.size):
-                if (y[i] > y[keep[-1]]) if rising else (y[i] < y[keep[-1]]):
-                    keep.append(i)
-            if len(keep) >= 2:
-                out.append((y[keep], u[keep]))
-        return out
-
-    return swap(ascending, True), swap(descending, False)

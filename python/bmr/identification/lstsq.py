@@ -61,7 +61,6 @@ def fit_tables_lstsq(
         raise BmrError(f"n_intervals must be at least 2, got {n_intervals}")
     us = [r.input for r in runs]
     ys = [r.output - (friction(r.angle) if friction is not None and r.angle is not None else 0.0) for r in runs]
-    all_u = np.concatenate(us)
     lo, hi = input_range if input_range is not None else input_range_of(us)
     if not hi > lo:
         raise BmrError("the input never varies in the training runs; nothing to identify")

@@ -22,6 +22,7 @@ damaged file is reported as such. Loading a missing, unknown or newer format is 
 """
 from __future__ import annotations
 
+import copy
 import hashlib
 import json
 import math
@@ -33,7 +34,6 @@ import numpy as np
 
 from bmr._core import BmrError, Compensator, Hysteresis
 from bmr.data.quantities import ACTUATOR, Quantities
-from bmr.identification.forc import paper_current_curves
 from bmr.identification.friction import FrictionFit
 
 __all__ = ["FORMAT", "Model"]
@@ -129,8 +129,10 @@ class Model:
         bad = np.flatnonzero(~np.isfinite(i_a))
         if bad.size:
             raise BmrError(f"current sample {int(bad[0])} is not finite ({i_a[bad[0]]!r})")
-        self.hysteresis.reset(initial=initial)
-        y = np.asarray(self.hysteresis.run(i_a), dtype=float)
+        # A copy: simulating never changes the model (its operator may be shared with a compensator).
+        h = copy.copy(self.hysteresis)
+        h.reset(initial=initial)
+        y = np.asarray(h.run(i_a), dtype=float)
         if theta is not None:
             th = np.asarray(theta, dtype=float)
             if th.shape != i_a.shape:
@@ -149,8 +151,7 @@ class Model:
 
     def current_curves(self) -> tuple[list[tuple[np.ndarray, np.ndarray]], list[tuple[np.ndarray, np.ndarray]]]:
         """The paper's current curves (torque → current) from the stored torque curves."""
-        asc, desc = self.hysteresis.curves()
-        return paper_current_curves(asc, desc)
+        return self.hysteresis.current_curves()
 
     # --------------------------------------------------------------------------------------- files
     def to_dict(self) -> dict[str, Any]:
