@@ -50,9 +50,10 @@ def _parser() -> argparse.ArgumentParser:
     m.add_argument("files", nargs="+", help="log files (every table holding the declared columns is a run)")
     m.add_argument("--input", required=True, metavar="COL[:UNIT]", help="the device's input column")
     m.add_argument("--output", required=True, metavar="COL[:UNIT]", help="the device's output column")
-    m.add_argument("--angle", metavar="COL[:UNIT]", help="rotor angle column (optional; stored in rad)")
+    m.add_argument("--angle", metavar="COL[:UNIT]", help="rotor angle column (optional; stored in rad, so a unit given here is the file's)")
     m.add_argument("--time", metavar="COL[:UNIT]",
-                   help="time column (default: the format's time axis or a column named time/t; stored in s)")
+                   help="time column (default: the format's time axis or a column named time/t; stored in s, so a unit "
+                        "given here is the file's)")
     m.add_argument("--output-sigma", metavar="COL[:UNIT]",
                    help="per-sample standard uncertainty of the output (optional)")
     m.add_argument("--input-name", help="name of the input quantity (default from its unit, e.g. V -> voltage)")

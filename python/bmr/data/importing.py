@@ -251,8 +251,8 @@ def import_logs(
     """Read raw logs into a bundle (``ImportResult.bundle``) with the declared quantities.
 
     ``input``/``output``/``angle``/``time``/``output_sigma``: columns as ``COL``, ``COL:UNIT`` or
-    ``COL:SOURCE:UNIT`` (or :class:`ColumnSpec`); the angle is stored in rad, time in s, the sigma in the
-    output's unit. ``input_name``/``output_name`` name the quantities (default: from the unit's dimension, e.g.
+    ``COL:SOURCE:UNIT`` (or :class:`ColumnSpec`); the angle is stored in rad and time in s (a single unit given
+    for them is the file's), the sigma in the output's unit. ``input_name``/``output_name`` name the quantities (default: from the unit's dimension, e.g.
     V → voltage). ``protocol``: one of ``PROTOCOLS``; ``holdout``: run or file names labelled for evaluation.
     ``format`` forces a reader (see :data:`bmr.data.tables.FORMATS`). ``sample_rate_hz`` builds time from the
     sample index for files without a time column. ``deadband``: the reversal dead-band in input units.
@@ -268,8 +268,11 @@ def import_logs(
     time_spec = ColumnSpec.parse(time, "time") if time is not None else None
     sigma_spec = ColumnSpec.parse(output_sigma, "output sigma") if output_sigma is not None else None
     if angle_spec is not None and angle_spec.unit is not None and unit(angle_spec.unit) != unit("rad"):
-        raise BmrError(f"the angle is stored in rad; give its file unit as {angle_spec.column}:"
-                       f"{angle_spec.unit}:rad")
+        # The angle is always stored in rad: a single unit given for it is the file's.
+        if angle_spec.source_unit is not None:
+            raise BmrError(f"the angle is stored in rad; give it as {angle_spec.column}:{angle_spec.source_unit} "
+                           f"or {angle_spec.column}:{angle_spec.source_unit}:rad")
+        angle_spec = ColumnSpec(angle_spec.column, "rad", angle_spec.unit)
     if sample_rate_hz is not None and not (isinstance(sample_rate_hz, (int, float)) and sample_rate_hz > 0
                                            and np.isfinite(sample_rate_hz)):
         raise BmrError(f"sample_rate_hz must be a positive finite number, got {sample_rate_hz!r}")

@@ -185,3 +185,24 @@ def test_cli_errors_are_one_line(piezo_logs, tmp_path, capsys):
     assert main(["predict", str(model), str(bundle), "--runs", "forc_01", "--json",
                  str(tmp_path / "no" / "p.json")]) == 2
     assert "folder" in capsys.readouterr().err and not (tmp_path / "no").exists()
+
+
+def test_actuator_log_with_angle_imports_to_the_actuator_quantities(tmp_path):
+    from bmr.simulation.experiments import simulate_bundle
+
+    run = simulate_bundle("ideal", quick=True, seed=2).run("multipeak")
+    pd.DataFrame({"Time": run.t, "I_cmd": run.current / 0.125, "Encoder": np.degrees(run.theta),
+                  "Torque": run.torque / 1000.0}).to_csv(tmp_path / "mp.csv", index=False)
+    res = import_logs([tmp_path / "mp.csv"], input="I_cmd:0.125A:A", output="Torque:N*m:N*mm",
+                      angle="Encoder:deg:rad", time="Time:s")
+    assert res.bundle.quantities.is_actuator and res.bundle.quantities.angle is not None
+    got = res.bundle.run("mp")
+    np.testing.assert_allclose(got.current, run.current, atol=1e-12)
+    np.testing.assert_allclose(got.theta, run.theta, rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(got.torque, run.torque, rtol=1e-12, atol=1e-9)
+    assert res.bundle.sample_rate_hz == 500.0
+    # The angle is stored in rad: a single unit given for it is the file's.
+    again = import_logs([tmp_path / "mp.csv"], input="I_cmd:0.125A:A", output="Torque:N*m:N*mm", angle="Encoder:deg")
+    np.testing.assert_array_equal(again.bundle.run("mp").theta, got.theta)
+    with pytest.raises(bmr.BmrError, match=r"the angle is stored in rad; give it as Encoder:deg or Encoder:deg:rad"):
+        import_logs([tmp_path / "mp.csv"], input="I_cmd:0.125A:A", output="Torque:N*m:N*mm", angle="Encoder:deg:mrad")
