@@ -17,11 +17,13 @@ shared by all). Lines of numbers that do not match their header (a truncated las
 """
 from __future__ import annotations
 
+import io
 import re
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+import pandas as pd
 
 from bmr._core import BmrError
 from bmr.data.tables import Table, read_text, split_name_unit
@@ -55,6 +57,34 @@ def _header(fields: list[str]) -> bool:
             and not fields[0].endswith(":"))
 
 
+def _starts_numeric(line: str) -> bool:
+    """Cheap test for a data row: its first character can start a number."""
+    head = line.lstrip()[:1]
+    return bool(head) and (head in "0123456789+-." or line.lstrip()[:3].lower() in ("nan", "inf"))
+
+
+def _rows(lines: list[str], start: int, stop: int, header: list[str], last: int, source: str) -> np.ndarray:
+    """Rows ``start:stop`` as floats (parsed in C by pandas); a row whose field count differs from the header's,
+    or a field that is not a number, is an error naming its line."""
+    width = len(header)
+    block = [line.rstrip("\r\n").rstrip("\t ") for line in lines[start:stop]]
+    counts = np.fromiter((b.count("\t") + 1 for b in block), dtype=int, count=len(block))
+    bad = np.flatnonzero(counts != width)
+    if bad.size:
+        k = int(bad[0])
+        truncated = " (truncated file?)" if start + k == last else ""
+        raise BmrError(f"{source}, line {start + k + 1}: {int(counts[k])} values under a header of {width} "
+                       f"({', '.join(header)}){truncated}")
+    try:
+        frame = pd.read_csv(io.StringIO("\n".join(block)), sep="\t", header=None, dtype=float)
+    except ValueError:
+        for k, b in enumerate(block):
+            if not _numeric(_fields(b)):
+                raise BmrError(f"{source}, line {start + k + 1}: not a row of numbers: {b.strip()[:60]!r}") from None
+        raise
+    return frame.to_numpy(dtype=float)
+
+
 def _tables(text: str, source: str) -> list[tuple[int, list[str], np.ndarray, dict[str, Any], str | None]]:
     """``(header line number, header fields, rows, metadata, title)`` of every table."""
     lines = text.splitlines()
@@ -73,20 +103,11 @@ def _tables(text: str, source: str) -> list[tuple[int, list[str], np.ndarray, di
             continue
         nxt = _fields(lines[i + 1]) if i + 1 < len(lines) else []
         if "\t" in lines[i] and _header(fields) and _numeric(nxt):
-            width = len(fields)
-            rows = []
             j = i + 1
-            while j < len(lines):
-                row = _fields(lines[j])
-                if not row or not _numeric(row):
-                    break
-                if len(row) != width:
-                    truncated = " (truncated file?)" if j == last else ""
-                    raise BmrError(f"{source}, line {j + 1}: {len(row)} values under a header of {width} "
-                                   f"({', '.join(fields)}){truncated}")
-                rows.append([float(x) for x in row])
+            while j < len(lines) and _starts_numeric(lines[j]):
                 j += 1
-            out.append((i + 1, fields, np.asarray(rows, dtype=float), {**shared, **pending}, title))
+            rows = _rows(lines, i + 1, j, fields, last, source)
+            out.append((i + 1, fields, rows, {**shared, **pending}, title))
             pending, title, seen_table = {}, None, True
             i = j
             continue

@@ -157,12 +157,25 @@ def _frame_table(path: Path, df: pd.DataFrame, units: Mapping[str, str] | None =
     return Table(path.stem, columns, str(path), found_units, aliases=aliases)
 
 
-def read_csv(path: str | Path) -> list[Table]:
-    """A delimited text table (comma, semicolon, tab; sniffed) with one header line."""
-    p = Path(path)
-    _read_bytes(p)
+def _delimiter(sample: str) -> str:
+    """The field delimiter of a text table from its first lines (comma, semicolon, tab; else whitespace)."""
+    import csv
+
     try:
-        df = pd.read_csv(p, sep=None, engine="python")
+        return csv.Sniffer().sniff(sample, delimiters=",;\t").delimiter
+    except csv.Error:
+        return r"\s+" if len(sample.splitlines()[0].split()) > 1 else ","
+
+
+def read_csv(path: str | Path) -> list[Table]:
+    """A delimited text table (comma, semicolon, tab or whitespace; sniffed from the first lines) with one header
+    line."""
+    p = Path(path)
+    raw = _read_bytes(p)
+    sample = raw[:65536].decode("utf-8", errors="replace")
+    sample = "\n".join(sample.splitlines()[:50]) or sample
+    try:
+        df = pd.read_csv(p, sep=_delimiter(sample))
     except Exception as exc:  # noqa: BLE001 - any parser failure is a clear file error
         raise BmrError(f"{p}: cannot be read as CSV ({exc})") from None
     if len(df) == 0:

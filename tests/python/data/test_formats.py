@@ -96,6 +96,9 @@ def test_analyzer_truncated_headerless_and_wrong_files(tmp_path):
     with pytest.raises(bmr.BmrError, match=r"cut.dat, line \d+: 2 values under a header of 3 \(Time s, Vplus V, "
                                            r"P1 uC_per_cm2\) \(truncated file\?\)"):
         read_tables(p)
+    (tmp_path / "word.dat").write_text("Time s\tVplus V\n0\t1.0\n1e-3\tover\n2e-3\t3.0\n")
+    with pytest.raises(bmr.BmrError, match=r"word.dat, line 3: not a row of numbers: '1e-3\\tover'"):
+        read_tables(tmp_path / "word.dat")
     (tmp_path / "bare.txt").write_text("1.0\t2.0\n3.0\t4.0\n")
     with pytest.raises(bmr.BmrError, match=r"bare.txt, line 1: numbers without a header line"):
         read_tables(tmp_path / "bare.txt", "aixacct")
