@@ -25,7 +25,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from bmr._core import BmrError
+from bmr._core import BmrError, BundleError
 from bmr.data.tables import Table, read_text, split_name_unit
 
 __all__ = ["read", "looks_like"]
@@ -73,14 +73,14 @@ def _rows(lines: list[str], start: int, stop: int, header: list[str], last: int,
     if bad.size:
         k = int(bad[0])
         truncated = " (truncated file?)" if start + k == last else ""
-        raise BmrError(f"{source}, line {start + k + 1}: {int(counts[k])} values under a header of {width} "
+        raise BundleError(f"{source}, line {start + k + 1}: {int(counts[k])} values under a header of {width} "
                        f"({', '.join(header)}){truncated}")
     try:
         frame = pd.read_csv(io.StringIO("\n".join(block)), sep="\t", header=None, dtype=float)
     except ValueError:
         for k, b in enumerate(block):
             if not _numeric(_fields(b)):
-                raise BmrError(f"{source}, line {start + k + 1}: not a row of numbers: {b.strip()[:60]!r}") from None
+                raise BundleError(f"{source}, line {start + k + 1}: not a row of numbers: {b.strip()[:60]!r}") from None
         raise
     return frame.to_numpy(dtype=float)
 
@@ -112,7 +112,7 @@ def _tables(text: str, source: str) -> list[tuple[int, list[str], np.ndarray, di
             i = j
             continue
         if _numeric(fields) and len(fields) >= 2:
-            raise BmrError(f"{source}, line {i + 1}: numbers without a header line of column names")
+            raise BundleError(f"{source}, line {i + 1}: numbers without a header line of column names")
         m = _META.match(stripped)
         if _TITLE.match(stripped):
             title = stripped
@@ -139,7 +139,7 @@ def read(path: str | Path) -> list[Table]:
     p = Path(path)
     found = _tables(read_text(p), str(p))
     if not found:
-        raise BmrError(f"{p}: no tab-separated table found (expected a header line of names with units, e.g. "
+        raise BundleError(f"{p}: no tab-separated table found (expected a header line of names with units, e.g. "
                        "'Time s<TAB>Vplus V<TAB>P1 uC_per_cm2', followed by rows of numbers)")
     tables = []
     for k, (line, header, rows, meta, title) in enumerate(found):

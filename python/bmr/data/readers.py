@@ -21,7 +21,7 @@ from typing import Any, Iterable, Mapping
 import numpy as np
 import pandas as pd
 
-from bmr._core import BmrError
+from bmr._core import BundleError
 from bmr.data.bundle import OPTIONAL_COLUMNS, REQUIRED_COLUMNS, Bundle, Run
 from bmr.data.signals import nominal_sample_rate
 from bmr.data.tables import Table, read_tables
@@ -48,7 +48,7 @@ _SUFFIXES = (".csv", ".txt", ".parquet", ".pq", ".tdms", ".mat")
 
 def _column_unit(column: str) -> str:
     if column not in COLUMN_UNITS:
-        raise BmrError(f"unknown bundle column {column!r}; known: {', '.join(COLUMN_UNITS)}")
+        raise BundleError(f"unknown bundle column {column!r}; known: {', '.join(COLUMN_UNITS)}")
     return COLUMN_UNITS[column]
 
 
@@ -88,14 +88,14 @@ def read_table(
     """
     file = Path(path)
     if not file.is_file():
-        raise BmrError(f"{str(file)!r} does not exist")
+        raise BundleError(f"{str(file)!r} does not exist")
     mapping = dict(mapping or {})
     units = dict(units or {})
     for col in (*mapping, *units):
         _column_unit(col)
     suffix = file.suffix.lower()
     if suffix not in _SUFFIXES:
-        raise BmrError(f"{file}: unsupported file type {suffix!r} (read .csv, .parquet, .tdms, .mat)")
+        raise BundleError(f"{file}: unsupported file type {suffix!r} (read .csv, .parquet, .tdms, .mat)")
     tables = read_tables(file)
 
     out: dict[str, np.ndarray] = {}
@@ -105,7 +105,7 @@ def read_table(
         if values is None:
             if col in mapping:
                 available = sorted({c for t in tables for c in t.columns})
-                raise BmrError(f"{file}: mapped source {name!r} for column {col!r} not found "
+                raise BundleError(f"{file}: mapped source {name!r} for column {col!r} not found "
                                f"(available: {', '.join(available)})")
             continue
         out[col] = convert_units(col, values, units[col]) if col in units else np.asarray(values, dtype=float)
@@ -116,16 +116,16 @@ def read_table(
             out[col] = np.full(n, float(value))
     if "t_s" not in out and sample_rate_hz is not None:
         if not (sample_rate_hz > 0 and math.isfinite(sample_rate_hz)):
-            raise BmrError(f"sample_rate_hz must be positive and finite, got {sample_rate_hz!r}")
+            raise BundleError(f"sample_rate_hz must be positive and finite, got {sample_rate_hz!r}")
         out["t_s"] = np.arange(n) / float(sample_rate_hz)
     missing = [c for c in REQUIRED_COLUMNS if c not in out]
     if missing:
         available = sorted({c for t in tables for c in t.columns})
-        raise BmrError(f"{file}: no source for required column(s) {', '.join(missing)}; map them with "
+        raise BundleError(f"{file}: no source for required column(s) {', '.join(missing)}; map them with "
                        f"mapping={{'{missing[0]}': '<name>'}} (available: {', '.join(available)})")
     lengths = {c: len(v) for c, v in out.items()}
     if len(set(lengths.values())) > 1:
-        raise BmrError(f"{file}: columns have different lengths: "
+        raise BundleError(f"{file}: columns have different lengths: "
                        + ", ".join(f"{c}={k}" for c, k in lengths.items()))
     return pd.DataFrame(out)
 
@@ -147,13 +147,13 @@ def bundle_from_files(
     runs = []
     for k, spec in enumerate(files):
         if not all(key in spec for key in ("path", "name", "kind")):
-            raise BmrError(f"files[{k}] needs 'path', 'name' and 'kind'")
+            raise BundleError(f"files[{k}] needs 'path', 'name' and 'kind'")
         df = read_table(spec["path"], {**(mapping or {}), **spec.get("mapping", {})},
                         {**(units or {}), **spec.get("units", {})},
                         defaults={**(defaults or {}), **spec.get("defaults", {})}, sample_rate_hz=sample_rate_hz)
         runs.append(Run(str(spec["name"]), str(spec["kind"]), df, dict(spec.get("meta", {}))))
     if not runs:
-        raise BmrError("bundle_from_files needs at least one file")
+        raise BundleError("bundle_from_files needs at least one file")
     if sample_rate_hz is None:
         sample_rate_hz = nominal_sample_rate(runs[0].t)
     return Bundle(actuator=actuator, sample_rate_hz=float(sample_rate_hz), runs=runs)

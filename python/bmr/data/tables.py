@@ -26,7 +26,7 @@ from typing import Any, Callable, Mapping
 import numpy as np
 import pandas as pd
 
-from bmr._core import BmrError
+from bmr._core import BmrError, BundleError
 from bmr.data.units import unit as parse_unit
 
 __all__ = ["Table", "FORMATS", "read_tables", "read_text", "split_name_unit", "read_csv", "read_parquet",
@@ -50,13 +50,13 @@ class Table:
 
     def __post_init__(self) -> None:
         if not self.columns:
-            raise BmrError(f"{self.source}: no numeric columns")
+            raise BundleError(f"{self.source}: no numeric columns")
         lengths = {k: len(v) for k, v in self.columns.items()}
         if len(set(lengths.values())) > 1:
-            raise BmrError(f"{self.source}: columns have different lengths: "
+            raise BundleError(f"{self.source}: columns have different lengths: "
                            + ", ".join(f"{k}={n}" for k, n in lengths.items()))
         if self.n_samples == 0:
-            raise BmrError(f"{self.source}: the table has a header but no samples (empty or truncated file)")
+            raise BundleError(f"{self.source}: the table has a header but no samples (empty or truncated file)")
 
     @property
     def n_samples(self) -> int:
@@ -73,15 +73,15 @@ class Table:
             return hits[0]
         targets = sorted(set(hits) | set(self.aliases.get(low, [])))
         if len(targets) > 1:
-            raise BmrError(f"{self.source}: column {name!r} is ambiguous ({', '.join(targets)}); use the full name")
+            raise BundleError(f"{self.source}: column {name!r} is ambiguous ({', '.join(targets)}); use the full name")
         return targets[0] if targets else None
 
     def column(self, name: str, role: str = "column") -> tuple[str, np.ndarray]:
-        """``(column name, values)`` for ``name``; a ``BmrError`` naming the file, the role (e.g. "input") and the
+        """``(column name, values)`` for ``name``; a ``BundleError`` naming the file, the role (e.g. "input") and the
         available columns when it is missing."""
         key = self.find(name)
         if key is None:
-            raise BmrError(f"{self.source}: no column {name!r} for the {role} (columns: "
+            raise BundleError(f"{self.source}: no column {name!r} for the {role} (columns: "
                            f"{', '.join(self.columns)})")
         return key, self.columns[key]
 
@@ -117,9 +117,9 @@ def read_text(path: Path) -> str:
         try:
             return raw.decode("utf-16")
         except UnicodeDecodeError as exc:
-            raise BmrError(f"{path}: not valid UTF-16 text ({exc})") from None
+            raise BundleError(f"{path}: not valid UTF-16 text ({exc})") from None
     if b"\x00" in raw[:4096]:
-        raise BmrError(f"{path}: binary content, not a text table")
+        raise BundleError(f"{path}: binary content, not a text table")
     try:
         return raw.decode("utf-8-sig")
     except UnicodeDecodeError:
@@ -130,9 +130,9 @@ def _read_bytes(path: Path) -> bytes:
     try:
         raw = path.read_bytes()
     except OSError as exc:
-        raise BmrError(f"{path}: cannot be read ({exc.strerror or exc})") from None
+        raise BundleError(f"{path}: cannot be read ({exc.strerror or exc})") from None
     if not raw.strip():
-        raise BmrError(f"{path}: the file is empty")
+        raise BundleError(f"{path}: the file is empty")
     return raw
 
 
@@ -153,7 +153,7 @@ def _frame_table(path: Path, df: pd.DataFrame, units: Mapping[str, str] | None =
             found_units[name] = u
             aliases.setdefault(str(c).strip().lower(), []).append(name)
     if not columns:
-        raise BmrError(f"{path}: no numeric columns (columns: {', '.join(map(str, df.columns))})")
+        raise BundleError(f"{path}: no numeric columns (columns: {', '.join(map(str, df.columns))})")
     return Table(path.stem, columns, str(path), found_units, aliases=aliases)
 
 
@@ -177,9 +177,9 @@ def read_csv(path: str | Path) -> list[Table]:
     try:
         df = pd.read_csv(p, sep=_delimiter(sample))
     except Exception as exc:  # noqa: BLE001 - any parser failure is a clear file error
-        raise BmrError(f"{p}: cannot be read as CSV ({exc})") from None
+        raise BundleError(f"{p}: cannot be read as CSV ({exc})") from None
     if len(df) == 0:
-        raise BmrError(f"{p}: the CSV has a header but no samples (empty or truncated file)")
+        raise BundleError(f"{p}: the CSV has a header but no samples (empty or truncated file)")
     return [_frame_table(p, df)]
 
 
@@ -189,7 +189,7 @@ def read_parquet(path: str | Path) -> list[Table]:
     try:
         df = pd.read_parquet(p)
     except Exception as exc:  # noqa: BLE001
-        raise BmrError(f"{p}: cannot be read as Parquet ({exc})") from None
+        raise BundleError(f"{p}: cannot be read as Parquet ({exc})") from None
     return [_frame_table(p, df)]
 
 
@@ -201,11 +201,11 @@ def read_tdms(path: str | Path) -> list[Table]:
     try:
         from nptdms import TdmsFile
     except ImportError:  # pragma: no cover - npTDMS is a dependency
-        raise BmrError("reading .tdms needs the npTDMS package (pip install npTDMS)") from None
+        raise BundleError("reading .tdms needs the npTDMS package (pip install npTDMS)") from None
     try:
         tdms = TdmsFile.read(p)
     except Exception as exc:  # noqa: BLE001
-        raise BmrError(f"{p}: cannot be read as TDMS ({exc})") from None
+        raise BundleError(f"{p}: cannot be read as TDMS ({exc})") from None
     columns: dict[str, np.ndarray] = {}
     units: dict[str, str] = {}
     aliases: dict[str, list[str]] = {}
@@ -221,7 +221,7 @@ def read_tdms(path: str | Path) -> list[Table]:
                 units[key] = u.strip()
             aliases.setdefault(channel.name.lower(), []).append(key)
     if not columns:
-        raise BmrError(f"{p}: no numeric TDMS channels")
+        raise BundleError(f"{p}: no numeric TDMS channels")
     return _split_by_length(p, columns, units, aliases)
 
 
@@ -232,14 +232,14 @@ def load_mat(path: Path) -> dict[str, Any]:
     try:
         from scipy.io import loadmat
     except ImportError:  # pragma: no cover - scipy is a dependency
-        raise BmrError("reading .mat needs scipy") from None
+        raise BundleError("reading .mat needs scipy") from None
     try:
         return loadmat(path, squeeze_me=True, struct_as_record=False)
     except NotImplementedError:
-        raise BmrError(f"{path}: MATLAB v7.3 (HDF5) files are not read; save the data as a v7 MAT file "
+        raise BundleError(f"{path}: MATLAB v7.3 (HDF5) files are not read; save the data as a v7 MAT file "
                        "(MATLAB: save(name, '-v7'); ControlDesk: MAT export) or export CSV") from None
     except Exception as exc:  # noqa: BLE001
-        raise BmrError(f"{path}: cannot be read as a MATLAB file ({exc})") from None
+        raise BundleError(f"{path}: cannot be read as a MATLAB file ({exc})") from None
 
 
 def read_mat(path: str | Path) -> list[Table]:
@@ -261,7 +261,7 @@ def read_mat(path: str | Path) -> list[Table]:
         if not key.startswith("__"):
             add(key, value)
     if not columns:
-        raise BmrError(f"{p}: no numeric vectors among the MATLAB variables "
+        raise BundleError(f"{p}: no numeric vectors among the MATLAB variables "
                        f"({', '.join(k for k in mat if not k.startswith('__')) or 'none'})")
     return _split_by_length(p, columns, {}, {})
 
@@ -317,10 +317,10 @@ def read_tables(path: str | Path, format: str | None = None) -> list[Table]:
     one its extension and content call for."""
     p = Path(path)
     if not p.is_file():
-        raise BmrError(f"{str(p)!r} does not exist" if not p.exists() else f"{str(p)!r} is not a file")
+        raise BundleError(f"{str(p)!r} does not exist" if not p.exists() else f"{str(p)!r} is not a file")
     readers = _readers()
     if format is None:
         format = detect_format(p)
     if format not in readers:
-        raise BmrError(f"unknown file format {format!r}; use one of {', '.join(FORMATS)}")
+        raise BundleError(f"unknown file format {format!r}; use one of {', '.join(FORMATS)}")
     return readers[format](p)

@@ -40,7 +40,7 @@ def test_controldesk_rasters_become_tables_and_bad_captures_are_named(tmp_path):
     assert fast.name == "cap-x1" and slow_t.name == "cap-x2" and slow_t.n_samples == slow.size
     assert "raster X(2)" in slow_t.source
     cut = write_controldesk(tmp_path / "cut.mat", "cut", [T], [("Vout", "Model Root/Amp", VOLTS[:-5], "V", 1)])
-    with pytest.raises(bmr.BmrError, match=r"cut.mat: cut: channel 'Vout' has 295 samples but its time axis X\(1\) "
+    with pytest.raises(bmr.BundleError, match=r"cut.mat: cut: channel 'Vout' has 295 samples but its time axis X\(1\) "
                                            r"has 300 \(truncated capture\?\)"):
         read_tables(cut)
     dup = write_controldesk(tmp_path / "dup.mat", "dup", [T], [
@@ -93,7 +93,7 @@ def test_analyzer_truncated_headerless_and_wrong_files(tmp_path):
     p = write_aixacct(tmp_path / "cut.dat", [({}, header, _loop(0)[:, [0, 1, 4]])])
     text = p.read_text(encoding="cp1252").rstrip("\n")
     p.write_text(text[: text.rfind("\t")] + "\n", encoding="cp1252")  # the last line loses its last value
-    with pytest.raises(bmr.BmrError, match=r"cut.dat, line \d+: 2 values under a header of 3 \(Time s, Vplus V, "
+    with pytest.raises(bmr.BundleError, match=r"cut.dat, line \d+: 2 values under a header of 3 \(Time s, Vplus V, "
                                            r"P1 uC_per_cm2\) \(truncated file\?\)"):
         read_tables(p)
     (tmp_path / "word.dat").write_text("Time s\tVplus V\n0\t1.0\n1e-3\tover\n2e-3\t3.0\n")
@@ -138,7 +138,7 @@ def test_slac_tables_in_their_layout(tmp_path):
     # Truncated: the last row lost its last columns.
     lines = plt.read_text().splitlines()
     plt.write_text("\n".join(lines[:-1] + [lines[-1][:30]]) + "\n")
-    with pytest.raises(bmr.BmrError, match=r"strplt.ru4, line 9: 3 values where the header names 9 "
+    with pytest.raises(bmr.BundleError, match=r"strplt.ru4, line 9: 3 values where the header names 9 "
                                            r"\(truncated file\?\)"):
         read_tables(plt)
     (tmp_path / "other.txt").write_text("Time\tVolts\n0\t1\n")

@@ -131,10 +131,11 @@ def test_analyzer_tables_become_runs_and_units_convert(tmp_path):
 
 # ------------------------------------------------------------------------------------------------ bad input
 def test_bad_inputs_are_named(piezo_logs, tmp_path):
-    with pytest.raises(bmr.BmrError, match=r"forc_01.mat \(forc_01\): no column for the output 'pos' \(columns: "
+    # File, column, run and protocol problems are bundle errors; units that do not convert are BmrErrors.
+    with pytest.raises(bmr.BundleError, match=r"forc_01.mat \(forc_01\): no column for the output 'pos' \(columns: "
                                            r"time, Model Root/Amp/Vout, x\)"):
         _import(piezo_logs, output="pos:um")
-    with pytest.raises(bmr.BmrError, match=r"forc_01.mat \(forc_01\): column 'x' states no unit; give the output "
+    with pytest.raises(bmr.BundleError, match=r"forc_01.mat \(forc_01\): column 'x' states no unit; give the output "
                                            r"as x:UNIT"):
         _import(piezo_logs, output="x")
     with pytest.raises(bmr.BmrError, match=r"forc_01.mat \(forc_01\): column 'Model Root/Amp/Vout' \(input\): unit V "
@@ -142,28 +143,28 @@ def test_bad_inputs_are_named(piezo_logs, tmp_path):
         _import(piezo_logs, input="Vout:A")
     with pytest.raises(bmr.BmrError, match=r"output 'x': unknown unit 'furlong'"):
         _import(piezo_logs, output="x:furlong")
-    with pytest.raises(bmr.BmrError, match=r"forc_01.mat \(forc_01\) \(run 'forc_01'\): protocol forc-ascending: no "
+    with pytest.raises(bmr.BundleError, match=r"forc_01.mat \(forc_01\) \(run 'forc_01'\): protocol forc-ascending: no "
                                            r"first-order curve found; each curve must fall from the top of the "
                                            r"input range to a reversal and rise back to the top \(found 23 "
                                            r"reversal\(s\) at 8.333 V, 0 V, 16.67 V"):
         _import(piezo_logs, protocol="forc-ascending")
-    with pytest.raises(bmr.BmrError, match=r"holdout 'check_03' names no imported run or file \(runs: forc_01, "
+    with pytest.raises(bmr.BundleError, match=r"holdout 'check_03' names no imported run or file \(runs: forc_01, "
                                            r"check_02\)"):
         _import(piezo_logs, holdout=["check_03"])
-    with pytest.raises(bmr.BmrError, match=r"forc_01.mat: binary content, not a text table"):
+    with pytest.raises(bmr.BundleError, match=r"forc_01.mat: binary content, not a text table"):
         _import(piezo_logs, format="slac")
-    with pytest.raises(bmr.BmrError, match=r"forc_01.mat: cannot be read as Parquet"):
+    with pytest.raises(bmr.BundleError, match=r"forc_01.mat: cannot be read as Parquet"):
         _import(piezo_logs, format="parquet")
     with pytest.raises(bmr.BmrError, match="unknown protocol 'forc'"):
         _import(piezo_logs, protocol="forc")
     (tmp_path / "empty.csv").write_bytes(b"")
-    with pytest.raises(bmr.BmrError, match=r"empty.csv: the file is empty"):
+    with pytest.raises(bmr.BundleError, match=r"empty.csv: the file is empty"):
         import_logs([tmp_path / "empty.csv"], input="u:V", output="y:um")
     pd.DataFrame({"u": [0.0, 1.0, 2.0], "y": [0.0, 1.0, np.nan]}).to_csv(tmp_path / "cut.csv", index=False)
-    with pytest.raises(bmr.BmrError, match=r"cut.csv: run 'cut': column 'displacement_um' has 1 non-finite "
+    with pytest.raises(bmr.BundleError, match=r"cut.csv: run 'cut': column 'displacement_um' has 1 non-finite "
                                            r"value\(s\), first at row 2"):
         import_logs([tmp_path / "cut.csv"], input="u:V", output="y:um", sample_rate_hz=10.0)
-    with pytest.raises(bmr.BmrError, match=r"cut.csv: no time column \(looked for t_s, time, t, zeit, timestamp; "
+    with pytest.raises(bmr.BundleError, match=r"cut.csv: no time column \(looked for t_s, time, t, zeit, timestamp; "
                                            r"columns: u, y\); give it with --time COL\[:UNIT\] or set --sample-rate"):
         import_logs([tmp_path / "cut.csv"], input="u:V", output="y:um")
 
