@@ -157,30 +157,81 @@ def _frame_table(path: Path, df: pd.DataFrame, units: Mapping[str, str] | None =
     return Table(path.stem, columns, str(path), found_units, aliases=aliases)
 
 
-def _delimiter(sample: str) -> str:
-    """The field delimiter of a text table from its first lines (comma, semicolon, tab; else whitespace)."""
-    import csv
+@dataclass(frozen=True)
+class _TextLayout:
+    """Where a delimited text table's header is and how its fields are written."""
 
+    delimiter: str | None  # None: runs of whitespace
+    header_line: int  # 0-based; the lines before it are a preamble (comments, metadata)
+    decimal: str
+
+
+def _number_text(x: str, decimal: str) -> bool:
+    x = x.strip()
+    if decimal == ",":
+        x = x.replace(",", ".")
     try:
-        return csv.Sniffer().sniff(sample, delimiters=",;\t").delimiter
-    except csv.Error:
-        return r"\s+" if len(sample.splitlines()[0].split()) > 1 else ","
+        float(x)
+    except ValueError:
+        return False
+    return bool(x)
+
+
+def _text_layout(lines: list[str]) -> _TextLayout | None:
+    """The first header line (no field a number) followed by data rows with as many fields (at least half of them
+    numbers: label columns may sit beside the signals), for the first delimiter (comma, semicolon, tab, whitespace)
+    and decimal mark that give one; None if no line fits."""
+    for delimiter in (",", ";", "\t", None):
+        for decimal in (".", ","):
+            if decimal == "," and delimiter == ",":
+                continue
+            fields = [(line.split(delimiter) if delimiter else line.split()) for line in lines]
+
+            def data(row: list[str], width: int) -> bool:
+                return len(row) == width and 2 * sum(_number_text(x, decimal) for x in row) >= width
+
+            for i in range(len(lines) - 1):
+                head = fields[i]
+                if len(head) < 2 or any(_number_text(x, decimal) for x in head):
+                    continue  # a header names its columns
+                rows = fields[i + 1:i + 3]
+                if all(data(r, len(head)) for r in rows):
+                    return _TextLayout(delimiter, i, decimal)
+    return None
+
+
+def _preamble(lines: list[str]) -> dict[str, Any]:
+    """``key: value`` (or ``key = value``, ``key,value``) lines before a table's header, without comment marks."""
+    meta: dict[str, Any] = {}
+    for line in lines:
+        text = line.strip().lstrip("#%;").strip()
+        m = re.match(r"^([^:=,;\t]+?)\s*[:=,;\t]\s*(.+)$", text)
+        if m:
+            meta[m.group(1).strip()] = m.group(2).strip().strip('"')
+    return meta
 
 
 def read_csv(path: str | Path) -> list[Table]:
-    """A delimited text table (comma, semicolon, tab or whitespace; sniffed from the first lines) with one header
-    line."""
+    """A delimited text table: comma, semicolon, tab or whitespace, decimal point or comma, one header line, and any
+    preamble before it (comment or ``key: value`` lines, kept as the table's metadata); all found from the first
+    lines."""
     p = Path(path)
     raw = _read_bytes(p)
-    sample = raw[:65536].decode("utf-8", errors="replace")
-    sample = "\n".join(sample.splitlines()[:50]) or sample
+    head = raw[:65536].decode("utf-8", errors="replace").splitlines()[:200]
+    layout = _text_layout([line.rstrip("\r\n") for line in head])
+    if layout is None:
+        raise BundleError(f"{p}: cannot be read as CSV: no header line followed by rows of numbers in its first "
+                          f"{len(head)} line(s) (empty, truncated or not a delimited table)")
     try:
-        df = pd.read_csv(p, sep=_delimiter(sample))
+        df = pd.read_csv(p, sep=layout.delimiter or r"\s+", skiprows=layout.header_line, decimal=layout.decimal,
+                         encoding_errors="replace")
     except Exception as exc:  # noqa: BLE001 - any parser failure is a clear file error
         raise BundleError(f"{p}: cannot be read as CSV ({exc})") from None
     if len(df) == 0:
         raise BundleError(f"{p}: the CSV has a header but no samples (empty or truncated file)")
-    return [_frame_table(p, df)]
+    table = _frame_table(p, df)
+    table.meta.update(_preamble(head[:layout.header_line]))
+    return [table]
 
 
 def read_parquet(path: str | Path) -> list[Table]:

@@ -109,7 +109,8 @@ def test_analyzer_truncated_headerless_and_wrong_files(tmp_path):
     with pytest.raises(bmr.BmrError, match=r"empty.dat: the file is empty"):
         read_tables(tmp_path / "empty.dat")
     (tmp_path / "head.csv").write_text("time,volts\n")
-    with pytest.raises(bmr.BmrError, match=r"head.csv: the CSV has a header but no samples"):
+    with pytest.raises(bmr.BundleError, match=r"head.csv: cannot be read as CSV: no header line followed by rows of "
+                                              r"numbers in its first 1 line\(s\) \(empty, truncated"):
         read_tables(tmp_path / "head.csv")
     with pytest.raises(bmr.BmrError, match=r"unknown file format 'xlsx'"):
         read_tables(tmp_path / "head.csv", "xlsx")
@@ -172,3 +173,17 @@ def test_units_in_csv_and_tdms_headers(tmp_path):
                          ChannelObject("Data", "x", MICRONS, properties={"unit_string": "um"})])
     [t] = read_tables(tmp_path / "r.tdms")
     assert t.units == {"Data/Vout": "V", "Data/x": "um"} and t.column("x")[0] == "Data/x"
+
+
+def test_delimited_logs_with_a_preamble_decimal_commas_and_blanks(tmp_path):
+    rows = "\n".join(f"{t:.4f};{v:.6f}".replace(".", ",") + ";ok" for t, v in zip(T[:50], VOLTS[:50]))
+    (tmp_path / "eu.csv").write_text("# exported by RigLogger 2.1\nOperator: A. Muster\nSample rate: 1000 Hz\n\n"
+                                     "Zeit [s];Spannung [V];Status\n" + rows + "\n")
+    [t] = read_tables(tmp_path / "eu.csv")
+    assert t.units == {"Zeit": "s", "Spannung": "V"} and t.n_samples == 50 and "Status" not in t.columns
+    np.testing.assert_allclose(t.columns["Spannung"], VOLTS[:50], atol=1e-6)
+    assert t.meta["Operator"] == "A. Muster" and t.meta["Sample rate"] == "1000 Hz"
+    body = "\n".join(f"  {a:.4f}   {b:.5f}" for a, b in zip(T[:20], MICRONS[:20]))
+    (tmp_path / "blank.txt").write_text("t x_um\n" + body + "\n")
+    [w] = read_tables(tmp_path / "blank.txt", "csv")
+    np.testing.assert_allclose(w.columns["x_um"], MICRONS[:20], atol=1e-5)
