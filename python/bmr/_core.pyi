@@ -223,21 +223,35 @@ class EverettModel:
     def offset(self) -> float: ...
     def everett(self, beta: float, alpha: float) -> float: ...
     def everett_table(self) -> np.ndarray: ...
-    def simulate(self, u: np.ndarray, offset: float | None = None) -> np.ndarray: ...
+    def simulate(
+        self, u: np.ndarray, offset: float | None = None, history: Sequence[float] | None = None
+    ) -> np.ndarray:
+        """Output along ``u`` from negative saturation followed by ``history`` (the run's initial state)."""
+    def best_initial_state(
+        self,
+        u: np.ndarray,
+        y: np.ndarray,
+        weight: np.ndarray | None = None,
+        *,
+        free_offset: bool = True,
+        gain: float = 1.0,
+    ) -> tuple[list[float], float, float]:
+        """(history, rss, offset) of the candidate initial state that predicts the run best."""
     def first_order_curves(
         self, subdivisions: int = 1
     ) -> tuple[list[tuple[np.ndarray, np.ndarray]], list[tuple[np.ndarray, np.ndarray]]]: ...
 
 def fit_everett(
     grid: np.ndarray,
-    runs: Sequence[tuple[np.ndarray, np.ndarray, np.ndarray, int]],
+    runs: Sequence[tuple[object, ...]],
     n_offsets: int = 1,
     *,
     smoothing: float = 1e-4,
     ridge: float = 1e-9,
     max_iter: int = 500,
 ) -> dict:
-    """Regularised NNLS Everett table: model, offsets, rss, rms, n_rows, iterations."""
+    """Regularised NNLS Everett table from runs ``(u, y, weight, offset_col[, history[, gain]])``: model, offsets,
+    rss, rms, n_rows, iterations."""
 EFFECTS: tuple[str, ...]
 """Names of the virtual actuator's switchable effects (the diagnosis vocabulary)."""
 PRESETS: tuple[str, ...]

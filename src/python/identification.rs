@@ -9,15 +9,54 @@ use crate::identification::{
 };
 use crate::python::BmrError;
 
-/// One training run as passed from Python: input, output, row weights, offset column.
-type RunArrays<'py> = (
-    PyReadonlyArray1<'py, f64>,
-    PyReadonlyArray1<'py, f64>,
-    PyReadonlyArray1<'py, f64>,
-    usize,
-);
-/// The same run copied out of Python (so the fit can run without the interpreter lock).
-type RunData = (Vec<f64>, Vec<f64>, Vec<f64>, usize);
+/// One training run copied out of Python (so the fit can run without the interpreter lock): input, output, row
+/// weights, offset column, initial history, gain.
+type RunData = (Vec<f64>, Vec<f64>, Vec<f64>, usize, Vec<f64>, f64);
+
+/// A run tuple `(u, y, weight, offset_col[, history[, gain]])`.
+fn parse_run(i: usize, item: &Bound<'_, PyAny>) -> PyResult<RunData> {
+    let bad = || {
+        BmrError::new_err(format!(
+            "run {i}: expected (u, y, weight, offset_col[, history[, gain]])"
+        ))
+    };
+    let t = item.cast::<PyTuple>().map_err(|_| bad())?;
+    if !(4..=6).contains(&t.len()) {
+        return Err(bad());
+    }
+    let arr = |k: usize, what: &str| -> PyResult<Vec<f64>> {
+        let a: PyReadonlyArray1<'_, f64> = t
+            .get_item(k)?
+            .extract()
+            .map_err(|_| BmrError::new_err(format!("run {i}: {what} must be a 1-D float array")))?;
+        Ok(to_vec(&a))
+    };
+    let col: usize = t.get_item(3)?.extract().map_err(|_| {
+        BmrError::new_err(format!("run {i}: offset_col must be a nonnegative integer"))
+    })?;
+    let history = if t.len() > 4 {
+        t.get_item(4)?.extract::<Vec<f64>>().map_err(|_| {
+            BmrError::new_err(format!("run {i}: history must be a sequence of inputs"))
+        })?
+    } else {
+        Vec::new()
+    };
+    let gain = if t.len() > 5 {
+        t.get_item(5)?
+            .extract::<f64>()
+            .map_err(|_| BmrError::new_err(format!("run {i}: gain must be a number")))?
+    } else {
+        1.0
+    };
+    Ok((
+        arr(0, "u")?,
+        arr(1, "y")?,
+        arr(2, "weight")?,
+        col,
+        history,
+        gain,
+    ))
+}
 
 fn to_vec(a: &PyReadonlyArray1<'_, f64>) -> Vec<f64> {
     a.as_array().iter().copied().collect()
@@ -117,23 +156,67 @@ impl PyEverettModel {
         PyArray1::from_vec(py, out).reshape([n, n])
     }
 
-    /// Output along input `u` starting from negative saturation; `offset` overrides the model's offset.
-    #[pyo3(signature = (u, offset=None))]
+    /// Output along input `u` starting from negative saturation followed by `history` (inputs: the run's initial
+    /// state; default none); `offset` overrides the model's offset.
+    #[pyo3(signature = (u, offset=None, history=None))]
     fn simulate<'py>(
         &self,
         py: Python<'py>,
         u: PyReadonlyArray1<'py, f64>,
         offset: Option<f64>,
+        history: Option<Vec<f64>>,
     ) -> PyResult<Bound<'py, PyArray1<f64>>> {
         let u = to_vec(&u);
-        if let Some(i) = u.iter().position(|v| !v.is_finite()) {
+        let history = history.unwrap_or_default();
+        if let Some(i) = u.iter().chain(&history).position(|v| !v.is_finite()) {
             return Err(BmrError::new_err(format!(
-                "input sample {i} is not finite ({})",
-                u[i]
+                "input sample {i} is not finite (history first, then the run)"
             )));
         }
-        let y = py.detach(|| self.inner.simulate(&u, offset));
+        let y = py.detach(|| self.inner.simulate_from(&history, &u, offset));
         Ok(PyArray1::from_vec(py, y))
+    }
+
+    /// The initial state under which run `(u, y)` is predicted best, among negative or positive saturation and
+    /// one reversal after either at every grid node. `weight` (default all 1) selects the rows that count;
+    /// `free_offset`: fit the run's own output offset; `gain`: the run's calibration gain. Returns
+    /// `(history, rss, offset)`: the inputs that set the state (for `simulate(history=...)`), the weighted
+    /// residual sum of squares and the offset.
+    #[pyo3(signature = (u, y, weight=None, *, free_offset=true, gain=1.0))]
+    fn best_initial_state(
+        &self,
+        py: Python<'_>,
+        u: PyReadonlyArray1<'_, f64>,
+        y: PyReadonlyArray1<'_, f64>,
+        weight: Option<PyReadonlyArray1<'_, f64>>,
+        free_offset: bool,
+        gain: f64,
+    ) -> PyResult<(Vec<f64>, f64, f64)> {
+        let (u, y) = (to_vec(&u), to_vec(&y));
+        let w = weight.map_or_else(|| vec![1.0; u.len()], |w| to_vec(&w));
+        if y.len() != u.len() || w.len() != u.len() {
+            return Err(BmrError::new_err(format!(
+                "best_initial_state: {} inputs, {} outputs, {} weights",
+                u.len(),
+                y.len(),
+                w.len()
+            )));
+        }
+        if let Some(i) = u
+            .iter()
+            .zip(&y)
+            .position(|(a, b)| !a.is_finite() || !b.is_finite())
+        {
+            return Err(BmrError::new_err(format!(
+                "best_initial_state: sample {i} is not finite"
+            )));
+        }
+        if !(gain.is_finite() && gain > 0.0) {
+            return Err(BmrError::new_err(format!(
+                "best_initial_state: gain must be positive and finite, got {gain}"
+            )));
+        }
+        Ok(py.detach(|| self.inner.best_initial_state(&u, &y, &w, free_offset, gain)))
     }
 
     /// First-order curves at every grid node (and at `subdivisions − 1` points inside every interval),
@@ -173,14 +256,16 @@ impl PyEverettModel {
 }
 
 /// Regularised nonnegative least squares for an Everett table on `grid` from `runs`, a list of
-/// `(u, y, weight, offset_col)` (weight 0 keeps a sample out of the fit while it drives the memory).
-/// Returns a dict: model (EverettModel), offsets, rss, rms, n_rows, iterations.
+/// `(u, y, weight, offset_col[, history[, gain]])` (weight 0 keeps a sample out of the fit while it drives the
+/// memory; `history`: inputs after negative saturation that set the run's initial state; `gain`: the run's
+/// calibration gain on the model output). Returns a dict: model (EverettModel), offsets, rss, rms, n_rows,
+/// iterations.
 #[pyfunction]
 #[pyo3(signature = (grid, runs, n_offsets=1, *, smoothing=1e-4, ridge=1e-9, max_iter=500))]
 fn fit_everett<'py>(
     py: Python<'py>,
     grid: PyReadonlyArray1<'py, f64>,
-    runs: Vec<RunArrays<'py>>,
+    runs: Vec<Bound<'py, PyAny>>,
     n_offsets: usize,
     smoothing: f64,
     ridge: f64,
@@ -189,8 +274,9 @@ fn fit_everett<'py>(
     let grid = EverettGrid::new(to_vec(&grid)).map_err(BmrError::new_err)?;
     let data: Vec<RunData> = runs
         .iter()
-        .map(|(u, y, w, o)| (to_vec(u), to_vec(y), to_vec(w), *o))
-        .collect();
+        .enumerate()
+        .map(|(i, r)| parse_run(i, r))
+        .collect::<PyResult<_>>()?;
     let options = EverettFitOptions {
         smoothing,
         ridge,
@@ -200,11 +286,13 @@ fn fit_everett<'py>(
         .detach(|| {
             let views: Vec<EverettRun<'_>> = data
                 .iter()
-                .map(|(u, y, w, o)| EverettRun {
+                .map(|(u, y, w, o, h, g)| EverettRun {
                     u,
                     y,
                     weight: w,
                     offset_col: *o,
+                    history: h,
+                    gain: *g,
                 })
                 .collect();
             fit_everett_rs(&grid, &views, n_offsets, options)
