@@ -9,6 +9,8 @@ sum built from it, and a numpy discrete Preisach model with ~5000 hysterons. bmr
 from __future__ import annotations
 
 import argparse
+import json
+import re
 import time
 
 import numpy as np
@@ -73,6 +75,7 @@ class NumpyPreisach:
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--steps", type=int, default=20000)
+    ap.add_argument("--json", action="store_true", help="also print the figures as one JSON line (last line)")
     args = ap.parse_args()
     n = args.steps
     asc, desc = NumpyPreisach(100).first_order_curves(21)
@@ -126,6 +129,13 @@ def main() -> int:
         print(f"  {name:52s} {us:8.3f} µs   = {us / ref_step:6.1f} × bmr Compensator.step (exact)")
     print(f"  {'bmr Compensator.run throughput':52s} {run_rate / 1e6:8.1f} M samples/s")
     print(f"  {'bmr Hysteresis.run throughput':52s} {hrun_rate / 1e6:8.1f} M samples/s")
+    if args.json:
+        print(json.dumps({
+            "per_call_us": {re.sub(r"\.(\w+)", r".\1()", name.replace("bmr ", ""), count=1): us
+                            for name, us in results.items()},
+            "ratio_to_compensator_step": {name: us / ref_step for name, us in peers.items()},
+            "throughput_msps": {"Compensator.run()": run_rate / 1e6, "Hysteresis.run()": hrun_rate / 1e6},
+        }))
     return 0
 
 

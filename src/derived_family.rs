@@ -182,7 +182,7 @@ impl<'a> Shape<'a> {
             }
             let above = self.row_at(j + 1, alpha, hint);
             let rect = self.row_at(j, alpha, hint) - above - t_j;
-            if !(rect > 1e-9 * scale) {
+            if rect.is_nan() || rect <= 1e-9 * scale {
                 continue;
             }
             let mut raw = |mm: f64, tri_m: f64| (slice.e_at(mm, hint) - above - tri_m) / rect;

@@ -22,6 +22,7 @@ pub mod friction;
 pub mod from_curves;
 pub mod history;
 pub mod inverse;
+pub mod limits;
 #[cfg(feature = "alloc")]
 pub mod node_selection;
 #[cfg(feature = "alloc")]
@@ -40,6 +41,7 @@ pub use error::{FamilyKind, TableError};
 pub use everett::{Family, Strip};
 pub use friction::Friction;
 pub use inverse::InverseInput;
+pub use limits::LimitError;
 pub use reversals::{ReversalFinder, ReversalOrder, ReversalPoint};
 #[cfg(feature = "alloc")]
 pub use table_builder::{BuildOptions, BuildReport, MeasuredCurve, build_tables};

@@ -26,6 +26,7 @@ use crate::derived_family::{
 };
 use crate::error::{FamilyKind, TableError};
 use crate::everett::{Family, family_len};
+use crate::limits::{self, MAX_CURVES, MAX_MAGNITUDE, MAX_NODES, MAX_TABLE_VALUES};
 use crate::node_selection::{interpolation_error, select_nodes_within};
 
 /// One measured curve: inputs and outputs in sample order, starting at the reversal point.
@@ -45,7 +46,8 @@ pub struct BuildOptions {
     /// Grid nodes are dropped only where linear interpolation of every curve stays within this fraction of the
     /// output span (default 0: only nodes on straight stretches).
     pub node_tolerance: f64,
-    /// Upper bound on grid nodes per family; the node tolerance is raised (and reported) when the data need more.
+    /// Upper bound on grid nodes per family (8 to [`MAX_NODES`]); the node tolerance is raised (and reported)
+    /// when the data need more.
     pub max_nodes: usize,
     /// Curves per interval between measured reversals: `k > 1` adds `k − 1` curves to a measured family from
     /// the strip shapes the opposite family calibrates, and gives a derived family `k` reversals per interval.
@@ -157,6 +159,10 @@ pub struct BuiltTables {
 }
 
 /// Validate the measured curves, fit them and build the tables. Errors name the family, curve and sample.
+///
+/// Sizes are bounded before anything is allocated: at most [`MAX_CURVES`] curves per family, `max_nodes` at most
+/// [`MAX_NODES`], at most [`MAX_TABLE_VALUES`] values (curves × grid nodes) per family, also while the grid still
+/// holds every sample input; inputs and outputs within ±[`MAX_MAGNITUDE`].
 pub fn build_tables(
     ascending: &[MeasuredCurve<'_>],
     descending: &[MeasuredCurve<'_>],
@@ -179,6 +185,12 @@ pub fn build_tables(
             value: opts.max_nodes as f64,
         });
     }
+    limits::check("max_nodes", opts.max_nodes, MAX_NODES).map_err(|limit| {
+        TableError::TooLarge {
+            family: None,
+            limit,
+        }
+    })?;
     if opts.subdivisions == 0 || opts.subdivisions > 64 {
         return Err(TableError::BadParameter {
             name: "subdivisions",
@@ -266,7 +278,7 @@ pub fn build_tables(
         (None, Some(d)) => (desc[d].y0 - desc[d].increment_at(-lo), desc[d].y0),
         (None, None) => unreachable!("one family has at least two curves"),
     };
-    if !(y_hi > y_lo) {
+    if y_hi.is_nan() || y_lo.is_nan() || y_hi <= y_lo {
         return Err(TableError::NoOutputSpan { lo: y_lo, hi: y_hi });
     }
     let span_y = y_hi - y_lo;
@@ -351,6 +363,8 @@ pub fn build_tables(
             // Mismatch between the measured families, before anything is added to them.
             let mismatch = congruency(&a, &d);
             if k > 1 {
+                check_added(&a, k, 0)?;
+                check_added(&d, k, 0)?;
                 let da = densify_with_family(&a, &d, k);
                 let dd = densify_with_family(&d, &a, k);
                 densified = [
@@ -378,6 +392,7 @@ pub fn build_tables(
             } else {
                 asc_major(&desc)
             };
+            check_added(&a, k, major.0.len())?;
             let db = derive_family(&a, &major.0, &major.1, k);
             let (b, bn) = select(&db, kind)?;
             let info = Derivation {
@@ -450,6 +465,12 @@ impl Curve {
 }
 
 fn check_shape(curves: &[MeasuredCurve<'_>], family: FamilyKind) -> Result<(), TableError> {
+    limits::check("number of curves", curves.len(), MAX_CURVES).map_err(|limit| {
+        TableError::TooLarge {
+            family: Some(family),
+            limit,
+        }
+    })?;
     for (c, &(u, y)) in curves.iter().enumerate() {
         if u.len() != y.len() || u.len() < 2 {
             return Err(TableError::BadLength {
@@ -470,8 +491,40 @@ fn check_shape(curves: &[MeasuredCurve<'_>], family: FamilyKind) -> Result<(), T
                 sample: s,
             });
         }
+        for (what, values) in [("input", u), ("output", y)] {
+            if let Some(s) = values.iter().position(|v| v.abs() > MAX_MAGNITUDE) {
+                return Err(TableError::OutOfRange {
+                    family,
+                    curve: c,
+                    sample: s,
+                    what,
+                    value: values[s],
+                });
+            }
+        }
     }
     Ok(())
+}
+
+/// Refuse curves added to (or derived from) family `a` with `k` per interval when the table could exceed the
+/// size limit (`extra` more grid nodes from an opposite major branch).
+fn check_added(a: &Family<Vec<f64>>, k: usize, extra: usize) -> Result<(), TableError> {
+    let curves = limits::product(a.curves(), k).saturating_add(1);
+    let nodes = a.nodes().saturating_add(curves).saturating_add(extra);
+    check_table_size(a.kind(), curves, nodes).map(|_| ())
+}
+
+/// Refuse a table of `curves × nodes` values above [`MAX_TABLE_VALUES`] before it is allocated.
+fn check_table_size(kind: FamilyKind, curves: usize, nodes: usize) -> Result<usize, TableError> {
+    limits::check(
+        "table size (curves × grid nodes)",
+        limits::product(curves, nodes),
+        MAX_TABLE_VALUES,
+    )
+    .map_err(|limit| TableError::TooLarge {
+        family: Some(kind),
+        limit,
+    })
 }
 
 /// Range of every input of every curve (for the input-backtrack limit).
@@ -636,6 +689,39 @@ fn build_family(
     let mut order: Vec<usize> = (0..curves.len()).collect();
     order.sort_by(|&a, &b| curves[a].u[0].total_cmp(&curves[b].u[0]));
     let reversals: Vec<f64> = order.iter().map(|&i| curves[i].u[0]).collect();
+    // Nodes closer than this are merged; reversals must stay apart by more (and from saturation).
+    let eps = 1e-12 * (hi - lo);
+    let sign = if kind == FamilyKind::Ascending {
+        1.0
+    } else {
+        -1.0
+    };
+    for w in order.windows(2) {
+        let (a, b) = (&curves[w[0]], &curves[w[1]]);
+        if b.u[0] - a.u[0] <= eps {
+            let (first, second) = if a.index < b.index { (a, b) } else { (b, a) };
+            return Err(TableError::ReversalsTooClose {
+                family: kind,
+                curve: second.index,
+                input: sign * second.u[0],
+                other: first.index,
+                other_input: sign * first.u[0],
+                resolution: eps,
+            });
+        }
+    }
+    if let Some(&top) = order.last()
+        && hi - curves[top].u[0] <= eps
+    {
+        return Err(TableError::ReversalAtSaturation {
+            family: kind,
+            curve: curves[top].index,
+            input: sign * curves[top].u[0],
+            saturation: sign * hi,
+        });
+    }
+    let samples: usize = curves.iter().map(|c| c.u.len()).sum();
+    check_table_size(kind, curves.len(), samples + curves.len() + 2)?;
 
     let mut grid: Vec<f64> = curves
         .iter()
@@ -647,7 +733,6 @@ fn build_family(
     grid.push(hi);
     grid.sort_by(f64::total_cmp);
     // Merge nodes closer than round-off, keeping reversals exact.
-    let eps = 1e-12 * (hi - lo);
     let mut merged: Vec<f64> = Vec::with_capacity(grid.len());
     for x in grid {
         match merged.last_mut() {

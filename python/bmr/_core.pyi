@@ -13,6 +13,17 @@ _Initial = Union[str, Tuple[str, float]]
 __all__ = [
     "ACTUATOR_PARAMETERS",
     "BmrError",
+    "BundleError",
+    "ExcitationError",
+    "IdentificationError",
+    "InUseError",
+    "LIMITS",
+    "ModelFileError",
+    "ResourceLimitError",
+    "TableError",
+    "_rebuild_hysteresis",
+    "_rebuild_hysteresis_state",
+    "_rebuild_virtual_actuator",
     "Command",
     "Compensator",
     "CompensatorState",
@@ -37,9 +48,44 @@ __all__ = [
 class BmrError(ValueError):
     """Invalid bmr input, table or file."""
 
+class TableError(BmrError):
+    """Curves or tables that cannot make a hysteresis operator (the message names family, curve and sample)."""
+
+class BundleError(BmrError):
+    """A bundle folder, manifest or run file that cannot be read or written (the message names the file)."""
+
+class ModelFileError(BmrError):
+    """A model file that cannot be read or written (the message names the file and the field)."""
+
+class ExcitationError(BmrError):
+    """An excitation or experiment protocol with invalid parameters."""
+
+class IdentificationError(BmrError):
+    """Data from which friction or tables cannot be identified."""
+
+class ResourceLimitError(BmrError):
+    """A requested size above its documented limit (checked before anything is allocated)."""
+
+class InUseError(BmrError):
+    """The object is in use by another thread (inside a run() that released the interpreter lock)."""
+
+LIMITS: dict[str, float]
+"""Documented bounds on every size and magnitude a caller can ask for (checked before allocation)."""
+
+def _rebuild_hysteresis(
+    asc: bytes, asc_nodes: int, asc_curves: int, desc: bytes, desc_nodes: int, desc_curves: int, y_lo: float,
+    y_hi: float, state: bytes,
+) -> Hysteresis: ...
+def _rebuild_hysteresis_state(state: bytes) -> HysteresisState: ...
+def _rebuild_virtual_actuator(
+    preset: str, seed: int, sample_rate_hz: float, effects: object, overrides: object, state: object
+) -> VirtualActuator: ...
+
 @final
 class HysteresisState:
     """Opaque snapshot of a Hysteresis state."""
+    def __copy__(self) -> HysteresisState: ...
+    def __deepcopy__(self, memo: dict[int, object]) -> HysteresisState: ...
     @property
     def input(self) -> float: ...
     @property
@@ -87,6 +133,8 @@ class Hysteresis:
     def output_range(self) -> tuple[float, float]: ...
     def consistency(self) -> dict[str, float]: ...
     def curves(self) -> tuple[list[tuple[np.ndarray, np.ndarray]], list[tuple[np.ndarray, np.ndarray]]]: ...
+    def current_curves(self) -> tuple[list[tuple[np.ndarray, np.ndarray]], list[tuple[np.ndarray, np.ndarray]]]:
+        """The paper's current curves (torque, current): the stored curves with their axes swapped."""
 
 @final
 class CurveReport:
@@ -179,7 +227,7 @@ def fit_curve(u: _ArrayLike, y: _ArrayLike, direction: str, *, pilot: int = 16) 
 @final
 class Friction:
     """Seal friction c0 + Σ a_k sin kθ + b_k cos kθ (N·mm), up to 12 harmonics."""
-    def __new__(cls, c0: float = 0.0, a: Sequence[float] = ..., b: Sequence[float] = ...) -> Self: ...
+    def __new__(cls, c0: float = 0.0, a: Sequence[float] | None = None, b: Sequence[float] | None = None) -> Self: ...
     @staticmethod
     def from_amplitude_phase(c0: float, amplitude: Sequence[float], phase: Sequence[float]) -> "Friction": ...
     @overload
@@ -214,6 +262,8 @@ def fit_friction_order(theta_rad: np.ndarray, torque_nmm: np.ndarray, order: int
 @final
 class EverettModel:
     """Preisach model with a tabulated Everett function E(β, α) on an input grid (nonnegative cell masses)."""
+    def __copy__(self) -> EverettModel: ...
+    def __deepcopy__(self, memo: dict[int, object]) -> EverettModel: ...
     def __new__(cls, grid: np.ndarray, masses: np.ndarray, offset: float) -> Self: ...
     @property
     def grid(self) -> np.ndarray: ...
@@ -240,6 +290,8 @@ class EverettModel:
     def first_order_curves(
         self, subdivisions: int = 1
     ) -> tuple[list[tuple[np.ndarray, np.ndarray]], list[tuple[np.ndarray, np.ndarray]]]: ...
+    def hysteresis(self, subdivisions: int = 4) -> Hysteresis:
+        """The CBH operator of this table, built in Rust (no curve lists cross the boundary)."""
 
 def fit_everett(
     grid: np.ndarray,
@@ -268,6 +320,8 @@ _EffectsSpec = Union[None, dict[str, Union[dict[str, float], None]], Sequence[st
 class VirtualActuator:
     """Seeded physical simulator of the BMR rig (converters, hysteretic steel per coil, MR fluid, rotors, seal
     friction, torque sensor, switchable effects). Bit-for-bit deterministic for a seed."""
+    def __copy__(self) -> VirtualActuator: ...
+    def __deepcopy__(self, memo: dict[int, object]) -> VirtualActuator: ...
     def __new__(
         cls,
         preset: str = "bmr2013",

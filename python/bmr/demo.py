@@ -20,7 +20,7 @@ from typing import Any
 
 import numpy as np
 
-from bmr._core import BmrError, Compensator, VirtualActuator
+from bmr._core import Compensator, VirtualActuator
 from bmr.data.bundle import Bundle, Run, write_bundle
 from bmr.diagnosis.procedure import diagnose
 from bmr.identification.procedure import identify

@@ -83,6 +83,15 @@ impl Converter {
     pub fn reset(&mut self) {
         self.current_a = 0.0;
     }
+
+    pub(crate) fn save_state(&self, out: &mut Vec<u64>) {
+        out.push(self.current_a.to_bits());
+    }
+
+    pub(crate) fn load_state(&mut self, r: &mut super::StateReader<'_>) -> Result<(), PlantError> {
+        self.current_a = r.float()?;
+        Ok(())
+    }
 }
 
 #[cfg(test)]

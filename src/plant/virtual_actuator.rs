@@ -15,7 +15,7 @@ use super::rotor_geometry::RotorGeometry;
 use super::seal_friction::SealFriction;
 use super::steel_preisach::{PreisachSteel, SteelParams};
 use super::torque_sensor::SensorParams;
-use super::{PlantError, check_range, lag_factor};
+use super::{PlantError, StateReader, check_range, lag_factor};
 use std::collections::VecDeque;
 
 /// Everything that defines a virtual actuator (a preset is one of these).
@@ -302,6 +302,9 @@ impl ActiveEffects {
     }
 }
 
+/// First word of a serialised simulator state (format tag and version).
+const PLANT_STATE_TAG: u64 = 0x626d_725f_7661_0001;
+
 /// The simulator. `new(config, seed)`, then `step`/`run` with commanded nominal current (A).
 #[derive(Clone, Debug)]
 pub struct VirtualActuator {
@@ -398,6 +401,55 @@ impl VirtualActuator {
         self.index = 0;
     }
 
+    /// Everything that evolves (memories, filter states, angle, noise stream, time) as plain words, for pickling.
+    /// [`Self::load_state`] on an actuator built from the same configuration and seed continues bit for bit.
+    pub fn save_state(&self) -> Vec<u64> {
+        let mut w = vec![PLANT_STATE_TAG, self.index, self.delay_line.len() as u64];
+        w.extend(self.delay_line.iter().map(|v| v.to_bits()));
+        self.converter1.save_state(&mut w);
+        self.converter2.save_state(&mut w);
+        w.extend([self.field1_a, self.field2_a, self.thermal_state].map(f64::to_bits));
+        self.drive.save_state(&mut w);
+        self.rng.save_state(&mut w);
+        self.steel1.save_state(&mut w);
+        self.steel2.save_state(&mut w);
+        w
+    }
+
+    /// Continue from words written by [`Self::save_state`] of an actuator with the same configuration. Every
+    /// value is checked; on error the actuator is unchanged.
+    pub fn load_state(&mut self, words: &[u64]) -> Result<(), PlantError> {
+        let mut next = self.clone();
+        let mut r = StateReader::new(words);
+        if r.word()? != PLANT_STATE_TAG {
+            return Err(PlantError::BadState("not a virtual actuator state"));
+        }
+        next.index = r.word()?;
+        if next.index > 1 << 53 {
+            return Err(PlantError::BadState("sample index beyond 2^53"));
+        }
+        if r.count()? != self.fx.delay_samples {
+            return Err(PlantError::BadState(
+                "delay line length differs from this configuration's",
+            ));
+        }
+        for slot in next.delay_line.iter_mut() {
+            *slot = r.float()?;
+        }
+        next.converter1.load_state(&mut r)?;
+        next.converter2.load_state(&mut r)?;
+        next.field1_a = r.float()?;
+        next.field2_a = r.float()?;
+        next.thermal_state = r.float()?;
+        next.drive.load_state(&mut r)?;
+        next.rng.load_state(&mut r)?;
+        next.steel1.load_state(&mut r)?;
+        next.steel2.load_state(&mut r)?;
+        r.finish()?;
+        *self = next;
+        Ok(())
+    }
+
     /// Noise-free seal friction (N·mm) at zero current and angle `theta_rad`, including any extra harmonic.
     pub fn true_friction_nmm(&self, theta_rad: f64) -> f64 {
         self.friction_nmm(theta_rad, 0.0)
@@ -415,15 +467,18 @@ impl VirtualActuator {
 
     /// The encoder angles (rad) of the next `n` samples, without advancing the actuator (the rotor angle does
     /// not depend on the current, so a controller can be fed it ahead of time).
-    pub fn theta_ahead(&self, n: usize) -> Vec<f64> {
+    /// At most [`crate::limits::MAX_GENERATED_SAMPLES`] at a time (checked before allocating).
+    pub fn theta_ahead(&self, n: usize) -> Result<Vec<f64>, crate::limits::LimitError> {
+        use crate::limits::{MAX_GENERATED_SAMPLES, check};
+        check("angle samples asked for ahead", n, MAX_GENERATED_SAMPLES)?;
         let mut d = self.drive.clone();
-        (0..n)
+        Ok((0..n)
             .map(|_| {
                 let th = d.theta_rad();
                 d.advance();
                 th
             })
-            .collect()
+            .collect())
     }
 
     /// Output map of one rotor's field torque (the `non_congruent` effect; identity when off).

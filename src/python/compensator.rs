@@ -1,11 +1,11 @@
 //! `bmr.Compensator`: hysteresis + friction compensation for one control loop, and its `Command`.
-use numpy::{AllowTypeChange, PyArray1, PyArrayLike1};
+use numpy::PyArray1;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
 use crate::compensator::{Command, Compensator, CompensatorState, InverseKind};
 use crate::friction::{Friction, MAX_ORDER};
-use crate::python::arrays::{DETACH_LEN, to_numpy, to_vec};
+use crate::python::arrays::{DETACH_LEN, extract_f64_array, to_numpy};
 use crate::python::friction::PyFriction;
 use crate::python::hysteresis::{MEMORY, PyHysteresis, initial_or_negative};
 use crate::python::{BmrError, bmr_err};
@@ -120,11 +120,11 @@ impl PyCompensator {
     fn run<'py>(
         &mut self,
         py: Python<'py>,
-        torque_ref_nmm: PyArrayLike1<'py, f64, AllowTypeChange>,
-        theta_rad: PyArrayLike1<'py, f64, AllowTypeChange>,
+        torque_ref_nmm: &Bound<'py, PyAny>,
+        theta_rad: &Bound<'py, PyAny>,
     ) -> PyResult<Bound<'py, PyDict>> {
-        let r = to_vec(torque_ref_nmm);
-        let th = to_vec(theta_rad);
+        let r = extract_f64_array(torque_ref_nmm, "torque_ref_nmm")?;
+        let th = extract_f64_array(theta_rad, "theta_rad")?;
         if r.len() != th.len() {
             return Err(BmrError::new_err(format!(
                 "run: torque_ref_nmm has {} samples but theta_rad has {}",

@@ -4,7 +4,7 @@ use pyo3::prelude::*;
 
 use crate::friction::{Friction, MAX_ORDER};
 use crate::python::BmrError;
-use crate::python::arrays::{DETACH_LEN, to_numpy, to_vec};
+use crate::python::arrays::{DETACH_LEN, extract_f64_array, to_numpy, to_vec};
 
 pub(crate) type Model = Friction<MAX_ORDER>;
 
@@ -19,8 +19,10 @@ pub(crate) struct PyFriction {
 impl PyFriction {
     /// `c0` (N·mm) plus sine coefficients `a` and cosine coefficients `b` of harmonics 1..K (K ≤ 12).
     #[new]
-    #[pyo3(signature = (c0=0.0, a=Vec::new(), b=Vec::new()))]
-    fn new(c0: f64, a: Vec<f64>, b: Vec<f64>) -> PyResult<Self> {
+    #[pyo3(signature = (c0=0.0, a=None, b=None))]
+    fn new(c0: f64, a: Option<&Bound<'_, PyAny>>, b: Option<&Bound<'_, PyAny>>) -> PyResult<Self> {
+        let a = a.map_or(Ok(Vec::new()), |x| extract_f64_array(x, "a"))?;
+        let b = b.map_or(Ok(Vec::new()), |x| extract_f64_array(x, "b"))?;
         Model::from_coefficients(c0, &a, &b).map(|f| PyFriction { f }).ok_or_else(|| {
             BmrError::new_err(format!(
                 "Friction: need finite coefficients and at most {MAX_ORDER} harmonics (got {} sine, {} cosine)",
@@ -32,7 +34,13 @@ impl PyFriction {
 
     /// From the paper's form `c0 + Σ A_k sin(kθ + φ_k)` (amplitudes N·mm, phases rad).
     #[staticmethod]
-    fn from_amplitude_phase(c0: f64, amplitude: Vec<f64>, phase: Vec<f64>) -> PyResult<Self> {
+    fn from_amplitude_phase(
+        c0: f64,
+        amplitude: &Bound<'_, PyAny>,
+        phase: &Bound<'_, PyAny>,
+    ) -> PyResult<Self> {
+        let amplitude = extract_f64_array(amplitude, "amplitude")?;
+        let phase = extract_f64_array(phase, "phase")?;
         Model::from_amplitude_phase(c0, &amplitude, &phase).map(|f| PyFriction { f }).ok_or_else(|| {
             BmrError::new_err(format!(
                 "Friction.from_amplitude_phase: need as many phases as amplitudes ({} vs {}), finite, at most {MAX_ORDER}",

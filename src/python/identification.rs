@@ -1,65 +1,39 @@
 //! Python bindings of the identification least squares: `fit_friction_order`, `EverettModel`, `fit_everett`.
-use numpy::{PyArray1, PyArray2, PyArrayMethods, PyReadonlyArray1};
+use numpy::{AllowTypeChange, PyArray1, PyArray2, PyArrayLike1, PyArrayMethods};
 use pyo3::prelude::*;
-use pyo3::types::{PyDict, PyList, PyTuple};
+use pyo3::types::{PyDict, PyTuple};
 
+use crate::cbh::Initial;
 use crate::identification::{
     EverettFitOptions, EverettGrid, EverettModel, EverettRun, fit_everett as fit_everett_rs,
     fit_friction,
 };
-use crate::python::BmrError;
+use crate::python::arrays::{curves_to_py, to_vec};
+use crate::python::hysteresis::PyHysteresis;
+use crate::python::{BmrError, identification_err};
+use crate::table_builder::BuildOptions;
 
-/// One training run copied out of Python (so the fit can run without the interpreter lock): input, output, row
-/// weights, offset column, initial history, gain.
+/// A 1-D float array argument (lists and integer arrays accepted).
+type Array<'py> = PyArrayLike1<'py, f64, AllowTypeChange>;
+/// One training run as passed from Python: input, output, row weights, offset column, and optionally the
+/// initial history (inputs after negative saturation that set the run's state) and the run's gain.
+#[derive(FromPyObject)]
+enum RunArrays<'py> {
+    Full((Array<'py>, Array<'py>, Array<'py>, usize, Vec<f64>, f64)),
+    WithHistory((Array<'py>, Array<'py>, Array<'py>, usize, Vec<f64>)),
+    Plain((Array<'py>, Array<'py>, Array<'py>, usize)),
+}
+/// The same run copied out of Python (so the fit can run without the interpreter lock).
 type RunData = (Vec<f64>, Vec<f64>, Vec<f64>, usize, Vec<f64>, f64);
 
-/// A run tuple `(u, y, weight, offset_col[, history[, gain]])`.
-fn parse_run(i: usize, item: &Bound<'_, PyAny>) -> PyResult<RunData> {
-    let bad = || {
-        BmrError::new_err(format!(
-            "run {i}: expected (u, y, weight, offset_col[, history[, gain]])"
-        ))
-    };
-    let t = item.cast::<PyTuple>().map_err(|_| bad())?;
-    if !(4..=6).contains(&t.len()) {
-        return Err(bad());
+impl RunArrays<'_> {
+    fn into_data(self) -> RunData {
+        match self {
+            RunArrays::Full((u, y, w, o, h, g)) => (to_vec(u), to_vec(y), to_vec(w), o, h, g),
+            RunArrays::WithHistory((u, y, w, o, h)) => (to_vec(u), to_vec(y), to_vec(w), o, h, 1.0),
+            RunArrays::Plain((u, y, w, o)) => (to_vec(u), to_vec(y), to_vec(w), o, Vec::new(), 1.0),
+        }
     }
-    let arr = |k: usize, what: &str| -> PyResult<Vec<f64>> {
-        let a: PyReadonlyArray1<'_, f64> = t
-            .get_item(k)?
-            .extract()
-            .map_err(|_| BmrError::new_err(format!("run {i}: {what} must be a 1-D float array")))?;
-        Ok(to_vec(&a))
-    };
-    let col: usize = t.get_item(3)?.extract().map_err(|_| {
-        BmrError::new_err(format!("run {i}: offset_col must be a nonnegative integer"))
-    })?;
-    let history = if t.len() > 4 {
-        t.get_item(4)?.extract::<Vec<f64>>().map_err(|_| {
-            BmrError::new_err(format!("run {i}: history must be a sequence of inputs"))
-        })?
-    } else {
-        Vec::new()
-    };
-    let gain = if t.len() > 5 {
-        t.get_item(5)?
-            .extract::<f64>()
-            .map_err(|_| BmrError::new_err(format!("run {i}: gain must be a number")))?
-    } else {
-        1.0
-    };
-    Ok((
-        arr(0, "u")?,
-        arr(1, "y")?,
-        arr(2, "weight")?,
-        col,
-        history,
-        gain,
-    ))
-}
-
-fn to_vec(a: &PyReadonlyArray1<'_, f64>) -> Vec<f64> {
-    a.as_array().iter().copied().collect()
 }
 
 /// Least-squares friction fit of one harmonic order: returns a dict with c0, a, b, their standard errors,
@@ -68,15 +42,15 @@ fn to_vec(a: &PyReadonlyArray1<'_, f64>) -> Vec<f64> {
 #[pyo3(signature = (theta_rad, torque_nmm, order))]
 fn fit_friction_order<'py>(
     py: Python<'py>,
-    theta_rad: PyReadonlyArray1<'py, f64>,
-    torque_nmm: PyReadonlyArray1<'py, f64>,
+    theta_rad: Array<'py>,
+    torque_nmm: Array<'py>,
     order: usize,
 ) -> PyResult<Bound<'py, PyDict>> {
-    let theta = to_vec(&theta_rad);
-    let torque = to_vec(&torque_nmm);
+    let theta = to_vec(theta_rad);
+    let torque = to_vec(torque_nmm);
     let fit = py
         .detach(|| fit_friction(&theta, &torque, order))
-        .map_err(|e| BmrError::new_err(format!("friction fit: {e}")))?;
+        .map_err(|e| identification_err("friction fit", e))?;
     let p = fit.n_params();
     let d = PyDict::new(py);
     d.set_item("order", fit.order)?;
@@ -109,14 +83,40 @@ impl PyEverettModel {
     /// output `offset`.
     #[new]
     #[pyo3(signature = (grid, masses, offset))]
-    fn new(
-        grid: PyReadonlyArray1<'_, f64>,
-        masses: PyReadonlyArray1<'_, f64>,
-        offset: f64,
-    ) -> PyResult<Self> {
-        let grid = EverettGrid::new(to_vec(&grid)).map_err(BmrError::new_err)?;
-        let inner = EverettModel::new(grid, to_vec(&masses), offset).map_err(BmrError::new_err)?;
+    fn new(grid: Array<'_>, masses: Array<'_>, offset: f64) -> PyResult<Self> {
+        let grid =
+            EverettGrid::new(to_vec(grid)).map_err(|e| identification_err("EverettModel", e))?;
+        let inner = EverettModel::new(grid, to_vec(masses), offset)
+            .map_err(|e| identification_err("EverettModel", e))?;
         Ok(Self { inner })
+    }
+
+    fn __copy__(slf: PyRef<'_, Self>) -> PyRef<'_, Self> {
+        slf // immutable: a copy is the object itself
+    }
+
+    fn __deepcopy__<'py>(slf: PyRef<'py, Self>, _memo: &Bound<'py, PyAny>) -> PyRef<'py, Self> {
+        slf
+    }
+
+    /// Pickled as its constructor arguments.
+    #[allow(clippy::type_complexity)]
+    fn __reduce__<'py>(
+        slf: &Bound<'py, Self>,
+    ) -> PyResult<(
+        Bound<'py, PyAny>,
+        (Bound<'py, PyArray1<f64>>, Bound<'py, PyArray1<f64>>, f64),
+    )> {
+        let py = slf.py();
+        let me = slf.get();
+        Ok((
+            slf.get_type().into_any(),
+            (
+                PyArray1::from_slice(py, me.inner.grid().nodes()),
+                PyArray1::from_slice(py, me.inner.masses()),
+                me.inner.offset(),
+            ),
+        ))
     }
 
     /// Input grid nodes.
@@ -156,21 +156,28 @@ impl PyEverettModel {
         PyArray1::from_vec(py, out).reshape([n, n])
     }
 
-    /// Output along input `u` starting from negative saturation followed by `history` (inputs: the run's initial
-    /// state; default none); `offset` overrides the model's offset.
+    /// Output along input `u` starting from negative saturation followed by `history` (inputs that set the run's
+    /// initial state; default none); `offset` overrides the model's offset.
     #[pyo3(signature = (u, offset=None, history=None))]
     fn simulate<'py>(
         &self,
         py: Python<'py>,
-        u: PyReadonlyArray1<'py, f64>,
+        u: Array<'py>,
         offset: Option<f64>,
         history: Option<Vec<f64>>,
     ) -> PyResult<Bound<'py, PyArray1<f64>>> {
-        let u = to_vec(&u);
+        let u = to_vec(u);
         let history = history.unwrap_or_default();
-        if let Some(i) = u.iter().chain(&history).position(|v| !v.is_finite()) {
+        if let Some(i) = u.iter().position(|v| !v.is_finite()) {
+            return Err(crate::python::BmrError::new_err(format!(
+                "input sample {i} is not finite ({})",
+                u[i]
+            )));
+        }
+        if let Some(i) = history.iter().position(|v| !v.is_finite()) {
             return Err(BmrError::new_err(format!(
-                "input sample {i} is not finite (history first, then the run)"
+                "history entry {i} is not finite ({})",
+                history[i]
             )));
         }
         let y = py.detach(|| self.inner.simulate_from(&history, &u, offset));
@@ -186,14 +193,14 @@ impl PyEverettModel {
     fn best_initial_state(
         &self,
         py: Python<'_>,
-        u: PyReadonlyArray1<'_, f64>,
-        y: PyReadonlyArray1<'_, f64>,
-        weight: Option<PyReadonlyArray1<'_, f64>>,
+        u: Array<'_>,
+        y: Array<'_>,
+        weight: Option<Array<'_>>,
         free_offset: bool,
         gain: f64,
     ) -> PyResult<(Vec<f64>, f64, f64)> {
-        let (u, y) = (to_vec(&u), to_vec(&y));
-        let w = weight.map_or_else(|| vec![1.0; u.len()], |w| to_vec(&w));
+        let (u, y) = (to_vec(u), to_vec(y));
+        let w = weight.map_or_else(|| vec![1.0; u.len()], to_vec);
         if y.len() != u.len() || w.len() != u.len() {
             return Err(BmrError::new_err(format!(
                 "best_initial_state: {} inputs, {} outputs, {} weights",
@@ -229,19 +236,29 @@ impl PyEverettModel {
         subdivisions: usize,
     ) -> PyResult<Bound<'py, PyTuple>> {
         if subdivisions == 0 {
+            return Err(crate::python::BmrError::new_err(
+                "subdivisions must be at least 1",
+            ));
+        }
+        let (asc, desc) = self
+            .inner
+            .first_order_curves_subdivided(subdivisions)
+            .map_err(|e| identification_err("first_order_curves", e))?;
+        PyTuple::new(py, [curves_to_py(py, asc)?, curves_to_py(py, desc)?])
+    }
+
+    /// The CBH operator (`bmr.Hysteresis`, memory of 64 reversals, starting after negative saturation) of this
+    /// table, built in Rust from its first-order curves with `subdivisions` reversals per grid interval.
+    #[pyo3(signature = (subdivisions=4))]
+    fn hysteresis(&self, subdivisions: usize) -> PyResult<PyHysteresis> {
+        if subdivisions == 0 {
             return Err(BmrError::new_err("subdivisions must be at least 1"));
         }
-        let (asc, desc) = self.inner.first_order_curves_subdivided(subdivisions);
-        let conv = |fam: Vec<(Vec<f64>, Vec<f64>)>| -> PyResult<Bound<'py, PyList>> {
-            let items: Vec<Bound<'py, PyTuple>> = fam
-                .into_iter()
-                .map(|(u, y)| {
-                    PyTuple::new(py, [PyArray1::from_vec(py, u), PyArray1::from_vec(py, y)])
-                })
-                .collect::<PyResult<_>>()?;
-            PyList::new(py, items)
-        };
-        PyTuple::new(py, [conv(asc)?, conv(desc)?])
+        let op = self
+            .inner
+            .hysteresis(subdivisions, &BuildOptions::default(), Initial::Negative)
+            .map_err(|e| identification_err("EverettModel.hysteresis", e))?;
+        Ok(PyHysteresis { op, report: None })
     }
 
     fn __repr__(&self) -> String {
@@ -264,19 +281,16 @@ impl PyEverettModel {
 #[pyo3(signature = (grid, runs, n_offsets=1, *, smoothing=1e-4, ridge=1e-9, max_iter=500))]
 fn fit_everett<'py>(
     py: Python<'py>,
-    grid: PyReadonlyArray1<'py, f64>,
-    runs: Vec<Bound<'py, PyAny>>,
+    grid: Array<'py>,
+    runs: Vec<RunArrays<'py>>,
     n_offsets: usize,
     smoothing: f64,
     ridge: f64,
     max_iter: usize,
 ) -> PyResult<Bound<'py, PyDict>> {
-    let grid = EverettGrid::new(to_vec(&grid)).map_err(BmrError::new_err)?;
-    let data: Vec<RunData> = runs
-        .iter()
-        .enumerate()
-        .map(|(i, r)| parse_run(i, r))
-        .collect::<PyResult<_>>()?;
+    let grid =
+        EverettGrid::new(to_vec(grid)).map_err(|e| identification_err("Everett table fit", e))?;
+    let data: Vec<RunData> = runs.into_iter().map(RunArrays::into_data).collect();
     let options = EverettFitOptions {
         smoothing,
         ridge,
@@ -297,7 +311,7 @@ fn fit_everett<'py>(
                 .collect();
             fit_everett_rs(&grid, &views, n_offsets, options)
         })
-        .map_err(|e| BmrError::new_err(format!("Everett table fit: {e}")))?;
+        .map_err(|e| identification_err("Everett table fit", e))?;
     let d = PyDict::new(py);
     d.set_item("offsets", PyArray1::from_slice(py, &fit.offsets))?;
     d.set_item("rss", fit.rss)?;

@@ -7,11 +7,11 @@
 * :mod:`~bmr.identification.model` — the identified model and its ``bmr-model/1`` file;
 * :mod:`~bmr.identification.procedure` — ``identify()`` and ``bmr identify``: all of the above on a bundle.
 """
-from bmr.identification.forc import FirstOrderCurves, extract_first_order_curves, paper_current_curves
+from bmr.identification.forc import FirstOrderCurves, extract_first_order_curves
 from bmr.identification.friction import FrictionFit, fit_friction
 from bmr.identification.procedure import identify
 from bmr.identification.lstsq import LstsqTables, fit_tables_lstsq
 from bmr.identification.model import Model
 
 __all__ = ["FirstOrderCurves", "FrictionFit", "LstsqTables", "Model", "extract_first_order_curves", "fit_friction",
-           "fit_tables_lstsq", "identify", "paper_current_curves"]
+           "fit_tables_lstsq", "identify"]

@@ -2,8 +2,8 @@
 dead-band (``bmr._core.find_reversals``), cut the first-order curves, fit each one from its raw samples
 (``bmr._core.fit_curve``: adaptive bins on the input axis, wide where the curve is straight and narrow where it
 switches sharply, then the least-squares monotone fit) and hand them to ``bmr.Hysteresis.from_curves``, which
-derives a missing family from the measured one. Also the paper's current curves (the torque curves with their
-axes swapped) for its inverse operator.
+derives a missing family from the measured one. (The paper's current curves, the torque curves with their axes
+swapped, are ``bmr.Hysteresis.current_curves()``.)
 
 Real curves are accepted as they are: how far each one moved against its direction (continued switching after a
 reversal, noise, creep) is measured and kept in the result, and every sample of every run is accounted for (on a
@@ -11,7 +11,7 @@ curve, or not, and why)."""
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any, Iterable, Sequence
+from typing import Any, Iterable
 
 import numpy as np
 
@@ -21,7 +21,7 @@ from bmr.identification.accounting import SampleAccount
 from bmr.identification.signals import run_input, run_output
 from bmr.identification.spans import input_range_of, sample_noise
 
-__all__ = ["Curve", "FirstOrderCurves", "find_reversals", "extract_first_order_curves", "paper_current_curves"]
+__all__ = ["Curve", "FirstOrderCurves", "find_reversals", "extract_first_order_curves"]
 
 Curve = tuple[np.ndarray, np.ndarray]
 
@@ -212,23 +212,3 @@ def extract_first_order_curves(
                        f"first-order curves (reversal dead-band {db:.4g}, saturation within {sat_tol:.4g} of "
                        f"{lo:.6g}..{hi:.6g}); one family needs its major branch and at least one more curve")
     return FirstOrderCurves(ascending, descending, (lo, hi), fits_a + fits_d, account.check(), float(db))
-
-
-def paper_current_curves(ascending: Sequence[Curve], descending: Sequence[Curve]
-                         ) -> tuple[list[Curve], list[Curve]]:
-    """The paper's current curves ``I^a(T_min, T)``, ``I^d(T_max, T)`` (eq 17-20): each torque curve with its
-    axes swapped, in the same traversal order, flat stretches (no torque change) collapsed so torque is
-    strictly monotone along each curve."""
-    def swap(curves: Sequence[Curve], rising: bool) -> list[Curve]:
-        out = []
-        for u, y in curves:
-            u, y = np.asarray(u, float), np.asarray(y, float)
-            keep = [0]
-            for i in range(1, y.size):
-                if (y[i] > y[keep[-1]]) if rising else (y[i] < y[keep[-1]]):
-                    keep.append(i)
-            if len(keep) >= 2:
-                out.append((y[keep], u[keep]))
-        return out
-
-    return swap(ascending, True), swap(descending, False)

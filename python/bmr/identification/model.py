@@ -17,6 +17,7 @@ Loading a missing, unknown or newer format is an error that names the format fou
 """
 from __future__ import annotations
 
+import copy
 import hashlib
 import json
 import math
@@ -27,7 +28,6 @@ from typing import Any, Sequence
 import numpy as np
 
 from bmr._core import BmrError, Compensator, Hysteresis
-from bmr.identification.forc import paper_current_curves
 from bmr.identification.friction import FrictionFit
 
 __all__ = ["FORMAT", "Model"]
@@ -102,8 +102,10 @@ class Model:
         bad = np.flatnonzero(~np.isfinite(i_a))
         if bad.size:
             raise BmrError(f"current sample {int(bad[0])} is not finite ({i_a[bad[0]]!r})")
-        self.hysteresis.reset(initial=initial)
-        y = np.asarray(self.hysteresis.run(i_a), dtype=float)
+        # A copy: simulating never changes the model (its operator may be shared with a compensator).
+        h = copy.copy(self.hysteresis)
+        h.reset(initial=initial)
+        y = np.asarray(h.run(i_a), dtype=float)
         if theta is not None:
             th = np.asarray(theta, dtype=float)
             if th.shape != i_a.shape:
@@ -122,8 +124,7 @@ class Model:
 
     def current_curves(self) -> tuple[list[tuple[np.ndarray, np.ndarray]], list[tuple[np.ndarray, np.ndarray]]]:
         """The paper's current curves (torque → current) from the stored torque curves."""
-        asc, desc = self.hysteresis.curves()
-        return paper_current_curves(asc, desc)
+        return self.hysteresis.current_curves()
 
     # --------------------------------------------------------------------------------------- files
     def to_dict(self) -> dict[str, Any]:

@@ -75,7 +75,7 @@ def identify(
         t = time.perf_counter()
         curves = extract_first_order_curves(protocol, friction, deadband=deadband_a, input_range=(lo, hi))
         candidates["forc"] = Model.from_curves(curves.ascending, curves.descending, friction, limits=limits)
-        # Ascending vs descending family disagreement: zero for Preisach data (DESIGN section 2).
+        # Ascending vs descending family disagreement: zero for Preisach data (docs/architecture.md §2.2).
         info["forc_consistency_nmm"] = candidates["forc"].hysteresis.consistency()
         info["time_s"]["forc"] = time.perf_counter() - t
         info["forc_curves"] = {"ascending": len(curves.ascending), "descending": len(curves.descending)}
