@@ -76,6 +76,8 @@ fn noisy_triangles_identify_the_plant_and_the_cbh_agrees() {
             y: &y,
             weight: &w,
             offset_col: 0,
+            history: &[],
+            gain: 1.0,
         }],
         1,
         opts,

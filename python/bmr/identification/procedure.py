@@ -81,8 +81,7 @@ def identify(
             raise BmrError("the bundle has no first_order_ascending/descending run for the 'forc' method; "
                            "use method='lstsq'")
         t = time.perf_counter()
-        curves = extract_first_order_curves(protocol, friction, n_nodes=n_nodes, deadband_a=deadband_a,
-                                            input_range=(lo, hi))
+        curves = extract_first_order_curves(protocol, friction, deadband=deadband_a, input_range=(lo, hi))
         candidates["forc"] = Model.from_curves(curves.ascending, curves.descending, friction, limits=limits,
                                                quantities=q)
         # Ascending vs descending family disagreement: zero for Preisach data (docs/architecture.md §2.2).
