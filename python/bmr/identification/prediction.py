@@ -164,6 +164,10 @@ class Prediction:
         text = ["  ".join(c.rjust(w) if k else c.ljust(w) for k, (c, w) in enumerate(zip(row, widths)))
                 for row in rows]
         notes = [f"* {r.name}: {r.start_reason}" for r in self.runs if not r.state_known]
+        notes += [f"{r.name}: samples 0..{r.start - 1} not compared (the state is unknown until the input first "
+                  "reaches an end of its range)" for r in self.runs if r.state_known and r.start > 0]
+        notes += [f"{r.name}: sample {r.start} sets the output offset ({self.quantities.output.format(r.offset)}) "
+                  "and is not compared" for r in self.runs if self.offset == "first-sample"]
         notes += [f"{r.name}: {r.out_of_range} sample(s) outside the model's input range (largest excess "
                   f"{self.quantities.input.format(r.max_excess)}); the model holds its end value there"
                   for r in self.runs if r.out_of_range]
