@@ -50,7 +50,8 @@ def _parser() -> argparse.ArgumentParser:
     m.add_argument("files", nargs="+", help="log files (every table holding the declared columns is a run)")
     m.add_argument("--input", required=True, metavar="COL[:UNIT]", help="the device's input column")
     m.add_argument("--output", required=True, metavar="COL[:UNIT]", help="the device's output column")
-    m.add_argument("--angle", metavar="COL[:UNIT]", help="rotor angle column (optional; stored in rad, so a unit given here is the file's)")
+    m.add_argument("--angle", metavar="COL[:UNIT]",
+                   help="rotor angle column (optional; stored in rad, so a unit given here is the file's)")
     m.add_argument("--time", metavar="COL[:UNIT]",
                    help="time column (default: the format's time axis or a column named time/t; stored in s, so a unit "
                         "given here is the file's)")
@@ -78,7 +79,8 @@ def _parser() -> argparse.ArgumentParser:
                    help="hysteresis tables from first-order reversal curves (forc, the paper's method), by least "
                         "squares from any excitation (lstsq), or both, keeping the one with the lower held-out "
                         "error (default: forc)")
-    i.add_argument("-o", "--out", required=True, help="model file to write (bmr-model/2 JSON: tables, friction, the bundle's quantities and units)")
+    i.add_argument("-o", "--out", required=True,
+                   help="model file to write (bmr-model/2 JSON: tables, friction, the bundle's quantities and units)")
 
     g = sub.add_parser("diagnose", help="find what the model gets wrong in a bundle and name the cause")
     g.add_argument("bundle", help=BUNDLE_HELP)

@@ -74,7 +74,7 @@ def _rows(lines: list[str], start: int, stop: int, header: list[str], last: int,
         k = int(bad[0])
         truncated = " (truncated file?)" if start + k == last else ""
         raise BundleError(f"{source}, line {start + k + 1}: {int(counts[k])} values under a header of {width} "
-                       f"({', '.join(header)}){truncated}")
+                          f"({', '.join(header)}){truncated}")
     try:
         frame = pd.read_csv(io.StringIO("\n".join(block)), sep="\t", header=None, dtype=float)
     except ValueError:
@@ -140,7 +140,7 @@ def read(path: str | Path) -> list[Table]:
     found = _tables(read_text(p), str(p))
     if not found:
         raise BundleError(f"{p}: no tab-separated table found (expected a header line of names with units, e.g. "
-                       "'Time s<TAB>Vplus V<TAB>P1 uC_per_cm2', followed by rows of numbers)")
+                          "'Time s<TAB>Vplus V<TAB>P1 uC_per_cm2', followed by rows of numbers)")
     tables = []
     for k, (line, header, rows, meta, title) in enumerate(found):
         columns: dict[str, np.ndarray] = {}

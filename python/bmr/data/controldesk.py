@@ -70,7 +70,7 @@ def read(path: str | Path) -> list[Table]:
     captures = {k: v for k, v in variables.items() if _is_capture(v)}
     if not captures:
         raise BundleError(f"{p}: not a dSPACE ControlDesk capture: no variable is a struct with X (time) and Y "
-                       f"(channels) (variables: {', '.join(variables) or 'none'})")
+                          f"(channels) (variables: {', '.join(variables) or 'none'})")
     tables = []
     for var, cap in captures.items():
         axes = _as_list(cap.X)
@@ -113,7 +113,7 @@ def read(path: str | Path) -> list[Table]:
                 key = f"{path_text}/{name}" if counts[name.lower()] > 1 or name == time_name else name
                 if data.size != t.size:
                     raise BundleError(f"{p}: {var}: channel {name!r} has {data.size} samples but its time axis "
-                                   f"X({xi}) has {t.size} (truncated capture?)")
+                                      f"X({xi}) has {t.size} (truncated capture?)")
                 columns[key] = data
                 if unit:
                     units[key] = unit

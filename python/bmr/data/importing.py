@@ -134,7 +134,7 @@ def _source_unit(table: Table, key: str, spec: ColumnSpec, role: str) -> str:
     if spec.source_unit is not None:
         if stated is not None and unit(stated, what=f"{table.source}: column {key!r}") != unit(spec.source_unit):
             raise BundleError(f"{table.source}: column {key!r} states unit {stated!r} but the {role} was given as "
-                           f"{spec.source_unit!r}")
+                              f"{spec.source_unit!r}")
         return spec.source_unit
     if stated is not None:
         return stated
@@ -174,7 +174,7 @@ def _time(table: Table, spec: ColumnSpec | None, rate_hz: float | None, notes: l
                                                       what=f"{table.source}: column {key!r} (time)")
     if rate_hz is None:
         raise BundleError(f"{table.source}: no time column (looked for {', '.join(_TIME_NAMES)}; columns: "
-                       f"{', '.join(table.columns)}); give it with --time COL[:UNIT] or set --sample-rate HZ")
+                          f"{', '.join(table.columns)}); give it with --time COL[:UNIT] or set --sample-rate HZ")
     return np.arange(table.n_samples) / float(rate_hz)
 
 
@@ -208,12 +208,12 @@ def _check_protocol(protocol: str, source: str, name: str, u: np.ndarray, rev: n
             shape = ("fall from the top of the input range to a reversal and rise back to the top" if rising else
                      "rise from the bottom of the input range to a reversal and fall back to the bottom")
             raise BundleError(f"{source} (run {name!r}): protocol {protocol}: no first-order curve found; each curve "
-                           f"must {shape} ({found})")
+                              f"must {shape} ({found})")
         return n
     if protocol == "major-loop":
         if not (u.max() >= hi - tol and u.min() <= lo + tol and rev.size >= 1):
             raise BundleError(f"{source} (run {name!r}): protocol major-loop: the input must go from one end of the "
-                           f"input range to the other and back ({found})")
+                              f"input range to the other and back ({found})")
     return None
 
 
@@ -252,10 +252,11 @@ def import_logs(
 
     ``input``/``output``/``angle``/``time``/``output_sigma``: columns as ``COL``, ``COL:UNIT`` or
     ``COL:SOURCE:UNIT`` (or :class:`ColumnSpec`); the angle is stored in rad and time in s (a single unit given
-    for them is the file's), the sigma in the output's unit. ``input_name``/``output_name`` name the quantities (default: from the unit's dimension, e.g.
-    V → voltage). ``protocol``: one of ``PROTOCOLS``; ``holdout``: run or file names labelled for evaluation.
-    ``format`` forces a reader (see :data:`bmr.data.tables.FORMATS`). ``sample_rate_hz`` builds time from the
-    sample index for files without a time column. ``deadband``: the reversal dead-band in input units.
+    for them is the file's), the sigma in the output's unit. ``input_name``/``output_name`` name the quantities
+    (default: from the unit's dimension, e.g. V → voltage). ``protocol``: one of ``PROTOCOLS``; ``holdout``: run
+    or file names labelled for evaluation. ``format`` forces a reader (see :data:`bmr.data.tables.FORMATS`).
+    ``sample_rate_hz`` builds time from the sample index for files without a time column. ``deadband``: the
+    reversal dead-band in input units.
     """
     if protocol not in PROTOCOLS:
         raise BundleError(f"unknown protocol {protocol!r}; use one of {', '.join(PROTOCOLS)}")
@@ -271,7 +272,7 @@ def import_logs(
         # The angle is always stored in rad: a single unit given for it is the file's.
         if angle_spec.source_unit is not None:
             raise BundleError(f"the angle is stored in rad; give it as {angle_spec.column}:{angle_spec.source_unit} "
-                           f"or {angle_spec.column}:{angle_spec.source_unit}:rad")
+                              f"or {angle_spec.column}:{angle_spec.source_unit}:rad")
         angle_spec = ColumnSpec(angle_spec.column, "rad", angle_spec.unit)
     if sample_rate_hz is not None and not (isinstance(sample_rate_hz, (int, float)) and sample_rate_hz > 0
                                            and np.isfinite(sample_rate_hz)):
@@ -330,7 +331,7 @@ def import_logs(
     unknown = [h for h in holdout if h not in matched]
     if unknown:
         raise BundleError(f"holdout {', '.join(map(repr, unknown))} names no imported run or file (runs: "
-                       f"{', '.join(n for _, _, n, _ in built)})")
+                          f"{', '.join(n for _, _, n, _ in built)})")
 
     inputs = [df[q_in.column].to_numpy() for *_, df in built]
     for (path, t, name, df), u in zip(built, inputs):

@@ -106,7 +106,7 @@ def read_table(
             if col in mapping:
                 available = sorted({c for t in tables for c in t.columns})
                 raise BundleError(f"{file}: mapped source {name!r} for column {col!r} not found "
-                               f"(available: {', '.join(available)})")
+                                  f"(available: {', '.join(available)})")
             continue
         out[col] = convert_units(col, values, units[col]) if col in units else np.asarray(values, dtype=float)
     n = max((len(v) for v in out.values()), default=0)
@@ -122,7 +122,7 @@ def read_table(
     if missing:
         available = sorted({c for t in tables for c in t.columns})
         raise BundleError(f"{file}: no source for required column(s) {', '.join(missing)}; map them with "
-                       f"mapping={{'{missing[0]}': '<name>'}} (available: {', '.join(available)})")
+                          f"mapping={{'{missing[0]}': '<name>'}} (available: {', '.join(available)})")
     lengths = {c: len(v) for c, v in out.items()}
     if len(set(lengths.values())) > 1:
         raise BundleError(f"{file}: columns have different lengths: "

@@ -159,7 +159,7 @@ def read(path: str | Path) -> list[Table]:
             meta = {**meta, "metadata_from": sibling.name}
     else:
         raise BundleError(f"{p}: not a SLAC magnetic-measurement table (a strdat file opens with {_SIGNATURE!r}, "
-                       "a strplt file with a 'Time MAIN ...' header)")
+                          "a strplt file with a 'Time MAIN ...' header)")
     rows = _rows(lines, start, len(names), str(p))
     columns = {n: rows[:, j] for j, n in enumerate(names)}
     units = _units(names, units_line)

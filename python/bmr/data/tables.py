@@ -82,7 +82,7 @@ class Table:
         key = self.find(name)
         if key is None:
             raise BundleError(f"{self.source}: no column {name!r} for the {role} (columns: "
-                           f"{', '.join(self.columns)})")
+                              f"{', '.join(self.columns)})")
         return key, self.columns[key]
 
     def unit_of(self, name: str) -> str | None:
@@ -288,7 +288,7 @@ def load_mat(path: Path) -> dict[str, Any]:
         return loadmat(path, squeeze_me=True, struct_as_record=False)
     except NotImplementedError:
         raise BundleError(f"{path}: MATLAB v7.3 (HDF5) files are not read; save the data as a v7 MAT file "
-                       "(MATLAB: save(name, '-v7'); ControlDesk: MAT export) or export CSV") from None
+                          "(MATLAB: save(name, '-v7'); ControlDesk: MAT export) or export CSV") from None
     except Exception as exc:  # noqa: BLE001
         raise BundleError(f"{path}: cannot be read as a MATLAB file ({exc})") from None
 
@@ -313,7 +313,7 @@ def read_mat(path: str | Path) -> list[Table]:
             add(key, value)
     if not columns:
         raise BundleError(f"{p}: no numeric vectors among the MATLAB variables "
-                       f"({', '.join(k for k in mat if not k.startswith('__')) or 'none'})")
+                          f"({', '.join(k for k in mat if not k.startswith('__')) or 'none'})")
     return _split_by_length(p, columns, {}, {})
 
 

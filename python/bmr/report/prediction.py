@@ -55,7 +55,8 @@ def prediction_figure(prediction: Any, path: Path) -> Path:
             e = np.where(ev, r.residual, np.nan)
             t, e = plot.thin(t, e)
             ax_r.axhline(0.0, color="0.4", lw=0.6)
-            ax_r.plot(t, e, ".-" if few else "-", ms=3, color=plot.COLORS["model"], label="residual (measured - predicted)")
+            ax_r.plot(t, e, ".-" if few else "-", ms=3, color=plot.COLORS["model"],
+                      label="residual (measured - predicted)")
             st = r.stats(prediction.output_span)
             ax_r.set(xlabel="time (s)", ylabel=f"residual ({q.output.unit})")
             ax_r.set_title(f"{r.name}: residual, RMS {q.output.format(st['rms'])} (baseline "

@@ -1,5 +1,5 @@
-"""Raw logs → bundle → model → held-out prediction, on a piezo-like device (voltage V → displacement µm, no angle)
-logged by a dSPACE rig, and the clear errors of every bad input on the way."""
+"""Raw logs → bundle → model → held-out prediction, on a piezo-like device (voltage V → displacement µm, no
+angle) logged by a dSPACE rig, and the clear errors of every bad input on the way."""
 from __future__ import annotations
 
 import json
