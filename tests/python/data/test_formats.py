@@ -96,6 +96,9 @@ def test_analyzer_truncated_headerless_and_wrong_files(tmp_path):
     with pytest.raises(bmr.BundleError, match=r"cut.dat, line \d+: 2 values under a header of 3 \(Time s, Vplus V, "
                                            r"P1 uC_per_cm2\) \(truncated file\?\)"):
         read_tables(p)
+    (tmp_path / "comma.dat").write_text("Time s\tVplus V\n0,0\t-1,5E+00\n1,0E-03\t2,25\n")
+    [c] = read_tables(tmp_path / "comma.dat")
+    np.testing.assert_array_equal(c.columns["Vplus"], [-1.5, 2.25])
     (tmp_path / "word.dat").write_text("Time s\tVplus V\n0\t1.0\n1e-3\tover\n2e-3\t3.0\n")
     with pytest.raises(bmr.BmrError, match=r"word.dat, line 3: not a row of numbers: '1e-3\\tover'"):
         read_tables(tmp_path / "word.dat")
