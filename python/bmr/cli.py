@@ -44,10 +44,11 @@ def _parser() -> argparse.ArgumentParser:
 
     i = sub.add_parser("identify", help="identify friction and CBH tables from a bundle")
     i.add_argument("bundle", help=BUNDLE_HELP)
-    i.add_argument("--method", choices=("forc", "lstsq", "both"), default="forc",
+    i.add_argument("--method", choices=("auto", "forc", "lstsq", "both"), default="auto",
                    help="hysteresis tables from first-order reversal curves (forc, the paper's method), by least "
                         "squares from any excitation (lstsq), or both, keeping the one with the lower held-out "
-                        "error (default: forc)")
+                        "error on the evaluation runs or, without any, on first-order curves held out in two "
+                        "folds (auto, the default, also when one of them is impossible)")
     i.add_argument("-o", "--out", required=True, help="model file to write (bmr-model/1 JSON)")
 
     g = sub.add_parser("diagnose", help="find what the model gets wrong in a bundle and name the cause")
