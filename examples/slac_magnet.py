@@ -8,13 +8,14 @@ The walk-through is three commands (what this script runs, through ``bmr.cli.mai
         --input MAIN:A --output BL:T --output-name "integrated gradient" --output-sigma sigBL \\
         --holdout run7,run8 --device "LCLS-II quadrupole 4194" -o slac-bundle
     bmr identify slac-bundle --method lstsq -o slac-model.json
-    bmr predict slac-model.json slac-bundle --offset first-sample --json slac-prediction.json \\
+    bmr predict slac-model.json slac-bundle --offset first --json slac-prediction.json \\
         --figure slac-prediction.png
 
 Runs 3-6 (major loop, minor loops) identify the model; runs 7 and 8 (nested reversals 0.9/0.1/0.8/... and
 0.5/0.4/0.6/... of the maximum current) are held out. Every run starts at 0 A, the bottom of the input range, from
-a remanent field the previous run left: ``--offset first-sample`` takes each held-out run's output offset from its
-first sample (the only use of held-out outputs). Errors are in T and in measurement sigmas (the RMS of the files'
+a remanent field the previous run left: ``--offset first`` takes each held-out run's output offset from its
+first sample (``--calibration 1``, the default with ``--offset first``; the only use of held-out outputs, and
+that sample is not scored). Errors are in T and in measurement sigmas (the RMS of the files'
 per-sample BL sigma over the same samples), next to the single-valued baseline (the middle of the model's major
 loop) and to 1.37e-3 T, the held-out RMS of the earlier hand-written Preisach fit of these runs (40 intervals, one
 free offset per training run).
@@ -58,7 +59,7 @@ def commands(data: Path, out: Path) -> list[list[str]]:
          "--output-name", "integrated gradient", "--output-sigma", "sigBL", "--holdout", ",".join(HELDOUT),
          "--device", "LCLS-II quadrupole 4194", "-o", bundle],
         ["identify", bundle, "--method", "lstsq", "-o", model],
-        ["predict", model, bundle, "--offset", "first-sample", "--json", str(out / "slac-prediction.json"),
+        ["predict", model, bundle, "--offset", "first", "--json", str(out / "slac-prediction.json"),
          "--figure", str(out / "slac-prediction.png")],
     ]
 
@@ -106,8 +107,8 @@ def run(data: Path, out: Path) -> dict:
     pred = json.loads((out / "slac-prediction.json").read_text())
     total = pred["total"]
     return {"data": str(data), "heldout_runs": list(HELDOUT), "prediction": pred,
-            "rms_t": total["rms"], "max_t": total["max"], "rms_sigmas": total["rms_sigmas"],
-            "max_sigmas": total["max_sigmas"], "baseline_rms_t": total["baseline_rms"],
+            "rms_t": total["rms"], "max_t": total["max_abs"], "rms_sigmas": total["rms_sigmas"],
+            "max_sigmas": total["max_abs_sigmas"], "baseline_rms_t": total["baseline_rms"],
             "baseline_rms_sigmas": total["baseline_rms_sigmas"], "sigma_t": total["sigma_rms"],
             "earlier_heldout_rms_t": EARLIER_HELDOUT_RMS_T,
             "congruency": congruency_mismatch(bmr.read_bundle(out / "slac-bundle"))}

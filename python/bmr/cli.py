@@ -75,10 +75,11 @@ def _parser() -> argparse.ArgumentParser:
 
     i = sub.add_parser("identify", help="identify friction and CBH tables from a bundle")
     i.add_argument("bundle", help=BUNDLE_HELP)
-    i.add_argument("--method", choices=("forc", "lstsq", "both"), default="forc",
+    i.add_argument("--method", choices=("auto", "forc", "lstsq", "both"), default="auto",
                    help="hysteresis tables from first-order reversal curves (forc, the paper's method), by least "
                         "squares from any excitation (lstsq), or both, keeping the one with the lower held-out "
-                        "error (default: forc)")
+                        "error on the evaluation runs or, without any, on first-order curves held out in two "
+                        "folds (auto, the default, also when one of them is impossible)")
     i.add_argument("-o", "--out", required=True,
                    help="model file to write (bmr-model/2 JSON: tables, friction, the bundle's quantities and units)")
 
@@ -96,8 +97,21 @@ def _parser() -> argparse.ArgumentParser:
     r.add_argument("bundle", help=BUNDLE_HELP)
     r.add_argument("--runs", action="append", default=[], metavar="RUN[,RUN...]",
                    help="runs to predict (default: the bundle's evaluation runs)")
-    r.add_argument("--offset", choices=("none", "first-sample"), default="none",
-                   help="per-run output offset: none, or taken from each run's first evaluated sample")
+    r.add_argument("--offset", choices=("model", "first"), default="model",
+                   help="each run's output offset: the model's, or from the run's leading --calibration samples "
+                        "(first; they are then not scored) (default: model)")
+    r.add_argument("--calibration", type=int, metavar="N",
+                   help="leading samples of each run used to calibrate it, not scored (default: 1 with --offset "
+                        "first, else 0)")
+    r.add_argument("--initial", choices=("negative", "positive", "estimate"), default="negative",
+                   help="each run's initial state: a saturation, or estimated from its calibration samples (the "
+                        "whole run without any) (default: negative)")
+    r.add_argument("--evaluate", choices=("known", "all"), default="known",
+                   help="score from where the run's state is known (after both saturation ends) or all samples "
+                        "(default: known)")
+    r.add_argument("--out-of-range", choices=("clamp", "extrapolate"), default="clamp",
+                   help="inputs beyond the model's range: held at its ends, or continued along the major branches "
+                        "(default: clamp)")
     r.add_argument("--json", dest="json_out", help="write the bmr-prediction/1 JSON here")
     r.add_argument("--figure", help="write a PNG figure (measured vs predicted vs input; residual) here")
     return p

@@ -29,6 +29,7 @@ Curve = tuple[np.ndarray, np.ndarray]
 # Reasons a protocol-run sample is on no first-order curve.
 BEFORE_FIRST_REVERSAL = "before the run's first reversal (unknown state)"
 NOT_FIRST_ORDER = "not on a first-order curve (inner reversal or no saturation reached)"
+HELD_OUT = "on a curve held out (cross-validation)"
 
 
 @dataclass
@@ -38,7 +39,9 @@ class FirstOrderCurves:
 
     ``fits``: the ``bmr.CurveFit`` of every curve (ascending first, in the same order), with its noise, bins and
     how far the data moved against the curve's direction; ``samples``: which samples of each run lie on a curve
-    and why the others do not; ``deadband``: the reversal dead-band used (input units).
+    and why the others do not; ``deadband``: the reversal dead-band used (input units); ``membership``: per run,
+    the index of the curve each sample lies on (-1: none; ascending curves first, numbered over every curve found,
+    held-out ones included; the first ``n_ascending_found`` are ascending, the major branches first).
     """
 
     ascending: list[Curve]
@@ -47,6 +50,8 @@ class FirstOrderCurves:
     fits: list[Any] = field(default_factory=list)
     samples: SampleAccount = field(default_factory=SampleAccount)
     deadband: float = 0.0
+    membership: dict[str, np.ndarray] = field(default_factory=dict)
+    n_ascending_found: int = 0
 
     def __len__(self) -> int:
         return len(self.ascending) + len(self.descending)
@@ -107,6 +112,7 @@ def extract_first_order_curves(
     saturation_tol: float | None = None,
     input_range: tuple[float, float] | None = None,
     pilot: int = 16,
+    exclude_curves: Iterable[int] = (),
 ) -> FirstOrderCurves:
     """Cut and fit the first-order curves of one run (or several runs of one device).
 
@@ -119,7 +125,9 @@ def extract_first_order_curves(
     fitted from its raw samples by ``bmr._core.fit_curve`` (``pilot``: samples per pilot bin).
 
     One family is enough (``bmr.Hysteresis.from_curves`` derives the other one); a run set in which no first-order
-    curve is found is an error naming the runs and the dead-band.
+    curve is found is an error naming the runs and the dead-band. ``exclude_curves``: indices (into ``membership``
+    numbering of the same runs) of curves to hold out, e.g. for cross-validation; their samples are counted as held
+    out.
     """
     runs = runs_of(run)
     if not runs:
@@ -137,15 +145,15 @@ def extract_first_order_curves(
     # Repeats of one curve (e.g. the major branches of several runs) have reversals a few noise sigmas apart.
     pool_tol = min(db, max(0.005 * (hi - lo), 4.0 * sample_noise(all_u)))
     sat_tol = saturation_tol if saturation_tol is not None else max(2.0 * db, 0.02 * (hi - lo))
-    pools: dict[str, list[tuple[float, list[np.ndarray], list[np.ndarray]]]] = {"asc": [], "desc": []}
-    account = SampleAccount()
-    partial: list[tuple[str, float, np.ndarray, np.ndarray, str, int, int]] = []
-    used: dict[str, np.ndarray] = {}
+    # Pools of segments from one reversal: [reversal, [(run name, a, b)], ...] per family.
+    pools: dict[str, list[list[Any]]] = {"asc": [], "desc": []}
+    partial: list[tuple[str, float, str, int, int]] = []
     firsts: dict[str, int] = {}
+    signals: dict[str, tuple[np.ndarray, np.ndarray]] = {}
     for r, u in zip(runs, inputs):
         y = run_output(r, friction)
+        signals[r.name] = (u, y)
         segs, firsts[r.name] = _raw_first_order_segments(u, db, lo, hi, sat_tol)
-        used[r.name] = np.zeros(u.size, dtype=bool)
         for key in ("asc", "desc"):
             for a, b, full in segs[key]:
                 rev = float(u[a])
@@ -155,42 +163,33 @@ def extract_first_order_curves(
                 if key == "desc" and rev >= hi - pool_tol:
                     rev = hi
                 if not full:
-                    partial.append((key, rev, u[a:b + 1], y[a:b + 1], r.name, a, b))
+                    partial.append((key, rev, r.name, a, b))
                     continue
-                used[r.name][a:b + 1] = True
                 for entry in pools[key]:
                     if abs(entry[0] - rev) <= pool_tol:
-                        entry[1].append(u[a:b + 1])
-                        entry[2].append(y[a:b + 1])
+                        entry[1].append((r.name, a, b))
                         break
                 else:
-                    pools[key].append((rev, [u[a:b + 1]], [y[a:b + 1]]))
+                    pools[key].append([rev, [(r.name, a, b)]])
     # A curve cut short (the protocol reversed before saturation) extends a full curve from the same reversal.
-    for key, rev, uu, yy, name, a, b in partial:
+    for key, rev, name, a, b in partial:
         for entry in pools[key]:
             if abs(entry[0] - rev) <= pool_tol:
-                entry[1].append(uu)
-                entry[2].append(yy)
-                used[name][a:b + 1] = True
+                entry[1].append((name, a, b))
                 break
-    for r, u in zip(runs, inputs):
-        mask, first = used[r.name], firsts[r.name]
-        account.add_run(r.name, u.size)
-        account.use(r.name, int(mask.sum()))
-        early = int((~mask[:first]).sum())
-        account.drop(r.name, BEFORE_FIRST_REVERSAL, early)
-        account.drop(r.name, NOT_FIRST_ORDER, int((~mask).sum()) - early)
     span = hi - lo
     ascending: list[Curve] = []
     descending: list[Curve] = []
-    fits_a: list[Any] = []
-    fits_d: list[Any] = []
+    fits: list[Any] = []
+    membership = {r.name: np.full(u.size, -1, dtype=np.int64) for r, u in zip(runs, inputs)}
+    held_out = {int(k) for k in exclude_curves}
     for key in ("asc", "desc"):
-        for rev, us, ys in sorted(pools[key], key=lambda e: e[0]):
-            uu, yy = np.concatenate(us), np.concatenate(ys)
+        for rev, segs in sorted(pools[key], key=lambda e: e[0]):
             end = hi if key == "asc" else lo
             if abs(end - rev) < 1e-9 * span:
                 continue
+            uu = np.concatenate([signals[n][0][a:b + 1] for n, a, b in segs])
+            yy = np.concatenate([signals[n][1][a:b + 1] for n, a, b in segs])
             # Every pooled sample enters the fit; the curve starts at its (pooled) reversal input.
             start = np.argmin(uu) if key == "asc" else np.argmax(uu)
             order = np.r_[start, np.delete(np.arange(uu.size), start)]
@@ -200,15 +199,31 @@ def extract_first_order_curves(
                 f = fit_curve(uu, yy, "ascending" if key == "asc" else "descending", pilot=pilot)
             except BmrError:
                 continue  # a degenerate pool (all samples at one input): nothing to fit
-            if key == "asc":
-                ascending.append((f.u, f.y))
-                fits_a.append(f)
-            else:
-                descending.append((f.u, f.y))
-                fits_d.append(f)
-    if len(ascending) + len(descending) == 0 or max(len(ascending), len(descending)) < 2:
+            index = len(fits)
+            for n, a, b in segs:
+                membership[n][a:b + 1] = index
+            fits.append(f)
+            if index in held_out:
+                continue
+            (ascending if key == "asc" else descending).append((f.u, f.y))
+    if max(len(ascending), len(descending)) < 2:
         raise BmrError(f"runs {names}: found {len(ascending)} ascending and {len(descending)} descending "
                        f"first-order curves (reversal dead-band {q.format(db, 4)}, saturation within "
                        f"{q.format(sat_tol, 4)} of {q.format(lo, 6)}..{q.format(hi, 6)}); one family needs its major "
                        "branch and at least one more curve")
-    return FirstOrderCurves(ascending, descending, (lo, hi), fits_a + fits_d, account.check(), float(db))
+    account = SampleAccount()
+    for r, u in zip(runs, inputs):
+        m = membership[r.name]
+        on_curve = m >= 0
+        out = np.isin(m, sorted(held_out)) if held_out else np.zeros(u.size, dtype=bool)
+        account.add_run(r.name, u.size)
+        account.use(r.name, int(np.count_nonzero(on_curve & ~out)))
+        account.drop(r.name, HELD_OUT, int(np.count_nonzero(out)))
+        early = int(np.count_nonzero(~on_curve[:firsts[r.name]]))
+        account.drop(r.name, BEFORE_FIRST_REVERSAL, early)
+        account.drop(r.name, NOT_FIRST_ORDER, int(np.count_nonzero(~on_curve)) - early)
+    n_asc = sum(1 for f in fits if f.direction == "ascending")
+    kept = [f for i, f in enumerate(fits) if i not in held_out]
+    return FirstOrderCurves(ascending, descending, (lo, hi), kept, account.check(), float(db), membership,
+                            n_asc)
+

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Any, Iterable, Sequence
+from typing import Any, Iterable, Mapping, Sequence
 
 import numpy as np
 
@@ -29,6 +29,7 @@ __all__ = ["RunCalibration", "LstsqTables", "fit_tables_lstsq", "INITIAL_STATES"
 INITIAL_STATES = ("estimate", "saturation", "negative")
 BEFORE_KNOWN_STATE = "before the run's state is known (initial_state='saturation')"
 THINNED = "thinned to max_rows (every k-th sample kept)"
+HELD_OUT = "held out (cross-validation)"
 
 
 @dataclass
@@ -132,6 +133,7 @@ def fit_tables_lstsq(
     iterations: int = 3,
     max_rows: int = 2_000_000,
     curve_subdivisions: int = 4,
+    exclude: Mapping[str, np.ndarray] | None = None,
     per_run_offset: bool | None = None,
     start_at_saturation: bool | None = None,
 ) -> LstsqTables:
@@ -146,6 +148,9 @@ def fit_tables_lstsq(
     ``"negative"`` (every run starts at negative saturation). Rows are thinned uniformly only above ``max_rows``
     (counted). The first-order curves start at every grid node and at ``curve_subdivisions − 1`` points inside
     each interval, so a CBH operator built from them follows the table between grid reversals too.
+
+    ``exclude``: ``{run name: boolean mask}`` of samples kept out of the regression (held out, e.g. for
+    cross-validation; they still drive the memory and are counted).
 
     ``per_run_offset`` / ``start_at_saturation``: the former boolean spellings of ``offsets`` / ``initial_state``.
     """
@@ -184,11 +189,19 @@ def fit_tables_lstsq(
         w = np.zeros(u.size)
         s = evaluation_start(u, lo, hi, tol) if initial_state == "saturation" else 0
         w[s::stride] = 1.0
+        held = np.zeros(u.size, dtype=bool)
+        if exclude is not None and r.name in exclude:
+            held = np.asarray(exclude[r.name], dtype=bool)
+            if held.shape != u.shape:
+                raise BmrError(f"run {r.name!r}: exclude mask has {held.size} samples, the run {u.size}")
+            held[:s] = False  # counted as before the known state already
+            w[held] = 0.0
         weights.append(w)
         acc = account.add_run(r.name, u.size)
         acc.used = int(np.count_nonzero(w))
         account.drop(r.name, BEFORE_KNOWN_STATE, s)
-        account.drop(r.name, THINNED, u.size - s - acc.used)
+        account.drop(r.name, HELD_OUT, int(held.sum()))
+        account.drop(r.name, THINNED, u.size - s - int(held.sum()) - acc.used)
     account.check()
     if account.used == 0:
         raise BmrError("no sample is left to fit: every run is before its state is known "
@@ -210,10 +223,12 @@ def fit_tables_lstsq(
             full = np.any(u >= hi - tol) and np.any(u <= lo + tol)
             k[:s if full else u.size] = 0.0
             known.append(k)
-        if sum(np.count_nonzero(k) for k in known) >= 4 * grid.size:
-            first = [(np.ascontiguousarray(u), np.ascontiguousarray(y), k, i if per_run else 0)
-                     for i, (u, y, k) in enumerate(zip(us, ys, known))]
-            res = _fit(grid, first, n_off, smoothing, ridge)
+        # Runs without a known part sit out the first fit (their offset columns would be empty).
+        with_rows = [i for i, k in enumerate(known) if np.count_nonzero(k)]
+        if sum(np.count_nonzero(known[i]) for i in with_rows) >= 4 * grid.size:
+            first = [(np.ascontiguousarray(us[i]), np.ascontiguousarray(ys[i]), known[i], j if per_run else 0)
+                     for j, i in enumerate(with_rows)]
+            res = _fit(grid, first, len(with_rows) if per_run else 1, smoothing, ridge)
         else:
             res = _fit(grid, pack(), n_off, smoothing, ridge)
     else:

@@ -1,17 +1,20 @@
-"""Held-out prediction: a model's error on a bundle's runs, in the declared units, against a single-valued baseline;
-and ``bmr predict MODEL BUNDLE`` (table, ``bmr-prediction/1`` JSON, figure).
+"""Predicting measured runs with an identified model, as they come off the bench: held-out RMS and largest error per
+run in the device's own units, in % of the model's output span and (when the runs carry the output's sigma) in
+measurement sigmas, next to the single-valued baseline; and ``bmr predict MODEL BUNDLE`` (a table, the
+``bmr-prediction/1`` JSON and a figure).
 
-For each run the model is simulated from negative saturation and compared from the first sample whose hysteresis
-state the input determines: the run's start when it starts at the bottom of the model's input range, else the first
-time the input reaches either end of that range (every earlier memory is wiped out there); a run that never gets
-there is compared from its start, flagged ``state_known=False``. ``offset="first-sample"`` shifts each run's
-prediction (and the baseline) to its first compared sample, for devices whose output offset differs from run to run
-(remanence left by earlier excitation, sensor offsets); that sample is then not counted.
+A run's own offset (sensor offset, remanence left by the previous run), gain and initial state are parameters of
+the prediction, not hidden fits: they are given, taken from the model (its common offset), or estimated from a
+stated number of leading ``calibration`` samples, which are then not scored. Samples are scored from the point
+where the run's state is known (``evaluate="known"``: after it has been to both saturation ends, when it gets
+there) or all of them; every sample not scored is counted with its reason, a run whose state the input never
+determines is flagged, and inputs beyond the table's range are counted with their largest excess (clamped, or
+extrapolated along the major branches on request).
 
-The baseline is the best a model without hysteresis can do from the same identification: the single-valued curve
-through the middle of the model's major loop (the mean of its ascending and descending major branches). Errors are
-reported in the output unit, in % of the model's output span and, when the bundle has the output's sigma, in
-measurement sigmas (the error divided by the RMS sigma of the same samples).
+The runs' input and output are converted to the model's units (a model in V predicts runs logged in mV); quantities
+of other dimensions are an error. The baseline is the best a model without hysteresis can do from the same
+identification: the single-valued curve through the middle of the model's major loop (the mean of its ascending and
+descending major branches), with the run's gain and offset found the same way.
 """
 from __future__ import annotations
 
@@ -19,7 +22,7 @@ import json
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Sequence
+from typing import Any, Iterable, Mapping, Sequence
 
 import numpy as np
 
@@ -28,86 +31,122 @@ from bmr.data.bundle import Bundle, Run, read_bundle
 from bmr.data.quantities import Quantities
 from bmr.data.units import format_number
 from bmr.identification.model import Model
-from bmr.identification.spans import SATURATION_TOL
+from bmr.identification.signals import run_input, run_output
+from bmr.identification.spans import SATURATION_TOL, evaluation_start
 
-__all__ = ["FORMAT", "OFFSETS", "RunPrediction", "Prediction", "predict", "run_cli"]
+__all__ = ["FORMAT", "RunPrediction", "Prediction", "predict", "single_valued_baseline", "run_cli", "CALIBRATION",
+           "BEFORE_KNOWN_STATE"]
 
 FORMAT = "bmr-prediction/1"
-OFFSETS = ("none", "first-sample")
+CALIBRATION = "used to calibrate the run (offset or initial state), not scored"
+BEFORE_KNOWN_STATE = "before the run's state is known (not scored)"
+BASELINE = "single-valued curve through the middle of the model's major loop"
 
 
 def _rms(e: np.ndarray) -> float:
-    return float(np.sqrt(np.mean(e * e))) if e.size else float("nan")
+    return float(np.sqrt(np.mean(e * e))) if e.size else math.nan
 
 
 def _max_abs(e: np.ndarray) -> float:
-    return float(np.max(np.abs(e))) if e.size else float("nan")
+    return float(np.max(np.abs(e))) if e.size else math.nan
 
 
 @dataclass
 class RunPrediction:
-    """One run's prediction. Arrays cover the whole run (``time``, ``input``, ``output`` measured in the model's
-    units, ``predicted``, ``baseline``); statistics cover ``evaluated`` (the samples compared)."""
+    """One run: the scored error (output units and % of the model's output span), the calibration it was predicted
+    with, the samples not scored by reason, and the whole run's arrays in the model's units: ``time``, ``input``,
+    ``measured``, ``predicted`` (friction included when the model has it), ``baseline`` (the single-valued curve,
+    calibrated alike), ``sigma`` (the output's per-sample sigma, or None) and ``scored`` (a mask)."""
 
     name: str
     role: str
-    start: int
-    state_known: bool
-    start_reason: str
+    samples: int
+    evaluated: int
+    rms: float
+    max_abs: float
+    span: float
     offset: float
+    offset_source: str
+    gain: float
+    initial: str
+    state_known: bool
     out_of_range: int
     max_excess: float
-    time: np.ndarray
-    input: np.ndarray
-    output: np.ndarray
-    predicted: np.ndarray
-    baseline: np.ndarray
-    sigma: np.ndarray | None = None
-    evaluated: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=bool))
+    dropped: dict[str, int] = field(default_factory=dict)
+    time: np.ndarray = field(default_factory=lambda: np.zeros(0), repr=False)
+    input: np.ndarray = field(default_factory=lambda: np.zeros(0), repr=False)
+    measured: np.ndarray = field(default_factory=lambda: np.zeros(0), repr=False)
+    predicted: np.ndarray = field(default_factory=lambda: np.zeros(0), repr=False)
+    baseline: np.ndarray = field(default_factory=lambda: np.zeros(0), repr=False)
+    sigma: np.ndarray | None = field(default=None, repr=False)
+    scored: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=bool), repr=False)
 
     @property
     def residual(self) -> np.ndarray:
-        return self.output - self.predicted
+        """Measured minus predicted, NaN where not scored."""
+        return np.where(self.scored, self.measured - self.predicted, np.nan)
 
     @property
     def baseline_residual(self) -> np.ndarray:
-        return self.output - self.baseline
+        return np.where(self.scored, self.measured - self.baseline, np.nan)
 
     @property
-    def n(self) -> int:
-        return int(self.evaluated.sum())
+    def rms_pct(self) -> float:
+        return 100.0 * self.rms / self.span
 
-    def stats(self, span: float) -> dict[str, Any]:
-        e = self.residual[self.evaluated]
-        b = self.baseline_residual[self.evaluated]
+    @property
+    def max_pct(self) -> float:
+        return 100.0 * self.max_abs / self.span
+
+    def stats(self) -> dict[str, Any]:
+        """Every figure of the run: errors, the baseline's, in sigmas when the run has them, and how it was
+        predicted."""
+        b = (self.measured - self.baseline)[self.scored]
         out: dict[str, Any] = {
-            "samples": int(self.output.size), "evaluated": self.n, "start": self.start,
-            "state_known": self.state_known, "start_reason": self.start_reason, "offset": self.offset,
-            "rms": _rms(e), "max": _max_abs(e), "rms_pct_span": 100.0 * _rms(e) / span,
-            "max_pct_span": 100.0 * _max_abs(e) / span,
-            "baseline_rms": _rms(b), "baseline_max": _max_abs(b),
-            "out_of_range": self.out_of_range, "max_excess": self.max_excess,
+            "role": self.role, "samples": self.samples, "evaluated": self.evaluated, "rms": self.rms,
+            "max_abs": self.max_abs, "rms_pct_span": self.rms_pct, "max_pct_span": self.max_pct,
+            "baseline_rms": _rms(b), "baseline_max_abs": _max_abs(b),
+            "offset": self.offset, "offset_source": self.offset_source, "gain": self.gain, "initial": self.initial,
+            "state_known": self.state_known, "out_of_range": self.out_of_range, "max_excess": self.max_excess,
+            "dropped": dict(self.dropped),
         }
         if self.sigma is not None:
-            s = _rms(self.sigma[self.evaluated])
+            s = _rms(self.sigma[self.scored])
             out["sigma_rms"] = s
-            out["rms_sigmas"] = out["rms"] / s if s > 0 else float("nan")
-            out["max_sigmas"] = out["max"] / s if s > 0 else float("nan")
-            out["baseline_rms_sigmas"] = out["baseline_rms"] / s if s > 0 else float("nan")
+            for k in ("rms", "max_abs", "baseline_rms", "baseline_max_abs"):
+                out[f"{k}_sigmas"] = out[k] / s if s > 0 else math.nan
         return out
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"name": self.name, **self.stats()}
 
 
 @dataclass
 class Prediction:
-    """A model's prediction of a bundle's runs: per-run and pooled statistics in the model's declared units."""
+    """Every predicted run, with totals over all scored samples, in the model's quantities and units.
+    ``out_of_range``: how inputs beyond the table were handled."""
 
-    quantities: Quantities
-    output_span: float
-    offset: str
     runs: list[RunPrediction]
+    quantities: Quantities
+    span: float
+    out_of_range: str = "clamp"
     model_source: str = ""
     bundle_source: str = ""
-    baseline: str = "single-valued curve through the middle of the model's major loop"
+    baseline: str = BASELINE
+
+    @property
+    def evaluated(self) -> int:
+        return sum(r.evaluated for r in self.runs)
+
+    @property
+    def rms(self) -> float:
+        n = self.evaluated
+        return math.sqrt(sum(r.rms ** 2 * r.evaluated for r in self.runs if r.evaluated) / n) if n else math.nan
+
+    @property
+    def max_abs(self) -> float:
+        vals = [r.max_abs for r in self.runs if r.evaluated]
+        return max(vals) if vals else math.nan
 
     def run(self, name: str) -> RunPrediction:
         for r in self.runs:
@@ -116,18 +155,18 @@ class Prediction:
         raise BmrError(f"no predicted run named {name!r} (runs: {', '.join(r.name for r in self.runs)})")
 
     def total(self) -> dict[str, Any]:
-        """Statistics over every evaluated sample of every run."""
-        e = np.concatenate([r.residual[r.evaluated] for r in self.runs])
-        b = np.concatenate([r.baseline_residual[r.evaluated] for r in self.runs])
-        out: dict[str, Any] = {"evaluated": int(e.size), "rms": _rms(e), "max": _max_abs(e),
-                               "rms_pct_span": 100.0 * _rms(e) / self.output_span,
-                               "max_pct_span": 100.0 * _max_abs(e) / self.output_span,
-                               "baseline_rms": _rms(b), "baseline_max": _max_abs(b)}
-        if all(r.sigma is not None for r in self.runs):
-            s = _rms(np.concatenate([r.sigma[r.evaluated] for r in self.runs]))  # type: ignore[index]
+        """The figures over every scored sample of every run."""
+        e = np.concatenate([(r.measured - r.predicted)[r.scored] for r in self.runs])
+        b = np.concatenate([(r.measured - r.baseline)[r.scored] for r in self.runs])
+        out: dict[str, Any] = {"evaluated": int(e.size), "rms": _rms(e), "max_abs": _max_abs(e),
+                               "rms_pct_span": 100.0 * _rms(e) / self.span,
+                               "max_pct_span": 100.0 * _max_abs(e) / self.span,
+                               "baseline_rms": _rms(b), "baseline_max_abs": _max_abs(b)}
+        if self.runs and all(r.sigma is not None for r in self.runs):
+            s = _rms(np.concatenate([r.sigma[r.scored] for r in self.runs if r.sigma is not None]))
             out["sigma_rms"] = s
-            for k in ("rms", "max", "baseline_rms", "baseline_max"):
-                out[f"{k}_sigmas"] = out[k] / s if s > 0 else float("nan")
+            for k in ("rms", "max_abs", "baseline_rms", "baseline_max_abs"):
+                out[f"{k}_sigmas"] = out[k] / s if s > 0 else math.nan
         return out
 
     def to_dict(self) -> dict[str, Any]:
@@ -135,53 +174,66 @@ class Prediction:
         return _finite({
             "format": FORMAT, "model": self.model_source, "bundle": self.bundle_source,
             "quantities": self.quantities.to_dict(), "output_unit": self.quantities.output.unit,
-            "output_span": self.output_span, "offset": self.offset, "baseline": self.baseline,
-            "runs": {r.name: {"role": r.role, **r.stats(self.output_span)} for r in self.runs},
-            "total": self.total(),
+            "output_span": self.span, "out_of_range": self.out_of_range, "baseline": self.baseline,
+            "runs": {r.name: r.stats() for r in self.runs}, "total": self.total(),
         })
-
-    def table(self) -> str:
-        """One line per run and a total: RMS and max in the output unit, % of span, sigmas, baseline."""
-        q = self.quantities.output
-        sig = all(r.sigma is not None for r in self.runs)
-        head = ["run", "evaluated", f"RMS ({q.unit})", f"max ({q.unit})", "RMS % span", "max % span"]
-        head += ["RMS (sigma)", "max (sigma)"] if sig else []
-        head += [f"baseline RMS ({q.unit})", f"baseline max ({q.unit})"]
-        rows = [head]
-
-        def line(name: str, st: dict[str, Any]) -> list[str]:
-            cells = [name, str(st["evaluated"]), format_number(st["rms"]), format_number(st["max"]),
-                     format_number(st["rms_pct_span"]), format_number(st["max_pct_span"])]
-            if sig:
-                cells += [format_number(st["rms_sigmas"]), format_number(st["max_sigmas"])]
-            return cells + [format_number(st["baseline_rms"]), format_number(st["baseline_max"])]
-
-        for r in self.runs:
-            rows.append(line(r.name + ("" if r.state_known else " *"), r.stats(self.output_span)))
-        if len(self.runs) > 1:
-            rows.append(line("all", self.total()))
-        widths = [max(len(row[k]) for row in rows) for k in range(len(head))]
-        text = ["  ".join(c.rjust(w) if k else c.ljust(w) for k, (c, w) in enumerate(zip(row, widths)))
-                for row in rows]
-        notes = [f"* {r.name}: {r.start_reason}" for r in self.runs if not r.state_known]
-        notes += [f"{r.name}: samples 0..{r.start - 1} not compared (the state is unknown until the input first "
-                  "reaches an end of its range)" for r in self.runs if r.state_known and r.start > 0]
-        notes += [f"{r.name}: sample {r.start} sets the output offset ({self.quantities.output.format(r.offset)}) "
-                  "and is not compared" for r in self.runs if self.offset == "first-sample"]
-        notes += [f"{r.name}: {r.out_of_range} sample(s) outside the model's input range (largest excess "
-                  f"{self.quantities.input.format(r.max_excess)}); the model holds its end value there"
-                  for r in self.runs if r.out_of_range]
-        return "\n".join(text + notes)
 
     def write_json(self, path: str | Path) -> Path:
         return _write_text(Path(path), json.dumps(self.to_dict(), indent=1, allow_nan=False) + "\n")
 
     def figure(self, path: str | Path) -> Path:
         """PNG: per run, measured and predicted output against the input (with the baseline), and the residual
-        of both along the run."""
+        along the run."""
         from bmr.report.prediction import prediction_figure
 
         return prediction_figure(self, Path(path))
+
+    def table(self) -> str:
+        """One line per run and a total: RMS and max in the output unit, % of span, sigmas, the baseline; then
+        what was not scored and why, and inputs beyond the table."""
+        q = self.quantities
+        u = q.output.unit
+        sig = bool(self.runs) and all(r.sigma is not None for r in self.runs)
+        head = ["run", "evaluated", f"RMS ({u})", f"max ({u})", "RMS % span", "max % span"]
+        head += ["RMS (sigma)", "max (sigma)"] if sig else []
+        head += [f"baseline RMS ({u})", f"baseline max ({u})"]
+        rows = [head]
+
+        def line(name: str, st: dict[str, Any]) -> list[str]:
+            cells = [name, str(st["evaluated"]), format_number(st["rms"]), format_number(st["max_abs"]),
+                     format_number(st["rms_pct_span"]), format_number(st["max_pct_span"])]
+            if sig:
+                cells += [format_number(st["rms_sigmas"]), format_number(st["max_abs_sigmas"])]
+            return cells + [format_number(st["baseline_rms"]), format_number(st["baseline_max_abs"])]
+
+        for r in self.runs:
+            rows.append(line(r.name + ("" if r.state_known else " *"), r.stats()))
+        if len(self.runs) > 1:
+            rows.append(line("all", self.total()))
+        widths = [max(len(row[k]) for row in rows) for k in range(len(head))]
+        text = ["  ".join(c.rjust(w) if k else c.ljust(w) for k, (c, w) in enumerate(zip(row, widths)))
+                for row in rows]
+        for r in self.runs:
+            state = f"{r.name}: {r.initial}; offset {q.output.format(r.offset, 6)} ({r.offset_source})"
+            text.append(("* " if not r.state_known else "") + state + (f", gain {r.gain:.6g}" if r.gain != 1 else ""))
+            text += [f"{r.name}: {n} sample(s) {why}" for why, n in r.dropped.items()]
+            if r.out_of_range:
+                text.append(f"{r.name}: {r.out_of_range} sample(s) outside the model's input range (largest excess "
+                            f"{q.input.format(r.max_excess)}; {self.out_of_range}ed)")
+        return "\n".join(text)
+
+    def __repr__(self) -> str:
+        q = self.quantities
+        o = q.output
+        lines = [f"Prediction of {o.label} from {q.input.label}: RMS {o.format(self.rms, 4)}, max "
+                 f"{o.format(self.max_abs, 4)} over {self.evaluated} scored samples"]
+        for r in self.runs:
+            extra = (f", {r.out_of_range} inputs beyond the table (up to {q.input.format(r.max_excess, 4)})"
+                     if r.out_of_range else "")
+            lines.append(f"  {r.name}: RMS {o.format(r.rms, 4)} ({r.rms_pct:.3g} % of span), max "
+                         f"{o.format(r.max_abs, 4)} ({r.max_pct:.3g} %), {r.evaluated}/{r.samples} scored, offset "
+                         f"{o.format(r.offset, 6)} ({r.offset_source}), {r.initial}{extra}")
+        return "\n".join(lines)
 
 
 def _finite(x: Any) -> Any:
@@ -207,8 +259,52 @@ def _write_text(p: Path, text: str) -> Path:
     return p
 
 
+def _runs_of(runs: Bundle | Run | Iterable[Run]) -> list[Run]:
+    """A bundle's evaluation runs (its non-off-state runs when none is held out), one run, or the runs given."""
+    if isinstance(runs, Bundle):
+        held = runs.evaluation_runs()
+        return [r for r in (held or runs.runs) if r.kind != "off_state"]
+    if isinstance(runs, Run):
+        return [runs]
+    return list(runs)
+
+
+def _per_run(value: Any, name: str, default: Any) -> Any:
+    if isinstance(value, Mapping):
+        return value.get(name, default)
+    return value
+
+
+def _describe(initial: Any, history: Sequence[float]) -> str:
+    start = initial if isinstance(initial, str) else f"{initial[0]} branch at {initial[1]:.6g}"
+    if not len(history):
+        return f"from {start} saturation" if initial in ("negative", "positive") else f"from {start}"
+    if len(history) == 1:
+        return f"from negative saturation up to {history[0]:.6g}"
+    if len(history) == 2:
+        return f"from positive saturation down to {history[1]:.6g}"
+    return f"from history {list(history)}"
+
+
+def _candidates(model: Any, u0: float) -> list[list[float]]:
+    """Initial memories for a run starting at ``u0``: negative or positive saturation, or one reversal after either
+    at every node of the model's ascending grid."""
+    lo, hi = model.hysteresis.input_range
+    asc, _ = model.hysteresis.curves()
+    nodes = np.unique(np.concatenate([np.asarray(c[0], dtype=float) for c in asc]))
+    step = max(1, nodes.size // 64)
+    out: list[list[float]] = [[], [hi]]
+    for x in nodes[::step]:
+        if u0 < x < hi:
+            out.append([float(x)])
+        if lo < x < u0:
+            out.append([hi, float(x)])
+    return out
+
+
 def _branches(model: Model) -> tuple[tuple[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]]:
-    """The major ascending branch (from the lowest reversal) and major descending branch (from the highest)."""
+    """The major ascending branch (from the lowest reversal) and the major descending branch (from the highest),
+    both with increasing input."""
     asc, desc = model.hysteresis.curves()
     a = min(asc, key=lambda c: float(np.asarray(c[0])[0]))
     d = max(desc, key=lambda c: float(np.asarray(c[0])[0]))
@@ -223,98 +319,178 @@ def single_valued_baseline(model: Model, u: np.ndarray) -> np.ndarray:
     return 0.5 * (np.interp(u, ua, ya) + np.interp(u, ud, yd))
 
 
-def _start(u: np.ndarray, lo: float, hi: float, unit_fmt: Any) -> tuple[int, bool, str]:
-    tol = SATURATION_TOL * (hi - lo)
-    if u[0] <= lo + tol:
-        return 0, True, "starts at the bottom of the input range"
-    ends = np.flatnonzero((u >= hi - tol) | (u <= lo + tol))
-    if ends.size:
-        return int(ends[0]), True, f"from sample {int(ends[0])}, where the input first reaches an end of its range"
-    return 0, False, (f"never reaches an end of the model's input range ({unit_fmt(lo)}..{unit_fmt(hi)}): the "
-                      "initial state is unknown and taken as negative saturation")
-
-
-def _aligned(model: Model, bundle: Bundle) -> tuple[tuple[float, float], tuple[float, float]]:
-    """``(scale, shift)`` of the input and of the output that bring the bundle's values into the model's units
-    (``BmrError`` when the quantities differ in dimension, e.g. a model of torque and a bundle of displacement)."""
-    mq, bq = model.quantities, bundle.quantities
-    maps = []
+def _converters(model: Model, run: Run) -> tuple[tuple[float, float], tuple[float, float]]:
+    """``(scale, shift)`` of the input and of the output that bring the run's values into the model's units
+    (``BmrError`` when the quantities differ in dimension, e.g. a model of torque and a run of displacement)."""
+    out = []
     for role in ("input", "output"):
-        a, b = getattr(mq, role), getattr(bq, role)
+        a, b = getattr(model.quantities, role), getattr(run.quantities, role)
+        if a.unit == b.unit:
+            out.append((1.0, 0.0))
+            continue
         if a.dimension != b.dimension:
-            raise BmrError(f"the model's {role} is {a.label} but the bundle's is {b.label}: they do not convert")
+            raise BmrError(f"run {run.name!r}: the model's {role} is {a.label} but the run's is {b.label}: they do "
+                           "not convert")
         zero = float(a.from_unit(0.0, b.unit))
-        maps.append((float(a.from_unit(1.0, b.unit)) - zero, zero))
-    return maps[0], maps[1]
+        out.append((float(a.from_unit(1.0, b.unit)) - zero, zero))
+    return out[0], out[1]
 
 
-def predict(model: Model | str | Path, bundle: Bundle | str | Path, *, runs: Sequence[str] | None = None,
-            offset: str = "none") -> Prediction:
-    """Predict ``runs`` of ``bundle`` (default: its evaluation runs) with ``model``; see the module docstring.
+def predict(
+    model: Model | str | Path,
+    runs: Bundle | Run | Iterable[Run] | str | Path,
+    *,
+    offset: Any = "model",
+    gain: Any = 1.0,
+    initial: Any = "negative",
+    calibration: int = 0,
+    evaluate: str = "known",
+    out_of_range: str = "clamp",
+) -> Prediction:
+    """Predict ``runs`` (a bundle's evaluation runs, or all its non-off-state runs when none is held out; one run;
+    a list; or a bundle folder) with ``model`` (or a model file) and score them.
 
-    The bundle's input and output are converted to the model's units (a model in V predicts a bundle in mV);
-    quantities of different dimensions are a ``BmrError``.
+    ``offset``: ``"model"`` (the model's own output level), ``"first"`` (shift so the ``calibration`` leading
+    samples are matched on average; needs ``calibration >= 1``), a number, or ``{run name: number}``. ``gain``: the
+    run's gain on the model output about its output at negative saturation (a number or ``{name: number}``).
+    ``initial``: ``"negative"``, ``"positive"``, ``("ascending", u)``, ``("descending", u)``, a history of inputs
+    after negative saturation (``{name: ...}`` per run), or ``"estimate"`` (the memory among negative or positive
+    saturation and one reversal after either that best predicts the ``calibration`` leading samples, or the whole
+    run when ``calibration`` is 0 — then the state is fitted on the scored samples, and the result says so).
+    ``evaluate``: ``"known"`` scores from the sample where the run has been to both saturation ends (all samples
+    when it never gets there) or ``"all"``. ``out_of_range``: ``"clamp"`` or ``"extrapolate"`` (see
+    ``Model.simulate``). Friction is added when the model has it and the run has an angle.
     """
     model_source = str(model) if isinstance(model, (str, Path)) else ""
-    bundle_source = str(bundle) if isinstance(bundle, (str, Path)) else ""
+    bundle_source = str(runs) if isinstance(runs, (str, Path)) else ""
     if isinstance(model, (str, Path)):
         model = Model.load(model)
-    if isinstance(bundle, (str, Path)):
-        bundle = read_bundle(bundle)
-    if offset not in OFFSETS:
-        raise BmrError(f"unknown offset mode {offset!r}; use one of {', '.join(OFFSETS)}")
-    if runs:
-        chosen: list[Run] = [bundle.run(name) for name in runs]
-    else:
-        chosen = bundle.evaluation_runs()
-        if not chosen:
-            raise BmrError("the bundle has no evaluation runs (hold runs out with `bmr import --holdout`, or name "
-                           "the runs to predict)")
-    (in_scale, in_shift), (out_scale, out_shift) = _aligned(model, bundle)
-    lo, hi = model.input_limits
-    ylo, yhi = model.output_limits
-    span = yhi - ylo
-    if not span > 0:
-        raise BmrError(f"the model's output range {ylo!r}..{yhi!r} is empty")
-    fmt = model.quantities.input.format
+    if isinstance(runs, (str, Path)):
+        runs = read_bundle(runs)
+    rs = _runs_of(runs)
+    if not rs:
+        raise BmrError("predict needs at least one run")
+    if evaluate not in ("known", "all"):
+        raise BmrError(f"evaluate must be 'known' or 'all', got {evaluate!r}")
+    if not (isinstance(calibration, (int, np.integer)) and calibration >= 0) or isinstance(calibration, bool):
+        raise BmrError(f"calibration must be a nonnegative number of samples, got {calibration!r}")
+    lo, hi = model.hysteresis.input_range
+    y_lo, y_hi = model.hysteresis.output_range
+    span = y_hi - y_lo
+    tol = SATURATION_TOL * (hi - lo)
     out = []
-    for r in chosen:
-        u = r.input * in_scale + in_shift
-        y = r.output * out_scale + out_shift
-        sigma = r.output_sigma * out_scale if r.output_sigma is not None else None
-        angle = r.angle if model.friction is not None else None
-        yhat = model.simulate(u, angle)
-        base = single_valued_baseline(model, u) + (model.friction_torque(angle) if angle is not None else 0.0)
-        s, known, why = _start(u, lo, hi, fmt)
-        evaluated = np.zeros(u.size, dtype=bool)
-        evaluated[s:] = True
-        shift = 0.0
-        if offset == "first-sample":
-            shift = float(y[s] - yhat[s])
-            yhat = yhat + shift
-            base = base + float(y[s] - base[s])
-            evaluated[s] = False
-        excess = np.maximum(u - hi, lo - u)
-        outside = excess > 0
-        out.append(RunPrediction(r.name, "identification" if r.is_identification else "evaluation", s, known, why,
-                                 shift, int(outside.sum()), float(excess[outside].max()) if outside.any() else 0.0,
-                                 r.time, u, y, yhat, base, sigma, evaluated))
-    return Prediction(model.quantities, span, offset, out, model_source, bundle_source)
+    for r in rs:
+        (si, oi), (so, oo) = _converters(model, r)
+        u = run_input(r) * si + oi
+        measured = run_output(r, None) * so + oo
+        friction = measured - (run_output(r, model.friction) * so + oo)  # zero without friction or angle
+        y = measured - friction  # compare the hysteresis: friction removed from the measurement
+        sigma = np.asarray(r.output_sigma, dtype=float) * abs(so) if r.output_sigma is not None else None
+        n = u.size
+        k = int(calibration)
+        if k >= n:
+            raise BmrError(f"run {r.name!r}: calibration uses {k} samples but the run has {n}")
+        init = _per_run(initial, r.name, "negative")
+        g = float(_per_run(gain, r.name, 1.0))
+        if not (math.isfinite(g) and g > 0):
+            raise BmrError(f"run {r.name!r}: gain must be positive and finite, got {g!r}")
+        fit_slice = slice(0, k) if k else slice(0, n)
+        history: list[float] = []
+        start: Any = "negative"
+        estimated = False
+        if isinstance(init, str) and init == "estimate":
+            best = None
+            for cand in _candidates(model, float(u[0])):
+                p = y_lo + g * (model.simulate(u, history=cand) - y_lo)
+                res = y[fit_slice] - p[fit_slice]
+                rss = float(np.sum((res - res.mean()) ** 2))
+                if best is None or rss < best[0]:
+                    best = (rss, cand)
+            history = list(best[1]) if best is not None else []
+            state = _describe("negative", history) + (" (estimated on the scored samples)" if not k else
+                                                       f" (estimated on {k} leading samples)")
+            estimated = True
+        elif isinstance(init, (str, tuple)):
+            start = init
+            state = _describe(init, [])
+        else:
+            history = [float(x) for x in init]
+            state = _describe("negative", history)
+        p = model.simulate(u, initial=start, history=history, out_of_range=out_of_range)
+        p = y_lo + g * (p - y_lo)
+        base = y_lo + g * (single_valued_baseline(model, u) - y_lo)
+        off_spec = _per_run(offset, r.name, "model")
+        if isinstance(off_spec, str):
+            if off_spec == "model":
+                shift = shift_b = 0.0
+                source = "the model's"
+            elif off_spec == "first":
+                if k == 0:
+                    raise BmrError("offset='first' needs calibration >= 1 leading samples")
+                shift = float(np.mean(y[:k] - p[:k]))
+                shift_b = float(np.mean(y[:k] - base[:k]))
+                source = f"from {k} leading sample{'s' if k > 1 else ''}"
+            else:
+                raise BmrError(f"offset must be 'model', 'first', a number or {{run: number}}, got {off_spec!r}")
+        else:
+            shift = shift_b = float(off_spec) - y_lo
+            source = "given"
+        p = p + shift
+        base = base + shift_b
+        dropped: dict[str, int] = {}
+        first = k
+        if k:
+            dropped[CALIBRATION] = k
+        top = bool(np.any(u >= hi - tol))
+        bottom = bool(np.any(u <= lo + tol))
+        if evaluate == "known" and top and bottom:
+            s = evaluation_start(u, lo, hi, tol)
+            if s > first:
+                dropped[BEFORE_KNOWN_STATE] = s - first
+                first = s
+        # The state is determined once the input has been to both ends, or from the start when it starts at one;
+        # otherwise it is the stated (or estimated) assumption, and the run is flagged.
+        known = (top and bottom) or bool(u[0] <= lo + tol or u[0] >= hi - tol) or estimated
+        if not known:
+            state += " (assumed: the input never reaches both ends of the model's range)"
+        scored = np.zeros(n, dtype=bool)
+        scored[first:] = True
+        e = (y - p)[first:]
+        count, excess = model.input_excess(u)
+        out.append(RunPrediction(
+            name=r.name, role="identification" if r.is_identification else "evaluation", samples=n,
+            evaluated=int(e.size), rms=_rms(e), max_abs=_max_abs(e), span=span, offset=y_lo + shift,
+            offset_source=source, gain=g, initial=state, state_known=known, out_of_range=count, max_excess=excess,
+            dropped=dropped, time=r.time, input=u, measured=measured, predicted=p + friction,
+            baseline=base + friction, sigma=sigma, scored=scored))
+    return Prediction(out, model.quantities, span, out_of_range, model_source, bundle_source)
 
 
 def run_cli(args: Any) -> int:
-    """``bmr predict MODEL BUNDLE [--runs ...] [--offset ...] [--json OUT] [--figure OUT.png]``."""
+    """``bmr predict MODEL BUNDLE [--runs ...] [--offset ...] [--calibration N] [--initial ...] [--json OUT]
+    [--figure OUT.png]``."""
     for target in (args.json_out, args.figure):
         if target is not None:
             parent = Path(target).resolve().parent
             if not parent.is_dir():
                 raise BmrError(f"cannot write {target!r}: folder {str(parent)!r} does not exist")
-    names = [n.strip() for item in args.runs for n in item.split(",") if n.strip()] or None
-    p = predict(args.model, args.bundle, runs=names, offset=args.offset)
+    model = Model.load(args.model)
+    bundle = read_bundle(args.bundle)
+    names = [n.strip() for item in args.runs for n in item.split(",") if n.strip()]
+    if names:
+        runs = [bundle.run(n) for n in names]
+    else:
+        runs = bundle.evaluation_runs()
+        if not runs:
+            raise BmrError(f"{args.bundle}: the bundle has no evaluation runs (hold runs out with `bmr import "
+                           "--holdout`, or name the runs to predict with --runs)")
+    calibration = args.calibration if args.calibration is not None else (1 if args.offset == "first" else 0)
+    p = predict(model, runs, offset=args.offset, calibration=calibration, initial=args.initial,
+                evaluate=args.evaluate, out_of_range=args.out_of_range)
+    p.model_source, p.bundle_source = str(args.model), str(args.bundle)
     q = p.quantities
-    print(f"bmr predict: {args.model} ({q.describe()}) on {args.bundle}: {len(p.runs)} run(s), offset {p.offset}; "
-          f"output span {q.output.format(p.output_span)}")
-    print(f"  baseline: {p.baseline}")
+    print(f"bmr predict: {args.model} ({q.describe()}) on {args.bundle}: {len(p.runs)} run(s); output span "
+          f"{q.output.format(p.span)}; baseline: {p.baseline}")
     for line in p.table().splitlines():
         print(f"  {line}")
     if args.json_out:

@@ -20,19 +20,20 @@ SATURATION_TOL = 0.002
 
 
 def input_range_of(currents: Sequence[np.ndarray], window: int = 21) -> tuple[float, float]:
-    """The saturation ends reached by measured inputs. A noisy signal's single extreme samples overshoot the
-    commanded saturation by a few sigmas, so each end is the extreme of the ``window``-sample running mean (the
-    running mean of a ramp's apex stays within half a window of steps of it), but never further inside than three
-    noise sigmas from the extreme sample: on sparse, quasi-static logs (a few samples per reversal, as magnetic
-    measurements take them) the running mean would average whole reversals away."""
+    """The saturation ends reached by measured inputs. A noisy input's single extreme samples overshoot the
+    commanded end by several sigmas, and the extremes of a ``window``-sample running mean stay within half a window
+    of steps of it; each end is the one of ``extreme ∓ 2.5 σ`` (``σ``: the input's sample noise; the extreme
+    itself for exact inputs) and the running-mean extreme that lies further out."""
     lo, hi = math.inf, -math.inf
     for u in currents:
         u = np.asarray(u, dtype=float)
+        if not u.size:
+            continue
         w = max(1, min(window, u.size))
         mean = np.convolve(u, np.full(w, 1.0 / w), mode="valid")
-        margin = 3.0 * sample_noise(u)
-        lo = min(lo, min(float(mean.min()), float(u.min()) + margin))
-        hi = max(hi, max(float(mean.max()), float(u.max()) - margin))
+        sigma = sample_noise(u)
+        lo = min(lo, float(mean.min()), float(u.min()) + 2.5 * sigma)
+        hi = max(hi, float(mean.max()), float(u.max()) - 2.5 * sigma)
     return lo, hi
 
 

@@ -21,8 +21,8 @@ def prediction_figure(prediction: Any, path: Path) -> Path:
     runs = prediction.runs[:MAX_RUNS]
     # A thin loop (hysteresis a few % of the span, as in magnets) is invisible on the full scale: draw every output
     # less the straight line through the ends of the single-valued baseline instead.
-    width = max(float(np.nanmax(np.abs(r.baseline_residual[r.evaluated]), initial=0.0)) for r in runs)
-    thin_loop = width < 0.05 * prediction.output_span
+    width = max(float(np.nanmax(np.abs((r.measured - r.baseline)[r.scored]), initial=0.0)) for r in runs)
+    thin_loop = width < 0.05 * prediction.span
     u_all = np.concatenate([r.input for r in runs])
     b_all = np.concatenate([r.baseline for r in runs])
     i_lo, i_hi = int(np.argmin(u_all)), int(np.argmax(u_all))
@@ -35,9 +35,8 @@ def prediction_figure(prediction: Any, path: Path) -> Path:
         fig, axes = plot.figure("panel3", nrows=len(runs), ncols=2, height=2.6 * len(runs) + 0.6, squeeze=False)
         for row, r in zip(axes, runs):
             ax, ax_r = row
-            ev = r.evaluated
             trend = line(r.input)
-            u, y, yhat, base = plot.thin(r.input, r.output - trend, r.predicted - trend, r.baseline - trend)
+            u, y, yhat, base = plot.thin(r.input, r.measured - trend, r.predicted - trend, r.baseline - trend)
             few = r.input.size <= 400
             if few:  # sparse logs (a few samples per reversal): points, joined by faint lines in time order
                 ax.plot(u, y, "o-", ms=5, lw=0.5, color=plot.COLORS["measured"], label="measured")
@@ -52,12 +51,12 @@ def prediction_figure(prediction: Any, path: Path) -> Path:
             ax.set_title(f"{r.name}: output against input", loc="left")
             # The model's residual on its own scale (the baseline's, often 100x larger, is in the title).
             t = r.time - r.time[0]
-            e = np.where(ev, r.residual, np.nan)
+            e = r.residual
             t, e = plot.thin(t, e)
             ax_r.axhline(0.0, color="0.4", lw=0.6)
             ax_r.plot(t, e, ".-" if few else "-", ms=3, color=plot.COLORS["model"],
                       label="residual (measured - predicted)")
-            st = r.stats(prediction.output_span)
+            st = r.stats()
             ax_r.set(xlabel="time (s)", ylabel=f"residual ({q.output.unit})")
             ax_r.set_title(f"{r.name}: residual, RMS {q.output.format(st['rms'])} (baseline "
                            f"{q.output.format(st['baseline_rms'])})", loc="left")

@@ -21,7 +21,7 @@ def test_version(capsys):
     ("diagnose", ["blocked folds", "bundle folder", "bootstrap"]),
     ("import", ["COL:UNIT", "COL:SOURCE:UNIT", "forc-ascending", "forc-descending", "major-loop", "--holdout",
                 "ControlDesk", "SLAC"]),
-    ("predict", ["evaluation runs", "first-sample", "bmr-prediction/1", "bundle folder"]),
+    ("predict", ["evaluation runs", "--calibration", "estimate", "extrapolate", "bmr-prediction/1", "bundle folder"]),
 ])
 def test_help_documents_choices(command, words, capsys):
     with pytest.raises(SystemExit):

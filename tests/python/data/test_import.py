@@ -66,20 +66,24 @@ def test_piezo_import_identify_predict(piezo_logs, tmp_path):
     assert saved["format"] == "bmr-model/2" and saved["quantities"]["output"]["unit"] == "µm"
     assert set(saved["limits"]) == {"voltage_v", "displacement_um"}
     back = bmr.Model.load(tmp_path / "m.json")
-    p = predict(back, b)
+    p = predict(back, b)  # the bundle's evaluation runs
     [r] = p.runs
-    st = r.stats(p.output_span)
-    assert r.name == "check_02" and r.role == "evaluation" and r.state_known
-    assert r.start > 0  # compared from where the input first reaches an end of its range
+    st = r.stats()
+    assert r.name == "check_02" and r.role == "evaluation"
+    # The run starts mid-range and never returns to 0 V: its state is assumed (negative saturation, which is where
+    # the FORC protocol left the stack) and the prediction says so.
+    assert not r.state_known and "assumed" in r.initial and r.evaluated == r.samples
     # The hysteresis model is far better than the single-valued curve; errors are in µm and % of span.
     assert st["rms"] < 0.25 * st["baseline_rms"], st
-    assert st["rms"] < 0.5 and st["rms_pct_span"] < 2.0 and 25.0 < p.output_span < 35.0, st
-    assert st["rms_pct_span"] == pytest.approx(100 * st["rms"] / p.output_span)
+    assert st["rms"] < 0.5 and st["rms_pct_span"] < 2.0 and 25.0 < p.span < 35.0, st
+    assert st["rms_pct_span"] == pytest.approx(100 * st["rms"] / p.span)
+    # Estimated instead of assumed: the same state is found.
+    est = predict(back, b, initial="estimate").runs[0]
+    assert est.state_known and "estimated" in est.initial and est.rms <= 1.05 * r.rms
     # A bundle in other units of the same quantities is converted to the model's.
     mm = _import(piezo_logs, output="x:um:mm").bundle
     assert mm.quantities.output.unit == "mm"
-    p_mm = predict(back, mm)
-    assert p_mm.runs[0].stats(p_mm.output_span)["rms"] == pytest.approx(st["rms"], rel=1e-9)
+    assert predict(back, mm).runs[0].rms == pytest.approx(r.rms, rel=1e-9)
 
 
 def test_cli_import_identify_predict(piezo_logs, tmp_path, capsys):
@@ -94,7 +98,7 @@ def test_cli_import_identify_predict(piezo_logs, tmp_path, capsys):
     # One measured family (descending first-order curves) and least squares, the better kept.
     assert main(["identify", str(bundle), "--method", "both", "-o", str(model)]) == 0
     out = capsys.readouterr().out
-    assert "held-out RMS [forc]" in out and "held-out RMS [lstsq]" in out
+    assert "held-out [forc]" in out and "held-out [lstsq]" in out
     assert "voltage (V) → displacement (µm)" in out and "the device has no angle" in out and "µm" in out
     assert "N·mm" not in out
     js, fig = tmp_path / "p.json", tmp_path / "p.png"
@@ -104,7 +108,7 @@ def test_cli_import_identify_predict(piezo_logs, tmp_path, capsys):
     content = json.loads(js.read_text())
     assert content["format"] == "bmr-prediction/1" and content["output_unit"] == "µm"
     run = content["runs"]["check_02"]
-    assert run["rms"] < 0.25 * run["baseline_rms"] and run["evaluated"] > 1000
+    assert run["rms"] < 0.25 * run["baseline_rms"] and run["evaluated"] > 1000 and not run["state_known"]
     assert fig.read_bytes()[:4] == b"\x89PNG"
     # Predicting identification runs on request; unknown runs are named.
     assert main(["predict", str(model), str(bundle), "--runs", "forc_01"]) == 0

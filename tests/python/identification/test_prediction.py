@@ -11,7 +11,7 @@ import pytest
 import bmr
 from bmr.cli import main
 from bmr.data.quantities import ACTUATOR, Quantities, Quantity
-from bmr.identification.prediction import predict, single_valued_baseline
+from bmr.identification.prediction import BEFORE_KNOWN_STATE, CALIBRATION, predict, single_valued_baseline
 from bmr.simulation.experiments import simulate_bundle
 from preisach_plant import PreisachPlant
 
@@ -34,20 +34,20 @@ def test_actuator_bundle_v1_end_to_end(actuator, capsys):
     assert manifest["format"] == "bmr-bundle/1" and "quantities" not in manifest
     model = bmr.Model.load(actuator / "model.json")
     assert model.quantities == ACTUATOR
-    p = predict(model, actuator / "bundle")
+    p = predict(model, actuator / "bundle")  # a bundle folder: its evaluation runs
     assert [r.name for r in p.runs] == ["multi_step", "triangle", "multipeak"]
-    assert p.quantities.output.unit == "N·mm" and 1100 < p.output_span < 1300
+    assert p.quantities.output.unit == "N·mm" and 1100 < p.span < 1300
     total = p.total()
     # The identified CBH model tracks the plant to a few N·mm; the single-valued curve is off by the loop width.
     assert total["rms"] < 3.0 and total["baseline_rms"] > 10 * total["rms"], total
     assert all(r.state_known and r.out_of_range == 0 for r in p.runs)
-    # The same figures as identify's own held-out report where both compare the same samples.
+    # The same figures as identify's own held-out report.
     info = model.meta["identification"]
-    assert p.run("multi_step").stats(p.output_span)["rms"] == pytest.approx(
-        info["heldout_rms"][info["chosen"]]["multi_step"], rel=0.05)
+    assert p.run("multi_step").rms == pytest.approx(info["heldout_rms"][info["chosen"]]["multi_step"], rel=1e-9)
     assert main(["predict", str(actuator / "model.json"), str(actuator / "bundle")]) == 0
     out = capsys.readouterr().out
     assert "current (A) → torque (N·mm)" in out and "RMS (N·mm)" in out and "all" in out
+    assert "before the run's state is known" in out
 
 
 def test_model_file_version_1_still_predicts(actuator, tmp_path):
@@ -106,42 +106,46 @@ def test_offsets_unknown_states_ranges_and_sigmas(piezo_model):
     b = bmr.Run("b", "custom", shifted, quantities=PIEZO, role="evaluation")
     p = predict(piezo_model, _bundle(a, b, _run("inside", inside), _run("beyond", beyond)))
     ra, rb, rin, rbe = p.runs
-    # Starts at the bottom of the range: compared from sample 0, to the table's resolution.
-    assert (ra.start, ra.state_known) == (0, True)
-    sa = ra.stats(p.output_span)
+    # Scored from where the input has been to both ends (the top, 200 samples in), to the table's resolution.
+    assert ra.state_known and ra.dropped == {BEFORE_KNOWN_STATE: 200}
+    sa = ra.stats()
     # (the 60-threshold plant's own staircase between its thresholds is most of the error)
-    assert sa["rms"] < 0.01 * p.output_span and sa["baseline_rms"] > 10 * sa["rms"]
-    assert sa["rms_sigmas"] == pytest.approx(sa["rms"] / 0.02) and sa["evaluated"] == up_down.size
-    # An output offset shows in full without an offset model...
+    assert sa["rms"] < 0.01 * p.span and sa["baseline_rms"] > 10 * sa["rms"]
+    assert sa["rms_sigmas"] == pytest.approx(sa["rms"] / 0.02) and sa["evaluated"] == up_down.size - 200
+    # An output offset shows in full with the model's offset...
     np.testing.assert_allclose(rb.residual, ra.residual + 0.7, atol=1e-12)
-    # ...never reaches an end: flagged, compared from its start under the assumed state.
-    assert not rin.state_known and "never reaches an end" in rin.start_reason
-    assert "inside *" in p.table() and "* inside: never reaches an end" in p.table()
+    # ...a run whose input never reaches both ends nor starts at one is flagged: its state is assumed.
+    assert not rin.state_known and "assumed" in rin.initial
+    text = p.table()
+    assert "inside *" in text and "* inside: from negative saturation (assumed" in text
+    assert "a: 200 sample(s) before the run's state is known (not scored)" in text
     # Beyond the range: counted, with the largest excess.
     assert rbe.out_of_range == int(np.sum(beyond > 100.0)) and rbe.max_excess == pytest.approx(10.0)
-    assert "beyond: 40 sample(s) outside the model's input range (largest excess 10 V)" in p.table()
-    # The first-sample offset removes the run's offset and does not count that sample.
-    q = predict(piezo_model, _bundle(a, b), offset="first-sample")
+    assert "beyond: 40 sample(s) outside the model's input range (largest excess 10 V; clamped)" in text
+    # An offset from the first sample removes the run's offset; that sample is not scored.
+    q = predict(piezo_model, _bundle(a, b), offset="first", calibration=1, evaluate="all")
     np.testing.assert_allclose(q.run("b").residual, q.run("a").residual, atol=1e-12)
     assert q.run("b").offset - q.run("a").offset == pytest.approx(0.7)
-    assert q.run("b").residual[0] == pytest.approx(0.0, abs=1e-12)
-    assert q.run("b").stats(q.output_span)["evaluated"] == up_down.size - 1
+    assert np.isnan(q.run("b").residual[0]) and q.run("b").dropped == {CALIBRATION: 1}
+    assert q.run("b").evaluated == up_down.size - 1
     d = q.to_dict()
-    assert d["format"] == "bmr-prediction/1" and d["output_unit"] == "µm" and d["offset"] == "first-sample"
-    assert d["runs"]["b"]["role"] == "evaluation" and d["total"]["evaluated"] == 2 * (up_down.size - 1)
+    assert d["format"] == "bmr-prediction/1" and d["output_unit"] == "µm"
+    assert d["runs"]["b"]["offset_source"] == "from 1 leading sample" and d["runs"]["b"]["role"] == "evaluation"
+    assert d["total"]["evaluated"] == 2 * (up_down.size - 1)
+    # The baseline is calibrated the same way: its residual starts at zero too.
+    assert (q.run("b").measured - q.run("b").baseline)[0] == pytest.approx(0.0, abs=1e-12)
 
 
 def test_prediction_errors(piezo_model, tmp_path):
     t = np.arange(10) * 1e-3
     df = pd.DataFrame({"t_s": t, "current_a": t, "theta_rad": t, "torque_nmm": t})
     act = bmr.Bundle("rig", 1000.0, [bmr.Run("tri", "triangle", df)])
-    with pytest.raises(bmr.BmrError, match=r"the model's input is voltage \(V\) but the bundle's is current \(A\): "
-                                           r"they do not convert"):
+    with pytest.raises(bmr.BmrError, match=r"run 'tri': the model's input is voltage \(V\) but the run's is current "
+                                           r"\(A\): they do not convert"):
         predict(piezo_model, act)
     b = _bundle(_run("a", np.linspace(0, 100, 50), role="identification"))
-    with pytest.raises(bmr.BmrError, match="no evaluation runs"):
-        predict(piezo_model, b)
-    with pytest.raises(bmr.BmrError, match="unknown offset mode 'fit'"):
-        predict(piezo_model, b, runs=["a"], offset="fit")
-    with pytest.raises(bmr.BmrError, match="no run named 'z'"):
-        predict(piezo_model, b, runs=["z"])
+    assert [r.name for r in predict(piezo_model, b).runs] == ["a"]  # nothing held out: every run
+    with pytest.raises(bmr.BmrError, match="offset must be 'model', 'first', a number"):
+        predict(piezo_model, b, offset="fit")
+    with pytest.raises(bmr.BmrError, match="offset='first' needs calibration >= 1"):
+        predict(piezo_model, b, offset="first")
