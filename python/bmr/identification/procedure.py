@@ -131,8 +131,9 @@ class IdentificationReport:
             lines.append("  cross-validated RMS: " + ", ".join(f"{m} {o.format(v, 4)}" for m, v in self.cv.items()))
         for m, runs in self.scores.items():
             if runs:
-                lines.append(f"  held-out [{m}]: " + ", ".join(f"{r} RMS {o.format(v['rms'], 4)} max "
-                                                                f"{o.format(v['max'], 4)}" for r, v in runs.items()))
+                lines.append(f"  held-out RMS [{m}]: " + ", ".join(f"{r} {o.format(v['rms'], 4)} (max "
+                                                                    f"{o.format(v['max'], 4)})"
+                                                                    for r, v in runs.items()))
         for r, v in self.out_of_range.items():
             if v["count"]:
                 lines.append(f"  {r}: {int(v['count'])} inputs beyond the table, up to {i.format(v['max_excess'], 4)}"

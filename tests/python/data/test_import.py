@@ -98,7 +98,7 @@ def test_cli_import_identify_predict(piezo_logs, tmp_path, capsys):
     # One measured family (descending first-order curves) and least squares, the better kept.
     assert main(["identify", str(bundle), "--method", "both", "-o", str(model)]) == 0
     out = capsys.readouterr().out
-    assert "held-out [forc]" in out and "held-out [lstsq]" in out
+    assert "held-out RMS [forc]" in out and "held-out RMS [lstsq]" in out
     assert "voltage (V) → displacement (µm)" in out and "the device has no angle" in out and "µm" in out
     assert "N·mm" not in out
     js, fig = tmp_path / "p.json", tmp_path / "p.png"
