@@ -349,9 +349,10 @@ def identify(
 
 
 def run_cli(args: Any) -> int:
-    """``bmr identify BUNDLE --method M -o model.json``: identify, save, print the report."""
+    """``bmr identify BUNDLE [--method M] [--intervals N] [--smoothing S] -o model.json``: identify, save, print
+    the report."""
     bundle = read_bundle(args.bundle)
-    model = identify(bundle, method=args.method)
+    model = identify(bundle, method=args.method, n_intervals=args.intervals, smoothing=args.smoothing)
     model.save(args.out)
     report = model.identification
     print(f"bmr identify: {bundle.actuator or args.bundle} ({len(bundle)} runs, {bundle.quantities.describe()}), "

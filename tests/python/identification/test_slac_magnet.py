@@ -28,7 +28,7 @@ def test_command_line_walk_through_predicts_held_out_runs(tmp_path, slac_data, c
     assert res["heldout_runs"] == ["run7", "run8"]
     pred = res["prediction"]
     assert pred["format"] == "bmr-prediction/1" and pred["output_unit"] == "T"
-    assert set(pred["runs"]) == {"run7", "run8"} and pred["total"]["evaluated"] == 18
+    assert set(pred["runs"]) == {"run7", "run8"} and pred["total"]["evaluated"] == 20
     # Hysteresis is most of the single-valued error: the identified model removes over 80 % of it.
     assert res["rms_t"] < 0.2 * res["baseline_rms_t"]
     assert res["baseline_rms_t"] > 0.005  # loop width ~0.03 T
