@@ -132,7 +132,7 @@ def fit_tables_lstsq(
     initial_state: str = "estimate",
     iterations: int = 3,
     max_rows: int = 2_000_000,
-    curve_subdivisions: int = 4,
+    curve_subdivisions: int = 1,
     exclude: Mapping[str, np.ndarray] | None = None,
     per_run_offset: bool | None = None,
     start_at_saturation: bool | None = None,
@@ -146,8 +146,9 @@ def fit_tables_lstsq(
     reversal after either, alternating with the table fit ``iterations`` times; every sample is used),
     ``"saturation"`` (rows before the run has reached both saturation ends are left out and counted) or
     ``"negative"`` (every run starts at negative saturation). Rows are thinned uniformly only above ``max_rows``
-    (counted). The first-order curves start at every grid node and at ``curve_subdivisions − 1`` points inside
-    each interval, so a CBH operator built from them follows the table between grid reversals too.
+    (counted). The first-order curves start at every grid node (and at ``curve_subdivisions − 1`` points inside
+    each interval); the CBH operator built from them reproduces the table at every input history (its strip rule
+    is exact for the table's bilinear cells and reversible diagonal).
 
     ``exclude``: ``{run name: boolean mask}`` of samples kept out of the regression (held out, e.g. for
     cross-validation; they still drive the memory and are counted).
