@@ -7,9 +7,10 @@ Experiment protocols and bundles of them: ``bmr.experiments`` (:mod:`bmr.simulat
 Package layout, in data-flow order: :mod:`bmr.data` (bundles, lab readers) → :mod:`bmr.identification`
 (friction, first-order curves, least-squares tables, ``Model``) → :mod:`bmr.diagnosis` → :mod:`bmr.report`;
 :mod:`bmr.simulation` drives the virtual actuator; :mod:`bmr.demo` and :mod:`bmr.cli` tie them together.
-Identification: ``identify`` (friction + CBH tables from a bundle) giving a ``Model`` (``bmr-model/1`` files),
-``fit_friction``, ``extract_first_order_curves``, ``fit_tables_lstsq`` / ``EverettModel`` (least-squares
-Preisach tables). Lab readers: ``read_table``, ``bundle_from_files``.
+Identification: ``identify`` (friction + CBH tables from a bundle) giving a ``Model`` (``bmr-model/1`` files)
+whose ``identification`` is an ``IdentificationReport``; ``predict`` (runs against a model, calibration explicit,
+a ``Prediction``); ``fit_friction``, ``extract_first_order_curves``, ``fit_tables_lstsq`` / ``EverettModel``
+(least-squares Preisach tables). Lab readers: ``read_table``, ``bundle_from_files``.
 Diagnosis: ``diagnose`` (what the model gets wrong, the named cause, the extended model, the held-out gain) giving a
 ``Diagnosis`` (``bmr-diagnosis/1`` JSON, HTML report).
 Units: current in A (nominal current spans both coils: negative = coil 1, positive = coil 2), torque in N·mm,
@@ -35,11 +36,14 @@ from bmr.data import Bundle, Run, bundle_from_files, read_bundle, read_table, wr
 from bmr.diagnosis import Diagnosis, diagnose
 from bmr.identification import (
     FrictionFit,
+    IdentificationReport,
     Model,
+    Prediction,
     extract_first_order_curves,
     fit_friction,
     fit_tables_lstsq,
     identify,
+    predict,
 )
 from bmr.simulation import experiments
 
@@ -58,7 +62,9 @@ __all__ = [
     "FrictionFit",
     "Hysteresis",
     "HysteresisState",
+    "IdentificationReport",
     "Model",
+    "Prediction",
     "Run",
     "VirtualActuator",
     "bundle_from_files",
@@ -71,6 +77,7 @@ __all__ = [
     "fit_friction",
     "fit_tables_lstsq",
     "identify",
+    "predict",
     "read_bundle",
     "read_table",
     "write_bundle",
