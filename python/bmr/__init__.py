@@ -8,11 +8,12 @@ Experiment protocols and bundles of them: ``bmr.experiments`` (:mod:`bmr.simulat
 Package layout, in data-flow order: :mod:`bmr.data` (bundles, lab readers) → :mod:`bmr.identification`
 (friction, first-order curves, least-squares tables, ``Model``) → :mod:`bmr.diagnosis` → :mod:`bmr.report`;
 :mod:`bmr.simulation` drives the virtual actuator; :mod:`bmr.demo` and :mod:`bmr.cli` tie them together.
-Identification: ``identify`` (friction + CBH tables from a bundle) giving a ``Model`` (``bmr-model/2`` files),
-``fit_friction``, ``extract_first_order_curves``, ``fit_tables_lstsq`` / ``EverettModel`` (least-squares
-Preisach tables); ``predict`` (held-out errors of a model on a bundle). Lab data: ``import_logs`` (raw logs of
-any device, with declared ``Quantities``, into a bundle), ``read_tables`` (instrument formats), ``read_table``,
-``bundle_from_files`` (actuator logs with a column mapping).
+Identification: ``identify`` (friction + CBH tables from a bundle) giving a ``Model`` (``bmr-model/2`` files)
+whose ``identification`` is an ``IdentificationReport``; ``predict`` (runs against a model in the declared units,
+calibration explicit, against the single-valued baseline: a ``Prediction``); ``fit_friction``,
+``extract_first_order_curves``, ``fit_tables_lstsq`` / ``EverettModel`` (least-squares Preisach tables). Lab data:
+``import_logs`` (raw logs of any device, with declared ``Quantities``, into a bundle), ``read_tables`` (instrument
+formats), ``read_table``, ``bundle_from_files`` (actuator logs with a column mapping).
 Diagnosis: ``diagnose`` (what the model gets wrong, the named cause, the extended model, the held-out gain) giving a
 ``Diagnosis`` (``bmr-diagnosis/1`` JSON, HTML report).
 Units: the actuator's current in A (nominal current spans both coils: negative = coil 1, positive = coil 2),
@@ -50,7 +51,9 @@ from bmr.data import (
 from bmr.diagnosis import Diagnosis, diagnose
 from bmr.identification import (
     FrictionFit,
+    IdentificationReport,
     Model,
+    Prediction,
     extract_first_order_curves,
     fit_friction,
     fit_tables_lstsq,
@@ -75,7 +78,9 @@ __all__ = [
     "FrictionFit",
     "Hysteresis",
     "HysteresisState",
+    "IdentificationReport",
     "Model",
+    "Prediction",
     "Quantities",
     "Quantity",
     "Run",

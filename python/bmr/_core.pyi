@@ -290,7 +290,7 @@ class EverettModel:
     def first_order_curves(
         self, subdivisions: int = 1
     ) -> tuple[list[tuple[np.ndarray, np.ndarray]], list[tuple[np.ndarray, np.ndarray]]]: ...
-    def hysteresis(self, subdivisions: int = 4) -> Hysteresis:
+    def hysteresis(self, subdivisions: int = 1) -> Hysteresis:
         """The CBH operator of this table, built in Rust (no curve lists cross the boundary)."""
 
 def fit_everett(

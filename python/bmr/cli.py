@@ -102,9 +102,10 @@ def _parser() -> argparse.ArgumentParser:
     r.add_argument("bundle", help=BUNDLE_HELP)
     r.add_argument("--runs", action="append", default=[], metavar="RUN[,RUN...]",
                    help="runs to predict (default: the bundle's evaluation runs)")
-    r.add_argument("--offset", choices=("model", "first"), default="model",
-                   help="each run's output offset: the model's, or from the run's leading --calibration samples "
-                        "(first; they are then not scored) (default: model)")
+    r.add_argument("--offset", choices=("model", "first", "shrunk"), default="model",
+                   help="each run's output offset: the model's, from the run's leading --calibration samples "
+                        "(first; they are then not scored), or that shrunk towards the model's by how much the "
+                        "training runs' offsets spread (shrunk) (default: model)")
     r.add_argument("--calibration", type=int, metavar="N",
                    help="leading samples of each run used to calibrate it, not scored (default: 1 with --offset "
                         "first, else 0)")

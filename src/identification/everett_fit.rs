@@ -191,8 +191,9 @@ impl EverettModel {
 
     /// As [`Self::first_order_curves`], with reversals also at `subdivisions − 1` evenly spaced points inside
     /// every grid interval. The curves stay exact (piecewise linear in `u` with nodes at the reversal and the
-    /// grid nodes beyond it); more reversals make a CBH operator built from them follow the Everett table
-    /// closely between grid reversals as well. The points of both families are at most [`MAX_CURVE_POINTS`].
+    /// grid nodes beyond it). A CBH operator built from the curves at the grid nodes alone already reproduces the
+    /// table at any reversal (its strip rule is exact for bilinear cells and a reversible diagonal); more
+    /// reversals only cost table size. The points of both families are at most [`MAX_CURVE_POINTS`].
     pub fn first_order_curves_subdivided(
         &self,
         subdivisions: usize,

@@ -248,8 +248,9 @@ impl PyEverettModel {
     }
 
     /// The CBH operator (`bmr.Hysteresis`, memory of 64 reversals, starting after negative saturation) of this
-    /// table, built in Rust from its first-order curves with `subdivisions` reversals per grid interval.
-    #[pyo3(signature = (subdivisions=4))]
+    /// table, built in Rust from its first-order curves with `subdivisions` reversals per grid interval (1
+    /// reproduces the table exactly; more only add curves).
+    #[pyo3(signature = (subdivisions=1))]
     fn hysteresis(&self, subdivisions: usize) -> PyResult<PyHysteresis> {
         if subdivisions == 0 {
             return Err(BmrError::new_err("subdivisions must be at least 1"));

@@ -36,7 +36,8 @@ HELD_OUT = "held out (cross-validation)"
 class RunCalibration:
     """One training run's own parameters: output ``offset`` (output units), ``gain`` on the model output (1 when
     not fitted), its initial state as the ``history`` of inputs after negative saturation that sets it (empty:
-    negative saturation) and how it was obtained, and the fit's RMS residual on the run (output units)."""
+    negative saturation) and how it was obtained, the fit's RMS residual on the run (output units), and the offset
+    its first sample alone would give (how well one leading sample calibrates a run)."""
 
     name: str
     offset: float
@@ -45,6 +46,7 @@ class RunCalibration:
     initial_state: str
     rms: float
     samples: int
+    first_sample_offset: float = math.nan
 
     def describe_state(self) -> str:
         h = self.history
@@ -56,6 +58,7 @@ class RunCalibration:
 
     def to_dict(self) -> dict[str, Any]:
         return {"name": self.name, "offset": self.offset, "gain": self.gain, "history": list(self.history),
+                "first_sample_offset": self.first_sample_offset,
                 "initial_state": self.initial_state, "state": self.describe_state(), "rms": self.rms,
                 "samples": self.samples}
 
@@ -92,6 +95,16 @@ class LstsqTables:
         """The common offset (what a new run gets unless calibrated)."""
         return float(self.everett.offset)
 
+    def offset_prior(self) -> dict[str, float]:
+        """How the per-run offsets spread around the common one (``spread``: their standard deviation) and how far
+        one leading sample's offset falls from a run's fitted offset (``first_sample_error``: RMS over the runs);
+        a new run's offset calibrated on leading samples is shrunk towards the common offset with these."""
+        offs = self.offsets
+        first = np.array([r.first_sample_offset for r in self.runs]) - offs
+        return {"common": self.offset, "runs": float(offs.size),
+                "spread": float(np.std(offs, ddof=1)) if offs.size > 1 else math.nan,
+                "first_sample_error": float(np.sqrt(np.mean(first ** 2))) if first.size else math.nan}
+
     def calibration(self, name: str) -> RunCalibration:
         for r in self.runs:
             if r.name == name:
@@ -100,7 +113,7 @@ class LstsqTables:
 
     def to_dict(self) -> dict[str, Any]:
         return {"rms": self.rms, "rows": self.n_rows, "iterations": self.iterations, "n_intervals": self.n_intervals,
-                "input_range": list(self.input_range), "offset": self.offset,
+                "input_range": list(self.input_range), "offset": self.offset, "offset_prior": self.offset_prior(),
                 "runs": [r.to_dict() for r in self.runs], "samples": self.samples.to_dict(),
                 "settings": dict(self.settings)}
 
@@ -132,7 +145,7 @@ def fit_tables_lstsq(
     initial_state: str = "estimate",
     iterations: int = 3,
     max_rows: int = 2_000_000,
-    curve_subdivisions: int = 4,
+    curve_subdivisions: int = 1,
     exclude: Mapping[str, np.ndarray] | None = None,
     per_run_offset: bool | None = None,
     start_at_saturation: bool | None = None,
@@ -146,8 +159,9 @@ def fit_tables_lstsq(
     reversal after either, alternating with the table fit ``iterations`` times; every sample is used),
     ``"saturation"`` (rows before the run has reached both saturation ends are left out and counted) or
     ``"negative"`` (every run starts at negative saturation). Rows are thinned uniformly only above ``max_rows``
-    (counted). The first-order curves start at every grid node and at ``curve_subdivisions − 1`` points inside
-    each interval, so a CBH operator built from them follows the table between grid reversals too.
+    (counted). The first-order curves start at every grid node (and at ``curve_subdivisions − 1`` points inside
+    each interval); the CBH operator built from them reproduces the table at every input history (its strip rule
+    is exact for the table's bilinear cells and reversible diagonal).
 
     ``exclude``: ``{run name: boolean mask}`` of samples kept out of the regression (held out, e.g. for
     cross-validation; they still drive the memory and are counted).
@@ -253,7 +267,8 @@ def fit_tables_lstsq(
     everett = _core.EverettModel(model.grid, model.masses, common)
     calib = []
     for k, (r, u, y, w) in enumerate(zip(runs, us, ys, weights)):
-        pred = run_offsets[k] + run_gains[k] * everett.simulate(u, 0.0, histories[k])
+        part = run_gains[k] * everett.simulate(u, 0.0, histories[k])
+        pred = run_offsets[k] + part
         sel = w > 0
         e = (y - pred)[sel]
         state = ("estimated" if initial_state == "estimate" else
@@ -261,7 +276,7 @@ def fit_tables_lstsq(
                  else "negative saturation")
         calib.append(RunCalibration(r.name, float(run_offsets[k]), float(run_gains[k]), tuple(histories[k]),
                                     state, float(np.sqrt(np.mean(e * e))) if e.size else float("nan"),
-                                    int(np.count_nonzero(sel))))
+                                    int(np.count_nonzero(sel)), float(y[0] - part[0])))
     asc, desc = everett.first_order_curves(subdivisions=curve_subdivisions)
     settings = {"smoothing": smoothing, "ridge": ridge, "offsets": offsets, "gains": gains,
                 "gain_prior": gain_prior, "initial_state": initial_state, "iterations": iterations,

@@ -286,6 +286,16 @@ def _describe(initial: Any, history: Sequence[float]) -> str:
     return f"from history {list(history)}"
 
 
+def _offset_prior(model: Any) -> dict[str, float] | None:
+    """The training runs' offset spread and leading-sample error, when the model was fitted by least squares on
+    at least two runs."""
+    ident = getattr(model, "meta", {}).get("identification") or {}
+    prior = (ident.get("lstsq_fit") or {}).get("offset_prior") if ident.get("chosen") == "lstsq" else None
+    if not prior or not all(math.isfinite(prior.get(k, math.nan)) for k in ("spread", "first_sample_error")):
+        return None
+    return prior
+
+
 def _candidates(model: Any, u0: float) -> list[list[float]]:
     """Initial memories for a run starting at ``u0``: negative or positive saturation, or one reversal after either
     at every node of the model's ascending grid."""
@@ -351,7 +361,10 @@ def predict(
     a list; or a bundle folder) with ``model`` (or a model file) and score them.
 
     ``offset``: ``"model"`` (the model's own output level), ``"first"`` (shift so the ``calibration`` leading
-    samples are matched on average; needs ``calibration >= 1``), a number, or ``{run name: number}``. ``gain``: the
+    samples are matched on average; needs ``calibration >= 1``), ``"shrunk"`` (that shift shrunk towards the
+    model's common offset, weighted by how much the training runs' offsets spread and how far one leading sample
+    fell from a training run's fitted offset; ``"first"`` when the model has no such record), a number, or
+    ``{run name: number}``. ``gain``: the
     run's gain on the model output about its output at negative saturation (a number or ``{name: number}``).
     ``initial``: ``"negative"``, ``"positive"``, ``("ascending", u)``, ``("descending", u)``, a history of inputs
     after negative saturation (``{name: ...}`` per run), or ``"estimate"`` (the memory among negative or positive
@@ -424,14 +437,24 @@ def predict(
             if off_spec == "model":
                 shift = shift_b = 0.0
                 source = "the model's"
-            elif off_spec == "first":
+            elif off_spec in ("first", "shrunk"):
                 if k == 0:
-                    raise BmrError("offset='first' needs calibration >= 1 leading samples")
+                    raise BmrError(f"offset={off_spec!r} needs calibration >= 1 leading samples")
                 shift = float(np.mean(y[:k] - p[:k]))
                 shift_b = float(np.mean(y[:k] - base[:k]))
                 source = f"from {k} leading sample{'s' if k > 1 else ''}"
+                prior = _offset_prior(model)
+                if off_spec == "shrunk" and prior is not None:
+                    tau2, s2 = prior["spread"] ** 2, prior["first_sample_error"] ** 2 / k
+                    weight = tau2 / (tau2 + s2) if tau2 + s2 > 0 else 1.0
+                    shift *= weight
+                    shift_b *= weight
+                    source = (f"{weight:.2f} × {k} leading sample{'s' if k > 1 else ''} + {1 - weight:.2f} × the "
+                              f"model's (spread {prior['spread']:.3g} between training runs, leading-sample "
+                              f"error {prior['first_sample_error']:.3g})")
             else:
-                raise BmrError(f"offset must be 'model', 'first', a number or {{run: number}}, got {off_spec!r}")
+                raise BmrError(f"offset must be 'model', 'first', 'shrunk', a number or {{run: number}}, "
+                               f"got {off_spec!r}")
         else:
             shift = shift_b = float(off_spec) - y_lo
             source = "given"
@@ -484,7 +507,7 @@ def run_cli(args: Any) -> int:
         if not runs:
             raise BmrError(f"{args.bundle}: the bundle has no evaluation runs (hold runs out with `bmr import "
                            "--holdout`, or name the runs to predict with --runs)")
-    calibration = args.calibration if args.calibration is not None else (1 if args.offset == "first" else 0)
+    calibration = args.calibration if args.calibration is not None else (0 if args.offset == "model" else 1)
     p = predict(model, runs, offset=args.offset, calibration=calibration, initial=args.initial,
                 evaluate=args.evaluate, out_of_range=args.out_of_range)
     p.model_source, p.bundle_source = str(args.model), str(args.bundle)

@@ -145,7 +145,7 @@ def test_prediction_errors(piezo_model, tmp_path):
         predict(piezo_model, act)
     b = _bundle(_run("a", np.linspace(0, 100, 50), role="identification"))
     assert [r.name for r in predict(piezo_model, b).runs] == ["a"]  # nothing held out: every run
-    with pytest.raises(bmr.BmrError, match="offset must be 'model', 'first', a number"):
+    with pytest.raises(bmr.BmrError, match="offset must be 'model', 'first', 'shrunk', a number"):
         predict(piezo_model, b, offset="fit")
     with pytest.raises(bmr.BmrError, match="offset='first' needs calibration >= 1"):
         predict(piezo_model, b, offset="first")

@@ -219,3 +219,52 @@ def test_bad_protocols_are_clear_errors():
         predict(model, ramp, calibration=len(ramp.data))
     with pytest.raises(bmr.BmrError, match="offset='first' needs calibration"):
         predict(model, ramp, offset="first")
+
+
+def test_per_run_gain_and_offset_are_explicit_parameters():
+    # Two recording days: the sensor gain drifts 4 % and its offset moves by 12 N·mm; the fit reports both (gains
+    # relative to their geometric mean, the table carries the common scale).
+    rng = np.random.default_rng(6)
+    plant = P.Plant(coercivity=0.3, coercivity_width=0.1, interaction_width=0.3)
+    runs = []
+    for name, gain, offset, seed in (("day1", 1.0, 0.0, 20), ("day2", 1.04, 12.0, 21)):
+        r = P.record(plant, name, "custom", P.multipeak_vertices(seed, 30), rng, noise=0.0)
+        data = r.data.copy()
+        data["torque_nmm"] = gain * data["torque_nmm"] + offset + rng.normal(0.0, NOISE, len(data))
+        runs.append(bmr.Run(name, "custom", data))
+    model = bmr.identify(bmr.Bundle("days", 500.0, runs), gains=True)
+    cal = {c.name: c for c in model.identification.lstsq.runs}
+    ratio = cal["day2"].gain / cal["day1"].gain
+    assert ratio == pytest.approx(1.04, abs=0.005)
+    # Offsets: the day-2 offset includes its gain acting on the common level; the difference is explicit.
+    assert abs(cal["day2"].offset - cal["day1"].offset) > 5.0
+    d = model.identification.to_dict()["lstsq_fit"]["runs"]
+    assert {r["name"]: r["gain"] for r in d} == {k: v.gain for k, v in cal.items()}
+    # Prediction takes them explicitly: day 2 with its own gain and offset beats the common ones.
+    day2 = runs[1]
+    # (``offset`` is a run's output at negative saturation, ``gain`` acts on the rise above it: as fitted.)
+    own = predict(model, day2, gain=cal["day2"].gain, offset=cal["day2"].offset)
+    common = predict(model, day2)
+    assert own.runs[0].gain == cal["day2"].gain and own.runs[0].offset_source == "given"
+    assert own.rms < 0.5 * common.rms
+
+
+def test_out_of_range_inputs_are_counted_and_can_be_extrapolated(forc_bench):
+    _, bundle, held = forc_bench
+    model = bmr.identify(bundle, method="forc")
+    lo, hi = model.hysteresis.input_range
+    u = np.concatenate([np.linspace(0, hi + 0.05, 300), np.linspace(hi + 0.05, lo - 0.1, 600)])
+    count, excess = model.input_excess(u)
+    assert count == np.count_nonzero((u > hi + 1e-9 * (hi - lo)) | (u < lo - 1e-9 * (hi - lo)))
+    assert excess == pytest.approx(0.1)
+    clamped = model.simulate(u)
+    extra = model.simulate(u, out_of_range="extrapolate")
+    s_lo, s_hi = model.end_slopes()
+    assert s_lo >= 0 and s_hi >= 0
+    np.testing.assert_allclose(extra - clamped, s_hi * np.maximum(u - hi, 0) + s_lo * np.minimum(u - lo, 0))
+    run = bmr.Run("beyond", "custom", held.data.assign(current_a=np.clip(held.current * 1.05, -1.3, 1.3)))
+    pred = predict(model, run, out_of_range="extrapolate")
+    assert pred.runs[0].out_of_range > 0 and pred.runs[0].max_excess == pytest.approx(1.3 - hi, abs=1e-9)
+    assert pred.out_of_range == "extrapolate" and "beyond the table" in repr(pred)
+    with pytest.raises(bmr.BmrError, match="out_of_range"):
+        model.simulate(u, out_of_range="wrap")
