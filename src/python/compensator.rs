@@ -225,6 +225,7 @@ impl PyCompensator {
     fn hysteresis(&self) -> PyHysteresis {
         PyHysteresis {
             op: self.core.forward().clone(),
+            report: None,
         }
     }
     /// The friction model used in the feedforward.
