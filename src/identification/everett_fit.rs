@@ -892,6 +892,8 @@ mod tests {
             y: &y,
             weight: &w,
             offset_col: 0,
+            history: &[],
+            gain: 1.0,
         };
         let once = fit_everett(&grid, &[run], 1, opts).unwrap();
         let input = EverettInput {
