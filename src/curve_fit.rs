@@ -245,17 +245,31 @@ pub fn binned_curve(u: &[f64], y: &[f64], pilot: usize) -> Option<BinnedCurve> {
             curv[lo..=hi].iter().copied().fold(0.0, f64::max)
         })
         .collect();
+    // The pilot curvature passes through zero at a branch's inflection point and is noisy where pilot bins
+    // repeat inputs, so the bias-variance width has two guards: the curvature is floored at a tenth of its median
+    // over the curve, and no bin is wider than 1/MIN_BINS of the curve's input range (a wide bin's local line
+    // would otherwise stand in for a whole sigmoid).
+    const MIN_BINS: f64 = 16.0;
+    let curv_floor = {
+        let mut c: Vec<f64> = curv_max.iter().copied().filter(|v| *v > 0.0).collect();
+        if c.is_empty() {
+            0.0
+        } else {
+            let mid = c.len() / 2;
+            c.select_nth_unstable_by(mid, f64::total_cmp);
+            0.1 * c[mid]
+        }
+    };
+    let max_width = (x_end - start) / MIN_BINS;
     let width_at = |b: usize| -> f64 {
         if noise <= 0.0 || !pdens[b].is_finite() {
             return 0.0;
         }
-        if curv_max[b] <= 0.0 {
-            return f64::INFINITY;
+        let c = curv_max[b].max(curv_floor);
+        if c <= 0.0 {
+            return max_width;
         }
-        libm::pow(
-            144.0 * noise * noise / (pdens[b] * curv_max[b] * curv_max[b]),
-            0.2,
-        )
+        libm::pow(144.0 * noise * noise / (pdens[b] * c * c), 0.2).min(max_width)
     };
 
     // Final bins: walk the sorted samples, each bin as wide as its pilot bin allows (at least one distinct
@@ -407,6 +421,35 @@ mod tests {
         assert_eq!(b.u.len(), 50);
         for (a, c) in b.y.iter().zip(&y) {
             assert!((a - c).abs() < 1e-12);
+        }
+    }
+
+    #[test]
+    fn a_straight_stretch_does_not_swallow_the_curved_end() {
+        // Repeats of one branch on the same input grid that disagree by a small offset (the scatter of real
+        // repeats), straight in the middle and bending towards saturation: the pilot curvature of the straight
+        // stretch is zero to round-off, which once made one bin run from there to the end of the curve.
+        let truth = |x: f64| {
+            let d = (libm::fabs(x) - 0.5).max(0.0);
+            if x < 0.0 { x + d * d } else { x - d * d }
+        };
+        let (mut u, mut y) = (Vec::new(), Vec::new());
+        for repeat in 0..6 {
+            let offset = if repeat % 2 == 0 { 0.01 } else { -0.01 };
+            for i in 0..=250 {
+                let x = -1.0 + i as f64 * 0.008;
+                u.push(x);
+                y.push(truth(x) + offset);
+            }
+        }
+        let b = binned_curve(&u, &y, 16).unwrap();
+        assert!(b.u.len() >= 16, "{} bins", b.u.len());
+        for (x, v) in b.u.iter().zip(&b.y) {
+            assert!(
+                (v - truth(*x)).abs() < 0.02,
+                "node at {x}: {v} against {}",
+                truth(*x)
+            );
         }
     }
 }
