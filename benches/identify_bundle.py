@@ -70,7 +70,7 @@ def main() -> int:
     if args.json:
         with open(args.json, "w") as fh:
             json.dump({"preset": args.preset, "samples": n, "identify_s": min(times), "friction": rows,
-                       "heldout_rms_nmm": info["heldout_rms"], "noise_nmm": bundle.meta["simulator"]["noise_nmm"]},
+                       "heldout_rms": info["heldout_rms"], "noise_nmm": bundle.meta["simulator"]["noise_nmm"]},
                       fh, indent=2)
     return 0
 

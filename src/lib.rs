@@ -14,6 +14,10 @@ pub mod compensator;
 pub mod congruency;
 pub mod creep;
 #[cfg(feature = "alloc")]
+pub mod curve_fit;
+#[cfg(feature = "alloc")]
+pub mod derived_family;
+#[cfg(feature = "alloc")]
 pub mod discrepancy;
 pub mod error;
 pub mod everett;
@@ -29,6 +33,8 @@ pub mod history;
 pub mod inverse;
 pub mod limits;
 pub mod model_data;
+#[cfg(feature = "alloc")]
+pub mod node_selection;
 #[cfg(feature = "alloc")]
 pub mod paper_inverse;
 #[cfg(feature = "std")]
@@ -52,7 +58,7 @@ pub use inverse::InverseInput;
 pub use limits::LimitError;
 pub use reversals::{ReversalFinder, ReversalOrder, ReversalPoint};
 #[cfg(feature = "alloc")]
-pub use table_builder::{BuildOptions, MeasuredCurve, build_tables};
+pub use table_builder::{BuildOptions, BuildReport, MeasuredCurve, build_tables};
 
 #[cfg(feature = "python")]
 mod python;

@@ -337,6 +337,7 @@ impl PyCompensator {
         let mut c = Self::build(
             PyHysteresis {
                 op: self.hysteresis.op.clone(),
+                report: None,
             },
             self.base_friction,
             self.inverse,
@@ -380,6 +381,7 @@ impl PyCompensator {
         let mut c = Self::build(
             PyHysteresis {
                 op: hysteresis.op.clone(),
+                report: None,
             },
             friction,
             inverse,
@@ -717,6 +719,7 @@ impl PyCompensator {
     fn hysteresis(slf: &Bound<'_, Self>) -> PyResult<PyHysteresis> {
         Ok(PyHysteresis {
             op: shared(slf)?.core.forward().clone(),
+            report: None,
         })
     }
     /// The friction model of the feedforward (with any extra harmonic and current gain of the extensions).

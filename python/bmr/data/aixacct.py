@@ -11,19 +11,21 @@ metadata lines (``SampleName: C12``, ``Hysteresis Frequency [Hz]: 100``) before 
     0.000000e+000<TAB>0.0<TAB>0.0<TAB>1.2e-7<TAB>-21.3
     ...
 
-Each header field is a name followed by its unit (``P1 uC_per_cm2``, or bracketed: ``P1 [uC/cm2]``). A table ends
-at a blank or non-numeric line. Metadata lines become the table's ``meta`` (those before the first table are
+Each header field is a name followed by its unit (``P1 uC_per_cm2``, or bracketed: ``P1 [uC/cm2]``). Numbers may
+use a decimal comma (as exports in European locales do). A table ends at a blank or non-numeric line. Metadata lines become the table's ``meta`` (those before the first table are
 shared by all). Lines of numbers that do not match their header (a truncated last line) are errors naming the line.
 """
 from __future__ import annotations
 
+import io
 import re
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+import pandas as pd
 
-from bmr._core import BmrError
+from bmr._core import BmrError, BundleError
 from bmr.data.tables import Table, read_text, split_name_unit
 
 __all__ = ["read", "looks_like"]
@@ -39,20 +41,54 @@ def _fields(line: str) -> list[str]:
     return [x.strip() for x in f]
 
 
-def _number(text: str) -> float | None:
+def _number(text: str, decimal: str = ".") -> float | None:
     try:
-        return float(text)
+        return float(text.replace(",", ".") if decimal == "," else text)
     except ValueError:
         return None
 
 
-def _numeric(fields: list[str]) -> bool:
-    return bool(fields) and all(_number(x) is not None for x in fields)
+def _numeric(fields: list[str], decimal: str = ".") -> bool:
+    return bool(fields) and all(_number(x, decimal) is not None for x in fields)
+
+
+def _decimal(fields: list[str]) -> str | None:
+    """The decimal mark of a row of numbers (``"."``, or ``","`` as European locales write them), or None."""
+    return "." if _numeric(fields) else "," if _numeric(fields, ",") else None
 
 
 def _header(fields: list[str]) -> bool:
     return (len(fields) >= 2 and all(fields) and not any(_number(x) is not None for x in fields)
             and not fields[0].endswith(":"))
+
+
+def _starts_numeric(line: str) -> bool:
+    """Cheap test for a data row: its first character can start a number."""
+    head = line.lstrip()[:1]
+    return bool(head) and (head in "0123456789+-." or line.lstrip()[:3].lower() in ("nan", "inf"))
+
+
+def _rows(lines: list[str], start: int, stop: int, header: list[str], last: int, source: str,
+          decimal: str = ".") -> np.ndarray:
+    """Rows ``start:stop`` as floats (parsed in C by pandas); a row whose field count differs from the header's,
+    or a field that is not a number, is an error naming its line."""
+    width = len(header)
+    block = [line.rstrip("\r\n").rstrip("\t ") for line in lines[start:stop]]
+    counts = np.fromiter((b.count("\t") + 1 for b in block), dtype=int, count=len(block))
+    bad = np.flatnonzero(counts != width)
+    if bad.size:
+        k = int(bad[0])
+        truncated = " (truncated file?)" if start + k == last else ""
+        raise BundleError(f"{source}, line {start + k + 1}: {int(counts[k])} values under a header of {width} "
+                          f"({', '.join(header)}){truncated}")
+    try:
+        frame = pd.read_csv(io.StringIO("\n".join(block)), sep="\t", header=None, dtype=float, decimal=decimal)
+    except ValueError:
+        for k, b in enumerate(block):
+            if not _numeric(_fields(b), decimal):
+                raise BundleError(f"{source}, line {start + k + 1}: not a row of numbers: {b.strip()[:60]!r}") from None
+        raise
+    return frame.to_numpy(dtype=float)
 
 
 def _tables(text: str, source: str) -> list[tuple[int, list[str], np.ndarray, dict[str, Any], str | None]]:
@@ -72,26 +108,18 @@ def _tables(text: str, source: str) -> list[tuple[int, list[str], np.ndarray, di
             i += 1
             continue
         nxt = _fields(lines[i + 1]) if i + 1 < len(lines) else []
-        if "\t" in lines[i] and _header(fields) and _numeric(nxt):
-            width = len(fields)
-            rows = []
+        decimal = _decimal(nxt)
+        if "\t" in lines[i] and _header(fields) and decimal is not None:
             j = i + 1
-            while j < len(lines):
-                row = _fields(lines[j])
-                if not row or not _numeric(row):
-                    break
-                if len(row) != width:
-                    truncated = " (truncated file?)" if j == last else ""
-                    raise BmrError(f"{source}, line {j + 1}: {len(row)} values under a header of {width} "
-                                   f"({', '.join(fields)}){truncated}")
-                rows.append([float(x) for x in row])
+            while j < len(lines) and _starts_numeric(lines[j]):
                 j += 1
-            out.append((i + 1, fields, np.asarray(rows, dtype=float), {**shared, **pending}, title))
+            rows = _rows(lines, i + 1, j, fields, last, source, decimal)
+            out.append((i + 1, fields, rows, {**shared, **pending}, title))
             pending, title, seen_table = {}, None, True
             i = j
             continue
-        if _numeric(fields) and len(fields) >= 2:
-            raise BmrError(f"{source}, line {i + 1}: numbers without a header line of column names")
+        if _decimal(fields) is not None and len(fields) >= 2:
+            raise BundleError(f"{source}, line {i + 1}: numbers without a header line of column names")
         m = _META.match(stripped)
         if _TITLE.match(stripped):
             title = stripped
@@ -110,7 +138,8 @@ def looks_like(path: Path) -> bool:
     except BmrError:
         return False
     lines = text.splitlines()
-    return any("\t" in a and _header(_fields(a)) and _numeric(_fields(b)) for a, b in zip(lines, lines[1:]))
+    return any("\t" in a and _header(_fields(a)) and _decimal(_fields(b)) is not None
+               for a, b in zip(lines, lines[1:]))
 
 
 def read(path: str | Path) -> list[Table]:
@@ -118,8 +147,8 @@ def read(path: str | Path) -> list[Table]:
     p = Path(path)
     found = _tables(read_text(p), str(p))
     if not found:
-        raise BmrError(f"{p}: no tab-separated table found (expected a header line of names with units, e.g. "
-                       "'Time s<TAB>Vplus V<TAB>P1 uC_per_cm2', followed by rows of numbers)")
+        raise BundleError(f"{p}: no tab-separated table found (expected a header line of names with units, e.g. "
+                          "'Time s<TAB>Vplus V<TAB>P1 uC_per_cm2', followed by rows of numbers)")
     tables = []
     for k, (line, header, rows, meta, title) in enumerate(found):
         columns: dict[str, np.ndarray] = {}

@@ -38,7 +38,6 @@ import pandas as pd
 
 from bmr._core import BmrError
 from bmr.data.quantities import ACTUATOR, Quantities
-from bmr.data.signals import nominal_sample_rate  # noqa: F401 - re-exported: readers infer rates with it
 
 FORMAT_V1 = "bmr-bundle/1"
 FORMAT = "bmr-bundle/2"

@@ -17,7 +17,7 @@ from typing import Any
 
 import numpy as np
 
-from bmr._core import BmrError
+from bmr._core import BmrError, BundleError
 from bmr.data.tables import Table, load_mat
 
 __all__ = ["read", "looks_like"]
@@ -45,7 +45,7 @@ def _text(value: Any) -> str:
 def _vector(value: Any, where: str) -> np.ndarray:
     arr = np.atleast_1d(np.asarray(value))
     if arr.dtype.kind not in "iufb" or (arr.ndim != 1 and not (arr.ndim == 2 and 1 in arr.shape)):
-        raise BmrError(f"{where}: Data is not a numeric vector (shape {arr.shape}, type {arr.dtype})")
+        raise BundleError(f"{where}: Data is not a numeric vector (shape {arr.shape}, type {arr.dtype})")
     return arr.ravel().astype(float)
 
 
@@ -69,8 +69,8 @@ def read(path: str | Path) -> list[Table]:
     variables = {k: v for k, v in mat.items() if not k.startswith("__")}
     captures = {k: v for k, v in variables.items() if _is_capture(v)}
     if not captures:
-        raise BmrError(f"{p}: not a dSPACE ControlDesk capture: no variable is a struct with X (time) and Y "
-                       f"(channels) (variables: {', '.join(variables) or 'none'})")
+        raise BundleError(f"{p}: not a dSPACE ControlDesk capture: no variable is a struct with X (time) and Y "
+                          f"(channels) (variables: {', '.join(variables) or 'none'})")
     tables = []
     for var, cap in captures.items():
         axes = _as_list(cap.X)
@@ -82,10 +82,10 @@ def read(path: str | Path) -> list[Table]:
             where = f"{p}: {var}.Y({k + 1})"
             fields = getattr(ch, "_fieldnames", None) or []
             if "Data" not in fields or "Name" not in fields:
-                raise BmrError(f"{where} has no Name/Data (fields: {', '.join(fields) or 'none'})")
+                raise BundleError(f"{where} has no Name/Data (fields: {', '.join(fields) or 'none'})")
             xi = int(np.asarray(getattr(ch, "XIndex", 1)).ravel()[0]) if "XIndex" in fields else 1
             if not 1 <= xi <= len(axes):
-                raise BmrError(f"{where}: XIndex {xi} names no time axis (the capture has {len(axes)})")
+                raise BundleError(f"{where}: XIndex {xi} names no time axis (the capture has {len(axes)})")
             path_text = _text(getattr(ch, "Path", "")) if "Path" in fields else ""
             unit = _text(getattr(ch, "Unit", "")) if "Unit" in fields else ""
             groups.setdefault(xi, []).append((_text(ch.Name), path_text, _vector(ch.Data, where), unit))
@@ -93,7 +93,7 @@ def read(path: str | Path) -> list[Table]:
             axis = axes[xi - 1]
             where = f"{p}: {var}.X({xi})"
             if "Data" not in (getattr(axis, "_fieldnames", None) or []):
-                raise BmrError(f"{where} has no Data (the capture's time axis)")
+                raise BundleError(f"{where} has no Data (the capture's time axis)")
             t = _vector(axis.Data, where)
             columns: dict[str, np.ndarray] = {}
             units: dict[str, str] = {}
@@ -105,11 +105,15 @@ def read(path: str | Path) -> list[Table]:
             x_name = _text(getattr(axis, "Name", "")) if "Name" in axis._fieldnames else ""
             if x_name:
                 aliases.setdefault(x_name.lower(), []).append(time_name)
+            counts: dict[str, int] = {}
+            for name, *_ in chans:
+                counts[name.lower()] = counts.get(name.lower(), 0) + 1
             for name, path_text, data, unit in chans:
-                key = name if name not in columns else f"{path_text}/{name}"
+                # A name that several channels share is keyed by its path (the bare name then is ambiguous).
+                key = f"{path_text}/{name}" if counts[name.lower()] > 1 or name == time_name else name
                 if data.size != t.size:
-                    raise BmrError(f"{p}: {var}: channel {name!r} has {data.size} samples but its time axis "
-                                   f"X({xi}) has {t.size} (truncated capture?)")
+                    raise BundleError(f"{p}: {var}: channel {name!r} has {data.size} samples but its time axis "
+                                      f"X({xi}) has {t.size} (truncated capture?)")
                 columns[key] = data
                 if unit:
                     units[key] = unit

@@ -18,16 +18,16 @@ from __future__ import annotations
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Iterable, Sequence
+from typing import Any, Iterable
 
 import numpy as np
 import pandas as pd
 
 from bmr import _core
-from bmr._core import BmrError
+from bmr._core import BmrError, BundleError
 from bmr.data.bundle import Bundle, Run, write_bundle
 from bmr.data.quantities import ANGLE, Quantities, Quantity
-from bmr.data.signals import SampleRate, sample_noise, sample_rate
+from bmr.data.signals import SampleRate, default_deadband, sample_rate
 from bmr.data.tables import Table, read_tables
 from bmr.data.units import format_number, unit
 
@@ -54,10 +54,10 @@ class ColumnSpec:
         if isinstance(spec, ColumnSpec):
             return spec
         if not isinstance(spec, str) or not spec.strip():
-            raise BmrError(f"the {role} column must be given as COL, COL:UNIT or COL:SOURCE:UNIT, got {spec!r}")
+            raise BundleError(f"the {role} column must be given as COL, COL:UNIT or COL:SOURCE:UNIT, got {spec!r}")
         parts = spec.split(":")
         if len(parts) > 3 or not parts[0].strip() or any(not p.strip() for p in parts[1:]):
-            raise BmrError(f"the {role} column {spec!r} must be COL, COL:UNIT or COL:SOURCE:UNIT")
+            raise BundleError(f"the {role} column {spec!r} must be COL, COL:UNIT or COL:SOURCE:UNIT")
         for p in parts[1:]:
             unit(p, what=f"{role} {parts[0]!r}")
         if len(parts) == 3:
@@ -133,14 +133,14 @@ def _source_unit(table: Table, key: str, spec: ColumnSpec, role: str) -> str:
     stated = table.unit_of(key)
     if spec.source_unit is not None:
         if stated is not None and unit(stated, what=f"{table.source}: column {key!r}") != unit(spec.source_unit):
-            raise BmrError(f"{table.source}: column {key!r} states unit {stated!r} but the {role} was given as "
-                           f"{spec.source_unit!r}")
+            raise BundleError(f"{table.source}: column {key!r} states unit {stated!r} but the {role} was given as "
+                              f"{spec.source_unit!r}")
         return spec.source_unit
     if stated is not None:
         return stated
     if spec.unit is not None:
         return spec.unit
-    raise BmrError(f"{table.source}: column {key!r} states no unit; give the {role} as {spec.column}:UNIT")
+    raise BundleError(f"{table.source}: column {key!r} states no unit; give the {role} as {spec.column}:UNIT")
 
 
 def _values(table: Table, spec: ColumnSpec, target: Quantity, role: str) -> np.ndarray:
@@ -173,19 +173,12 @@ def _time(table: Table, spec: ColumnSpec | None, rate_hz: float | None, notes: l
         return Quantity("time", "s", "t_s").from_unit(table.columns[key], stated or "s",
                                                       what=f"{table.source}: column {key!r} (time)")
     if rate_hz is None:
-        raise BmrError(f"{table.source}: no time column (looked for {', '.join(_TIME_NAMES)}; columns: "
-                       f"{', '.join(table.columns)}); give it with --time COL[:UNIT] or set --sample-rate HZ")
+        raise BundleError(f"{table.source}: no time column (looked for {', '.join(_TIME_NAMES)}; columns: "
+                          f"{', '.join(table.columns)}); give it with --time COL[:UNIT] or set --sample-rate HZ")
     return np.arange(table.n_samples) / float(rate_hz)
 
 
 # ---------------------------------------------------------------------------------------------- protocol
-def default_deadband(inputs: Sequence[np.ndarray]) -> float:
-    """1 % of the input span, or 10× the inputs' sample noise (pooled over runs) if that is larger."""
-    span = float(max(np.max(u) for u in inputs) - min(np.min(u) for u in inputs))
-    noise = sample_noise(list(inputs))
-    return max(0.01 * span, 10.0 * noise, 1e-12 * max(span, 1.0))
-
-
 def _first_order_curves(u: np.ndarray, rev: np.ndarray, lo: float, hi: float, tol: float, rising: bool) -> int:
     """Reversals that start a first-order curve: a minimum between two visits of the top end (ascending), or a
     maximum between two visits of the bottom end (descending). The run's start and end count as visits."""
@@ -214,13 +207,13 @@ def _check_protocol(protocol: str, source: str, name: str, u: np.ndarray, rev: n
         if n == 0:
             shape = ("fall from the top of the input range to a reversal and rise back to the top" if rising else
                      "rise from the bottom of the input range to a reversal and fall back to the bottom")
-            raise BmrError(f"{source} (run {name!r}): protocol {protocol}: no first-order curve found; each curve "
-                           f"must {shape} ({found})")
+            raise BundleError(f"{source} (run {name!r}): protocol {protocol}: no first-order curve found; each curve "
+                              f"must {shape} ({found})")
         return n
     if protocol == "major-loop":
         if not (u.max() >= hi - tol and u.min() <= lo + tol and rev.size >= 1):
-            raise BmrError(f"{source} (run {name!r}): protocol major-loop: the input must go from one end of the "
-                           f"input range to the other and back ({found})")
+            raise BundleError(f"{source} (run {name!r}): protocol major-loop: the input must go from one end of the "
+                              f"input range to the other and back ({found})")
     return None
 
 
@@ -258,28 +251,32 @@ def import_logs(
     """Read raw logs into a bundle (``ImportResult.bundle``) with the declared quantities.
 
     ``input``/``output``/``angle``/``time``/``output_sigma``: columns as ``COL``, ``COL:UNIT`` or
-    ``COL:SOURCE:UNIT`` (or :class:`ColumnSpec`); the angle is stored in rad, time in s, the sigma in the
-    output's unit. ``input_name``/``output_name`` name the quantities (default: from the unit's dimension, e.g.
-    V → voltage). ``protocol``: one of ``PROTOCOLS``; ``holdout``: run or file names labelled for evaluation.
-    ``format`` forces a reader (see :data:`bmr.data.tables.FORMATS`). ``sample_rate_hz`` builds time from the
-    sample index for files without a time column. ``deadband``: the reversal dead-band in input units.
+    ``COL:SOURCE:UNIT`` (or :class:`ColumnSpec`); the angle is stored in rad and time in s (a single unit given
+    for them is the file's), the sigma in the output's unit. ``input_name``/``output_name`` name the quantities
+    (default: from the unit's dimension, e.g. V → voltage). ``protocol``: one of ``PROTOCOLS``; ``holdout``: run
+    or file names labelled for evaluation. ``format`` forces a reader (see :data:`bmr.data.tables.FORMATS`).
+    ``sample_rate_hz`` builds time from the sample index for files without a time column. ``deadband``: the
+    reversal dead-band in input units.
     """
     if protocol not in PROTOCOLS:
-        raise BmrError(f"unknown protocol {protocol!r}; use one of {', '.join(PROTOCOLS)}")
+        raise BundleError(f"unknown protocol {protocol!r}; use one of {', '.join(PROTOCOLS)}")
     paths = [Path(f) for f in files]
     if not paths:
-        raise BmrError("import needs at least one file")
+        raise BundleError("import needs at least one file")
     in_spec = ColumnSpec.parse(input, "input")
     out_spec = ColumnSpec.parse(output, "output")
     angle_spec = ColumnSpec.parse(angle, "angle") if angle is not None else None
     time_spec = ColumnSpec.parse(time, "time") if time is not None else None
     sigma_spec = ColumnSpec.parse(output_sigma, "output sigma") if output_sigma is not None else None
     if angle_spec is not None and angle_spec.unit is not None and unit(angle_spec.unit) != unit("rad"):
-        raise BmrError(f"the angle is stored in rad; give its file unit as {angle_spec.column}:"
-                       f"{angle_spec.unit}:rad")
+        # The angle is always stored in rad: a single unit given for it is the file's.
+        if angle_spec.source_unit is not None:
+            raise BundleError(f"the angle is stored in rad; give it as {angle_spec.column}:{angle_spec.source_unit} "
+                              f"or {angle_spec.column}:{angle_spec.source_unit}:rad")
+        angle_spec = ColumnSpec(angle_spec.column, "rad", angle_spec.unit)
     if sample_rate_hz is not None and not (isinstance(sample_rate_hz, (int, float)) and sample_rate_hz > 0
                                            and np.isfinite(sample_rate_hz)):
-        raise BmrError(f"sample_rate_hz must be a positive finite number, got {sample_rate_hz!r}")
+        raise BundleError(f"sample_rate_hz must be a positive finite number, got {sample_rate_hz!r}")
     holdout = [h for h in holdout if h]
 
     skipped: list[tuple[str, str]] = []
@@ -301,7 +298,7 @@ def import_logs(
         if not usable:
             t = tables[0]
             where = t.source if len(tables) == 1 else f"{path} ({len(tables)} tables)"
-            raise BmrError(f"{where}: no column for the {first_missing} (columns: {', '.join(t.columns)})")
+            raise BundleError(f"{where}: no column for the {first_missing} (columns: {', '.join(t.columns)})")
         found += [(path, t) for t in usable]
 
     first = found[0][1]
@@ -333,17 +330,17 @@ def import_logs(
         roles[name] = "evaluation" if hit else "identification"
     unknown = [h for h in holdout if h not in matched]
     if unknown:
-        raise BmrError(f"holdout {', '.join(map(repr, unknown))} names no imported run or file (runs: "
-                       f"{', '.join(n for _, _, n, _ in built)})")
+        raise BundleError(f"holdout {', '.join(map(repr, unknown))} names no imported run or file (runs: "
+                          f"{', '.join(n for _, _, n, _ in built)})")
 
     inputs = [df[q_in.column].to_numpy() for *_, df in built]
     for (path, t, name, df), u in zip(built, inputs):
         if not np.all(np.isfinite(u)):
             row = int(np.flatnonzero(~np.isfinite(u))[0])
-            raise BmrError(f"{t.source} (run {name!r}): the input has a non-finite value at row {row}")
+            raise BundleError(f"{t.source} (run {name!r}): the input has a non-finite value at row {row}")
     db = float(deadband) if deadband is not None else default_deadband(inputs)
     if not (db > 0 and np.isfinite(db)):
-        raise BmrError(f"the reversal dead-band must be positive and finite, got {deadband!r}")
+        raise BundleError(f"the reversal dead-band must be positive and finite, got {deadband!r}")
     lo = float(min(u.min() for u in inputs))
     hi = float(max(u.max() for u in inputs))
     tol = max(2.0 * db, 0.02 * (hi - lo))
@@ -368,7 +365,7 @@ def import_logs(
         try:
             runs.append(Run(name, kind, df, meta, quantities, role))
         except BmrError as exc:
-            raise BmrError(f"{t.source}: {exc}") from None
+            raise BundleError(f"{t.source}: {exc}") from None
         tt = df["t_s"].to_numpy()
         report.append(ImportedRun(name, t.source, kind, role, len(df), int(rev.size), curves,
                                   (float(u.min()), float(u.max())), float(tt[-1] - tt[0])))
@@ -382,7 +379,7 @@ def run_cli(args: Any) -> int:
     """``bmr import FILES... --input COL[:UNIT] --output COL[:UNIT] ... -o BUNDLE``."""
     out = Path(args.out)
     if out.exists() and not (out.is_dir() and not any(out.iterdir())):
-        raise BmrError(f"{out}: exists; give a new (or empty) folder for the bundle")
+        raise BundleError(f"{out}: exists; give a new (or empty) folder for the bundle")
     holdout = [h.strip() for item in args.holdout for h in item.split(",")]
     result = import_logs(args.files, input=args.input, output=args.output, angle=args.angle, time=args.time,
                          output_sigma=args.output_sigma, input_name=args.input_name, output_name=args.output_name,

@@ -9,7 +9,7 @@ import numpy as np
 
 from bmr._core import BmrError
 
-__all__ = ["SampleRate", "nominal_sample_rate", "sample_noise", "sample_rate"]
+__all__ = ["SampleRate", "default_deadband", "nominal_sample_rate", "sample_noise", "sample_rate"]
 
 
 def sample_noise(u: np.ndarray | Sequence[np.ndarray]) -> float:
@@ -19,6 +19,14 @@ def sample_noise(u: np.ndarray | Sequence[np.ndarray]) -> float:
     arrays = [np.asarray(u, dtype=float)] if isinstance(u, np.ndarray) else [np.asarray(a, float) for a in u]
     d2 = [np.abs(np.diff(a, 2)) for a in arrays if a.size > 2]
     return float(np.median(np.concatenate(d2))) / (0.6745 * math.sqrt(6.0)) if d2 else 0.0
+
+
+def default_deadband(inputs: Sequence[np.ndarray]) -> float:
+    """The reversal dead-band of measured inputs: 1 % of their span, or 10× their sample noise (pooled over the
+    arrays) if that is larger: reversals are moves back by more than noise and small slips."""
+    span = float(max(np.max(u) for u in inputs) - min(np.min(u) for u in inputs))
+    noise = sample_noise(list(inputs))
+    return max(0.01 * span, 10.0 * noise, 1e-12 * max(span, 1.0))
 
 
 def nominal_sample_rate(t_s: np.ndarray) -> float:

@@ -25,7 +25,7 @@ from typing import Any
 
 import numpy as np
 
-from bmr._core import BmrError
+from bmr._core import BundleError
 from bmr.data.tables import Table, read_text
 
 __all__ = ["read", "looks_like"]
@@ -61,7 +61,7 @@ def _names(header: str) -> list[str]:
                 k += 1
                 rest = tokens[k]
             if not names:
-                raise BmrError(f"header {header.strip()!r}: an uncertainty before any column")
+                raise BundleError(f"header {header.strip()!r}: an uncertainty before any column")
             names.append(f"sig{names[-1]}" if rest.lower() in ("", "sigma") else rest)
         else:
             names.append(tok)
@@ -112,13 +112,13 @@ def _rows(lines: list[str], start: int, width: int, source: str) -> np.ndarray:
         try:
             values = [float(x) for x in parts]
         except ValueError:
-            raise BmrError(f"{source}, line {i + 1}: not a row of numbers: {lines[i].strip()[:60]!r}") from None
+            raise BundleError(f"{source}, line {i + 1}: not a row of numbers: {lines[i].strip()[:60]!r}") from None
         if len(values) != width:
             truncated = " (truncated file?)" if i == last else ""
-            raise BmrError(f"{source}, line {i + 1}: {len(values)} values where the header names {width}{truncated}")
+            raise BundleError(f"{source}, line {i + 1}: {len(values)} values where the header names {width}{truncated}")
         rows.append(values)
     if not rows:
-        raise BmrError(f"{source}: no samples after the header (empty or truncated file)")
+        raise BundleError(f"{source}: no samples after the header (empty or truncated file)")
     return np.asarray(rows, dtype=float)
 
 
@@ -128,7 +128,7 @@ def _strdat(text: str, source: str) -> tuple[dict[str, Any], list[str], str | No
     meta: dict[str, Any] = {}
     dash = next((i for i, line in enumerate(lines) if line.strip().startswith("---")), None)
     if dash is None or dash < 2:
-        raise BmrError(f"{source}: not a SLAC strdat table: no dashed line under a header of column names")
+        raise BundleError(f"{source}: not a SLAC strdat table: no dashed line under a header of column names")
     for line in lines[:dash]:
         m = re.match(r"^\s*([A-Za-z][A-Za-z ]*?):\s*(.*)$", line)
         if m and m.group(2).strip():
@@ -158,8 +158,8 @@ def read(path: str | Path) -> list[Table]:
                 units_line = None  # a different layout: the units line does not apply
             meta = {**meta, "metadata_from": sibling.name}
     else:
-        raise BmrError(f"{p}: not a SLAC magnetic-measurement table (a strdat file opens with {_SIGNATURE!r}, "
-                       "a strplt file with a 'Time MAIN ...' header)")
+        raise BundleError(f"{p}: not a SLAC magnetic-measurement table (a strdat file opens with {_SIGNATURE!r}, "
+                          "a strplt file with a 'Time MAIN ...' header)")
     rows = _rows(lines, start, len(names), str(p))
     columns = {n: rows[:, j] for j, n in enumerate(names)}
     units = _units(names, units_line)

@@ -26,7 +26,7 @@ from typing import Any, Callable, Mapping
 import numpy as np
 import pandas as pd
 
-from bmr._core import BmrError
+from bmr._core import BmrError, BundleError
 from bmr.data.units import unit as parse_unit
 
 __all__ = ["Table", "FORMATS", "read_tables", "read_text", "split_name_unit", "read_csv", "read_parquet",
@@ -50,13 +50,13 @@ class Table:
 
     def __post_init__(self) -> None:
         if not self.columns:
-            raise BmrError(f"{self.source}: no numeric columns")
+            raise BundleError(f"{self.source}: no numeric columns")
         lengths = {k: len(v) for k, v in self.columns.items()}
         if len(set(lengths.values())) > 1:
-            raise BmrError(f"{self.source}: columns have different lengths: "
+            raise BundleError(f"{self.source}: columns have different lengths: "
                            + ", ".join(f"{k}={n}" for k, n in lengths.items()))
         if self.n_samples == 0:
-            raise BmrError(f"{self.source}: the table has a header but no samples (empty or truncated file)")
+            raise BundleError(f"{self.source}: the table has a header but no samples (empty or truncated file)")
 
     @property
     def n_samples(self) -> int:
@@ -73,16 +73,16 @@ class Table:
             return hits[0]
         targets = sorted(set(hits) | set(self.aliases.get(low, [])))
         if len(targets) > 1:
-            raise BmrError(f"{self.source}: column {name!r} is ambiguous ({', '.join(targets)}); use the full name")
+            raise BundleError(f"{self.source}: column {name!r} is ambiguous ({', '.join(targets)}); use the full name")
         return targets[0] if targets else None
 
     def column(self, name: str, role: str = "column") -> tuple[str, np.ndarray]:
-        """``(column name, values)`` for ``name``; a ``BmrError`` naming the file, the role (e.g. "input") and the
+        """``(column name, values)`` for ``name``; a ``BundleError`` naming the file, the role (e.g. "input") and the
         available columns when it is missing."""
         key = self.find(name)
         if key is None:
-            raise BmrError(f"{self.source}: no column {name!r} for the {role} (columns: "
-                           f"{', '.join(self.columns)})")
+            raise BundleError(f"{self.source}: no column {name!r} for the {role} (columns: "
+                              f"{', '.join(self.columns)})")
         return key, self.columns[key]
 
     def unit_of(self, name: str) -> str | None:
@@ -117,9 +117,9 @@ def read_text(path: Path) -> str:
         try:
             return raw.decode("utf-16")
         except UnicodeDecodeError as exc:
-            raise BmrError(f"{path}: not valid UTF-16 text ({exc})") from None
+            raise BundleError(f"{path}: not valid UTF-16 text ({exc})") from None
     if b"\x00" in raw[:4096]:
-        raise BmrError(f"{path}: binary content, not a text table")
+        raise BundleError(f"{path}: binary content, not a text table")
     try:
         return raw.decode("utf-8-sig")
     except UnicodeDecodeError:
@@ -130,9 +130,9 @@ def _read_bytes(path: Path) -> bytes:
     try:
         raw = path.read_bytes()
     except OSError as exc:
-        raise BmrError(f"{path}: cannot be read ({exc.strerror or exc})") from None
+        raise BundleError(f"{path}: cannot be read ({exc.strerror or exc})") from None
     if not raw.strip():
-        raise BmrError(f"{path}: the file is empty")
+        raise BundleError(f"{path}: the file is empty")
     return raw
 
 
@@ -153,21 +153,85 @@ def _frame_table(path: Path, df: pd.DataFrame, units: Mapping[str, str] | None =
             found_units[name] = u
             aliases.setdefault(str(c).strip().lower(), []).append(name)
     if not columns:
-        raise BmrError(f"{path}: no numeric columns (columns: {', '.join(map(str, df.columns))})")
+        raise BundleError(f"{path}: no numeric columns (columns: {', '.join(map(str, df.columns))})")
     return Table(path.stem, columns, str(path), found_units, aliases=aliases)
 
 
-def read_csv(path: str | Path) -> list[Table]:
-    """A delimited text table (comma, semicolon, tab; sniffed) with one header line."""
-    p = Path(path)
-    _read_bytes(p)
+@dataclass(frozen=True)
+class _TextLayout:
+    """Where a delimited text table's header is and how its fields are written."""
+
+    delimiter: str | None  # None: runs of whitespace
+    header_line: int  # 0-based; the lines before it are a preamble (comments, metadata)
+    decimal: str
+
+
+def _number_text(x: str, decimal: str) -> bool:
+    x = x.strip()
+    if decimal == ",":
+        x = x.replace(",", ".")
     try:
-        df = pd.read_csv(p, sep=None, engine="python")
+        float(x)
+    except ValueError:
+        return False
+    return bool(x)
+
+
+def _text_layout(lines: list[str]) -> _TextLayout | None:
+    """The first header line (no field a number) followed by data rows with as many fields (at least half of them
+    numbers: label columns may sit beside the signals), for the first delimiter (comma, semicolon, tab, whitespace)
+    and decimal mark that give one; None if no line fits."""
+    for delimiter in (",", ";", "\t", None):
+        for decimal in (".", ","):
+            if decimal == "," and delimiter == ",":
+                continue
+            fields = [(line.split(delimiter) if delimiter else line.split()) for line in lines]
+
+            def data(row: list[str], width: int) -> bool:
+                return len(row) == width and 2 * sum(_number_text(x, decimal) for x in row) >= width
+
+            for i in range(len(lines) - 1):
+                head = fields[i]
+                if len(head) < 2 or any(_number_text(x, decimal) for x in head):
+                    continue  # a header names its columns
+                rows = fields[i + 1:i + 3]
+                if all(data(r, len(head)) for r in rows):
+                    return _TextLayout(delimiter, i, decimal)
+    return None
+
+
+def _preamble(lines: list[str]) -> dict[str, Any]:
+    """``key: value`` (or ``key = value``, ``key,value``) lines before a table's header, without comment marks."""
+    meta: dict[str, Any] = {}
+    for line in lines:
+        text = line.strip().lstrip("#%;").strip()
+        m = re.match(r"^([^:=,;\t]+?)\s*[:=,;\t]\s*(.+)$", text)
+        if m:
+            meta[m.group(1).strip()] = m.group(2).strip().strip('"')
+    return meta
+
+
+def read_csv(path: str | Path) -> list[Table]:
+    """A delimited text table: comma, semicolon, tab or whitespace, decimal point or comma, one header line, and any
+    preamble before it (comment or ``key: value`` lines, kept as the table's metadata); all found from the first
+    lines."""
+    p = Path(path)
+    raw = _read_bytes(p)
+    head = raw[:65536].decode("utf-8", errors="replace").splitlines()[:200]
+    layout = _text_layout([line.rstrip("\r\n") for line in head])
+    if layout is None:
+        raise BundleError(f"{p}: cannot be read as CSV: no header line followed by rows of numbers in its first "
+                          f"{len(head)} line(s) (empty, truncated or not a delimited table)")
+    try:
+        df = pd.read_csv(p, sep=layout.delimiter or r"\s+", skiprows=layout.header_line, decimal=layout.decimal,
+                         encoding_errors="replace")
     except Exception as exc:  # noqa: BLE001 - any parser failure is a clear file error
-        raise BmrError(f"{p}: cannot be read as CSV ({exc})") from None
+        raise BundleError(f"{p}: cannot be read as CSV ({exc})") from None
     if len(df) == 0:
-        raise BmrError(f"{p}: the CSV has a header but no samples (empty or truncated file)")
-    return [_frame_table(p, df)]
+        raise BundleError(f"{p}: the CSV has a header but no samples (empty or truncated file)")
+    table = _frame_table(p, df)
+    table.meta.update(_preamble(head[:layout.header_line]))
+    return [table]
 
 
 def read_parquet(path: str | Path) -> list[Table]:
@@ -176,7 +240,7 @@ def read_parquet(path: str | Path) -> list[Table]:
     try:
         df = pd.read_parquet(p)
     except Exception as exc:  # noqa: BLE001
-        raise BmrError(f"{p}: cannot be read as Parquet ({exc})") from None
+        raise BundleError(f"{p}: cannot be read as Parquet ({exc})") from None
     return [_frame_table(p, df)]
 
 
@@ -188,11 +252,11 @@ def read_tdms(path: str | Path) -> list[Table]:
     try:
         from nptdms import TdmsFile
     except ImportError:  # pragma: no cover - npTDMS is a dependency
-        raise BmrError("reading .tdms needs the npTDMS package (pip install npTDMS)") from None
+        raise BundleError("reading .tdms needs the npTDMS package (pip install npTDMS)") from None
     try:
         tdms = TdmsFile.read(p)
     except Exception as exc:  # noqa: BLE001
-        raise BmrError(f"{p}: cannot be read as TDMS ({exc})") from None
+        raise BundleError(f"{p}: cannot be read as TDMS ({exc})") from None
     columns: dict[str, np.ndarray] = {}
     units: dict[str, str] = {}
     aliases: dict[str, list[str]] = {}
@@ -208,7 +272,7 @@ def read_tdms(path: str | Path) -> list[Table]:
                 units[key] = u.strip()
             aliases.setdefault(channel.name.lower(), []).append(key)
     if not columns:
-        raise BmrError(f"{p}: no numeric TDMS channels")
+        raise BundleError(f"{p}: no numeric TDMS channels")
     return _split_by_length(p, columns, units, aliases)
 
 
@@ -219,14 +283,14 @@ def load_mat(path: Path) -> dict[str, Any]:
     try:
         from scipy.io import loadmat
     except ImportError:  # pragma: no cover - scipy is a dependency
-        raise BmrError("reading .mat needs scipy") from None
+        raise BundleError("reading .mat needs scipy") from None
     try:
         return loadmat(path, squeeze_me=True, struct_as_record=False)
     except NotImplementedError:
-        raise BmrError(f"{path}: MATLAB v7.3 (HDF5) files are not read; save the data as a v7 MAT file "
-                       "(MATLAB: save(name, '-v7'); ControlDesk: MAT export) or export CSV") from None
+        raise BundleError(f"{path}: MATLAB v7.3 (HDF5) files are not read; save the data as a v7 MAT file "
+                          "(MATLAB: save(name, '-v7'); ControlDesk: MAT export) or export CSV") from None
     except Exception as exc:  # noqa: BLE001
-        raise BmrError(f"{path}: cannot be read as a MATLAB file ({exc})") from None
+        raise BundleError(f"{path}: cannot be read as a MATLAB file ({exc})") from None
 
 
 def read_mat(path: str | Path) -> list[Table]:
@@ -248,8 +312,8 @@ def read_mat(path: str | Path) -> list[Table]:
         if not key.startswith("__"):
             add(key, value)
     if not columns:
-        raise BmrError(f"{p}: no numeric vectors among the MATLAB variables "
-                       f"({', '.join(k for k in mat if not k.startswith('__')) or 'none'})")
+        raise BundleError(f"{p}: no numeric vectors among the MATLAB variables "
+                          f"({', '.join(k for k in mat if not k.startswith('__')) or 'none'})")
     return _split_by_length(p, columns, {}, {})
 
 
@@ -304,10 +368,10 @@ def read_tables(path: str | Path, format: str | None = None) -> list[Table]:
     one its extension and content call for."""
     p = Path(path)
     if not p.is_file():
-        raise BmrError(f"{str(p)!r} does not exist" if not p.exists() else f"{str(p)!r} is not a file")
+        raise BundleError(f"{str(p)!r} does not exist" if not p.exists() else f"{str(p)!r} is not a file")
     readers = _readers()
     if format is None:
         format = detect_format(p)
     if format not in readers:
-        raise BmrError(f"unknown file format {format!r}; use one of {', '.join(FORMATS)}")
+        raise BundleError(f"unknown file format {format!r}; use one of {', '.join(FORMATS)}")
     return readers[format](p)

@@ -3,8 +3,9 @@
 Each unit has a canonical symbol (what reports print: ``"µm"``, ``"N·mm"``, ``"µC/cm²"``), an ASCII slug for
 column names (``"um"``, ``"nmm"``, ``"uc_per_cm2"``), a dimension and its value in SI base units. Symbols are
 matched exactly, then through their aliases (``"um"``, ``"micron"`` for ``µm``; ``"uC_per_cm2"`` for ``µC/cm²``;
-``"N*mm"`` for ``N·mm``), then ignoring case when that is unambiguous and leaves the prefix alone (``"a"`` is ``A``, but ``"MV"`` is not
-``mV``: megavolts are not registered, so it is an error, not a silent factor of 10⁹). Temperatures are affine.
+``"N*mm"`` for ``N·mm``), then ignoring case when that is unambiguous and leaves the prefix alone (``"a"`` is
+``A``, but ``"MV"`` is not ``mV``: megavolts are not registered, so it is an error, not a silent factor of 10⁹).
+Temperatures are affine.
 
     >>> convert([1.0, 2.0], "mm", "um")
     array([1000., 2000.])
@@ -206,6 +207,9 @@ def format_number(x: float, digits: int = 3) -> str:
     if not math.isfinite(x):
         return str(x)
     if x == 0 or 1e-2 <= abs(x) < 1e5:
+        exponent = math.floor(math.log10(abs(x))) if x else 0
+        if exponent >= digits:  # 14300, not 1.43e+04
+            return f"{round(x, digits - 1 - exponent):.0f}"
         return f"{x:.{digits}g}"
     mantissa, exponent = f"{x:.{max(digits - 1, 0)}e}".split("e")
     if "." in mantissa:

@@ -22,6 +22,7 @@ from typing import Any, Callable, Sequence
 
 import numpy as np
 
+from bmr import _core
 from bmr._core import BmrError
 from bmr.data.bundle import Bundle, Run
 from bmr.identification.spans import SATURATION_TOL, evaluation_start
@@ -140,7 +141,7 @@ class EvalData:
     friction_nmm: np.ndarray | None = None  # the nominal model's friction over the evaluated spans
     has_angle: bool = True
     noise: Any = None
-    cache: BoundedCache = field(default_factory=BoundedCache)
+    cache: BoundedCache = field(default_factory=lambda: BoundedCache(max_entries=64, max_bytes=24 << 20))
     max_fit_rows: int = MAX_FIT_ROWS
 
     def concat(self, arrays: Sequence[np.ndarray]) -> np.ndarray:
@@ -264,38 +265,10 @@ def prepare(bundle: Bundle, input_range: tuple[float, float], folds: int, fricti
 
 def reversal_order(u: np.ndarray, lo: float, hi: float, deadband_a: float | None = None) -> np.ndarray:
     """Order of the reversal curve each sample lies on: 0 on the major loop (after a saturation), 1 on a
-    first-order curve, 2 after a further reversal, … (a simple dead-band reversal counter, reset at saturation)."""
-    u = np.asarray(u, dtype=float)
-    span = hi - lo
-    db = 0.01 * span if deadband_a is None else deadband_a
-    tol = SATURATION_TOL * span
-    order = np.zeros(u.size, dtype=np.int64)
-    k = 0
-    direction = 0
-    extreme = u[0] if u.size else 0.0
-    for i in range(u.size):
-        x = u[i]
-        if x >= hi - tol or x <= lo + tol:
-            k = 0
-            direction = 1 if x >= hi - tol else -1
-            extreme = x
-        elif direction >= 0:
-            if x > extreme:
-                extreme = x
-                direction = 1
-            elif extreme - x > db:
-                k += 1 if direction != 0 else 0
-                direction = -1
-                extreme = x
-        else:
-            if x < extreme:
-                extreme = x
-            elif x - extreme > db:
-                k += 1
-                direction = 1
-                extreme = x
-        order[i] = k
-    return order
+    first-order curve, 2 after a further reversal, … (a dead-band reversal counter, reset at saturation;
+    ``bmr._core.reversal_order``)."""
+    return _core.reversal_order(np.asarray(u, dtype=float), lo, hi, deadband_a,
+                                saturation_tol=SATURATION_TOL * (hi - lo))
 
 
 def _binned_strength(x: np.ndarray, r: np.ndarray, bins: int = 20, min_count: int = 20) -> float:
@@ -318,15 +291,34 @@ def _binned_strength(x: np.ndarray, r: np.ndarray, bins: int = 20, min_count: in
     return math.sqrt(max(0.0, var - noise_var))
 
 
-def _angle_strength(theta: np.ndarray, r: np.ndarray, orders: int = 12) -> float:
-    cols = [np.ones_like(theta)]
-    for k in range(1, orders + 1):
-        cols += [np.sin(k * theta), np.cos(k * theta)]
-    x = np.column_stack(cols)
-    beta, *_ = np.linalg.lstsq(x, r, rcond=None)
-    fit = x @ beta - np.mean(r)
-    var = float(np.mean(fit ** 2))
-    noise_var = float(np.var(r)) * (x.shape[1] - 1) / r.size
+def _angle_strength(theta: np.ndarray, r: np.ndarray, orders: int = 12, chunk: int = 1 << 16) -> float:
+    """RMS (N·mm) of the residual's angle harmonics up to ``orders`` per revolution (least squares on
+    ``[1, sin kθ, cos kθ]``), less what noise alone would show. The normal equations are accumulated over chunks
+    of samples (bounded memory for long logs; the harmonics are orthogonal enough for them)."""
+    p = 1 + 2 * orders
+    gram = np.zeros((p, p))
+    xr = np.zeros(p)
+    for a in range(0, theta.size, chunk):
+        th, rr = theta[a:a + chunk], r[a:a + chunk]
+        x = np.empty((p, th.size))
+        x[0] = 1.0
+        s1, c1 = np.sin(th), np.cos(th)
+        x[1], x[2] = s1, c1
+        for k in range(2, orders + 1):
+            # sin/cos of kθ from (k−1)θ by the angle-addition rule.
+            s, c = x[2 * k - 3], x[2 * k - 2]
+            x[2 * k - 1] = s * c1 + c * s1
+            x[2 * k] = c * c1 - s * s1
+        gram += x @ x.T
+        xr += x @ rr
+    n = max(r.size, 1)
+    scale = np.sqrt(np.maximum(np.diag(gram), 1e-300))
+    beta_s, *_ = np.linalg.lstsq(gram / np.outer(scale, scale), xr / scale, rcond=1e-13)
+    beta = beta_s / scale
+    mean_r = float(np.mean(r)) if r.size else 0.0
+    # mean((Xβ − r̄)²) from the Gram matrix; its first column holds the sums of the columns.
+    var = float(beta @ gram @ beta) / n - 2.0 * mean_r * float(gram[0] @ beta) / n + mean_r ** 2
+    noise_var = float(np.var(r)) * (p - 1) / n
     return math.sqrt(max(0.0, var - noise_var))
 
 

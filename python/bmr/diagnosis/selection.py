@@ -105,7 +105,7 @@ class Fitter:
     field simulations (bounded cache), the fits already made (bounded cache) and the :class:`Reidentifier` of
     the protocol runs (``protocol``: ``(bmr.Run, start time in the bundle (s))``)."""
 
-    def __init__(self, data: EvalData, model: Any, protocol: Sequence[Any] = (), *, max_fields: int = 4) -> None:
+    def __init__(self, data: EvalData, model: Any, protocol: Sequence[Any] = (), *, max_fields: int = 3) -> None:
         self.data = data
         self.model = model
         self.measured = data.torque - data.friction_nmm

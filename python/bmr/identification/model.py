@@ -8,7 +8,7 @@ File layout (JSON)::
                     "angle": {"name": "angle", "unit": "rad", "column": "theta_rad"} | null},
      "friction": {"c0": ..., "a": [...], "b": [...], "order": K, "stderr": {...}} | null,
      "hysteresis": {"ascending": [[[u...], [y...]], ...], "descending": [[[u...], [y...]], ...],
-                    "initial": "negative"},
+                    "initial": "negative", "build": {"subdivisions": 4, "node_tolerance": 1e-4}},
      "limits": {"<input column>": [lo, hi], "<output column>": [lo, hi]},
      "converter_gain_a_per_v": 0.125,
      "extensions": [{"name": ..., "params": {...}, "tracking": {...}, "in_loop": true}, ...],
@@ -101,6 +101,9 @@ class Model:
         self.quantities = quantities
         lo, hi = hysteresis.input_range
         ylo, yhi = hysteresis.output_range
+        self._build: dict[str, Any] = {}
+        # What identify() did (an IdentificationReport; its to_dict() is meta["identification"]).
+        self.identification: Any = None
         self.limits = {quantities.input.column: [float(lo), float(hi)],
                        quantities.output.column: [float(ylo), float(yhi)]}
         for key, value in (limits or {}).items():
@@ -108,11 +111,18 @@ class Model:
 
     @classmethod
     def from_curves(cls, ascending: Sequence[tuple[Any, Any]], descending: Sequence[tuple[Any, Any]],
-                    friction: FrictionFit | None = None, *, initial: str = "negative", **kwargs: Any) -> "Model":
-        """Build the ``bmr.Hysteresis`` from first-order curves (``from_curves`` form) and wrap it."""
+                    friction: FrictionFit | None = None, *, initial: str = "negative",
+                    build: dict[str, Any] | None = None, **kwargs: Any) -> "Model":
+        """Build the ``bmr.Hysteresis`` from first-order curves (``from_curves`` form) and wrap it. ``build``:
+        options of ``bmr.Hysteresis.from_curves`` (``subdivisions``, ``node_tolerance``, ...), kept in the model
+        file so that loading rebuilds the same operator."""
         asc = [(np.asarray(u, float), np.asarray(y, float)) for u, y in ascending]
         desc = [(np.asarray(u, float), np.asarray(y, float)) for u, y in descending]
-        return cls(Hysteresis.from_curves(asc, desc, initial=initial), friction, curves=(asc, desc), **kwargs)
+        build = _build_options(build or {}, "from_curves")
+        model = cls(Hysteresis.from_curves(asc, desc, initial=initial, **build), friction, curves=(asc, desc),
+                    **kwargs)
+        model._build = build
+        return model
 
     @property
     def input_limits(self) -> tuple[float, float]:
@@ -133,20 +143,38 @@ class Model:
         theta = np.asarray(theta_rad, dtype=float)
         return self.friction(theta) if self.friction is not None else np.zeros(theta.shape)
 
-    def simulate(self, current: Any, theta: Any = None, *, initial: str = "negative") -> np.ndarray:
+    def simulate(self, current: Any, theta: Any = None, *, initial: Any = "negative",
+                 history: Sequence[float] | None = None, out_of_range: str = "clamp") -> np.ndarray:
         """Output (``quantities.output``; torque in N·mm for the actuator) for the input ``current``
-        (``quantities.input``; nominal current in A) and rotor angle ``theta`` (rad; None: no friction), starting
-        from the ``initial`` saturation state."""
+        (``quantities.input``; nominal current in A for the actuator) and angle ``theta`` (rad; None: no friction),
+        starting from the ``initial`` state (``"negative"``, ``"positive"``, ``("ascending", u)``,
+        ``("descending", u)``) followed by the inputs of ``history`` (an initial memory, e.g. an estimated
+        ``[hi, b]``: positive saturation, then down to ``b``).
+
+        Inputs outside the table's input range: ``out_of_range="clamp"`` (default: the operator saturates, as
+        the real-time core does) or ``"extrapolate"`` (the output continues along the major branch's end slope
+        beyond each end; the memory still saturates). ``input_excess`` counts such samples."""
         i_a = np.ascontiguousarray(current, dtype=float)
         if i_a.ndim != 1:
             raise BmrError(f"current must be one-dimensional, got shape {i_a.shape}")
         bad = np.flatnonzero(~np.isfinite(i_a))
         if bad.size:
             raise BmrError(f"current sample {int(bad[0])} is not finite ({i_a[bad[0]]!r})")
+        if out_of_range not in ("clamp", "extrapolate"):
+            raise BmrError(f"out_of_range must be 'clamp' or 'extrapolate', got {out_of_range!r}")
         # A copy: simulating never changes the model (its operator may be shared with a compensator).
         h = copy.copy(self.hysteresis)
         h.reset(initial=initial)
+        if history is not None and len(history):
+            hist = np.asarray(history, dtype=float)
+            if hist.ndim != 1 or not np.all(np.isfinite(hist)):
+                raise BmrError("history must be a one-dimensional sequence of finite inputs")
+            h.run(hist)
         y = np.asarray(h.run(i_a), dtype=float)
+        if out_of_range == "extrapolate":
+            lo, hi = h.input_range
+            s_lo, s_hi = self.end_slopes()
+            y = y + s_hi * np.maximum(i_a - hi, 0.0) + s_lo * np.minimum(i_a - lo, 0.0)
         if theta is not None:
             th = np.asarray(theta, dtype=float)
             if th.shape != i_a.shape:
@@ -205,7 +233,7 @@ class Model:
             return out
 
         asc, desc = self._source_curves if self._source_curves is not None else self.hysteresis.curves()
-        return Hysteresis.from_curves(fam(asc), fam(desc))
+        return Hysteresis.from_curves(fam(asc), fam(desc), **self._build)
 
     def stage_plan(self, stages: Any = None) -> list[dict[str, Any]]:
         """Which extensions the compensator undoes, and why: ``[{"name", "on", "reason", "tracking"}]`` for every
@@ -238,6 +266,25 @@ class Model:
                 on, why = True, f"on: {measured}" if ratio is not None else "on: " + measured
             plan.append({"name": e["name"], "on": on, "reason": why, "tracking": tracking})
         return plan
+
+    def end_slopes(self) -> tuple[float, float]:
+        """Slopes (output per input) of the major branches where they meet the ends of the input range: the
+        descending major branch at the lowest input, the ascending one at the highest (used to extrapolate)."""
+        asc, desc = self.hysteresis.curves()
+        ua, ya = np.asarray(asc[0][0]), np.asarray(asc[0][1])
+        ud, yd = np.asarray(desc[0][0]), np.asarray(desc[0][1])
+        s_hi = float((ya[-1] - ya[-2]) / (ua[-1] - ua[-2])) if ua.size > 1 else 0.0
+        s_lo = float((yd[-1] - yd[-2]) / (ud[-1] - ud[-2])) if ud.size > 1 else 0.0
+        return s_lo, s_hi
+
+    def input_excess(self, current: Any) -> tuple[int, float]:
+        """How many samples of ``current`` lie outside the table's input range, and the largest distance beyond
+        it (input units; 0 when none)."""
+        u = np.asarray(current, dtype=float)
+        lo, hi = self.hysteresis.input_range
+        excess = np.maximum(u - hi, 0.0) + np.maximum(lo - u, 0.0)
+        excess[excess <= 1e-9 * (hi - lo)] = 0.0  # round-off at the ends is not beyond them
+        return int(np.count_nonzero(excess)), float(excess.max()) if excess.size else 0.0
 
     def compensator(self, dt_s: float | None = None, *, stages: Any = None, **kwargs: Any) -> Any:
         """The full compensator of this model, built in the core: friction and converter gain filled in, the
@@ -303,11 +350,14 @@ class Model:
         def fam(curves: Any) -> list[list[list[float]]]:
             return [[[float(v) for v in u], [float(v) for v in y]] for u, y in curves]
 
+        hyst: dict[str, Any] = {"ascending": fam(asc), "descending": fam(desc), "initial": "negative"}
+        if self._source_curves is not None and self._build:
+            hyst["build"] = dict(self._build)
         return {
             "format": FORMAT,
             "quantities": self.quantities.to_dict(),
             "friction": _jsonable(self.friction.to_dict()) if self.friction is not None else None,
-            "hysteresis": {"ascending": fam(asc), "descending": fam(desc), "initial": "negative"},
+            "hysteresis": hyst,
             "limits": self.limits,
             "converter_gain_a_per_v": self.converter_gain_a_per_v,
             "extensions": self.extensions,
@@ -370,16 +420,19 @@ class Model:
         ext = content.get("extensions", [])
         if not isinstance(ext, list) or not all(isinstance(e, dict) and "name" in e for e in ext):
             raise BmrError(f"{source}: 'extensions' must be a list of objects with a 'name'")
+        build = _build_options(hyst.get("build") or {}, f"{source}: hysteresis.build")
         try:
             _core.check_extensions(ext)
         except BmrError as exc:
             raise BmrError(f"{source}: extensions: {exc}") from None
         try:
-            h = Hysteresis.from_curves(asc, desc, initial=str(hyst.get("initial", "negative")))
+            h = Hysteresis.from_curves(asc, desc, initial=str(hyst.get("initial", "negative")), **build)
         except BmrError as exc:
             raise BmrError(f"{source}: hysteresis tables rejected: {exc}") from None
-        return cls(h, friction, limits=limits, converter_gain_a_per_v=gain, extensions=ext,
-                   meta=content.get("meta") or {}, curves=(asc, desc), quantities=quantities)
+        model = cls(h, friction, limits=limits, converter_gain_a_per_v=gain, extensions=ext,
+                    meta=content.get("meta") or {}, curves=(asc, desc), quantities=quantities)
+        model._build = build
+        return model
 
     @classmethod
     def load(cls, path: str | Path) -> "Model":
@@ -415,9 +468,29 @@ def run_export_cli(args: Any) -> int:
     return 0
 
 
+# Options of ``Hysteresis.from_curves`` a model file may carry, with their types.
+_BUILD_OPTIONS = {"monotone_tolerance": float, "reach_tolerance": float, "closure_tolerance": float,
+                  "node_tolerance": float, "max_nodes": int, "subdivisions": int}
+
+
+def _build_options(value: Any, where: str) -> dict[str, Any]:
+    if not isinstance(value, dict):
+        raise BmrError(f"{where} must be an object of Hysteresis.from_curves options")
+    out: dict[str, Any] = {}
+    for k, v in value.items():
+        kind = _BUILD_OPTIONS.get(k)
+        if kind is None:
+            raise BmrError(f"{where}: unknown option {k!r} (known: {', '.join(_BUILD_OPTIONS)})")
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or (kind is int and int(v) != v):
+            raise BmrError(f"{where}.{k} must be {'an integer' if kind is int else 'a number'}, got {v!r}")
+        out[k] = kind(v)
+    return out
+
+
 def _curves(value: Any, where: str) -> list[tuple[np.ndarray, np.ndarray]]:
-    if not isinstance(value, list) or not value:
-        raise BmrError(f"{where} must be a non-empty list of [[u...], [y...]] curves")
+    # A family may be empty (derived from the other one).
+    if not isinstance(value, list):
+        raise BmrError(f"{where} must be a list of [[u...], [y...]] curves")
     out = []
     for k, c in enumerate(value):
         if not (isinstance(c, list) and len(c) == 2 and isinstance(c[0], list) and isinstance(c[1], list)):

@@ -20,19 +20,20 @@ SATURATION_TOL = 0.002
 
 
 def input_range_of(currents: Sequence[np.ndarray], window: int = 21) -> tuple[float, float]:
-    """The saturation ends reached by measured inputs: the extreme samples pulled in by the overshoot that the
-    inputs' sample noise explains — at most the gap to the extremes of their ``window``-sample running mean (a
-    noisy signal's single extreme samples overshoot the commanded saturation by several sigmas; the running mean of
-    a ramp's apex stays within half a window of steps of it) and at most three noise sigmas (sparse logs, such as
-    one sample per current step, keep their extreme samples)."""
-    arrays = [np.asarray(u, dtype=float) for u in currents]
-    noise = sample_noise(arrays) if arrays else 0.0
+    """The saturation ends reached by measured inputs. A noisy input's single extreme samples overshoot the
+    commanded end by several sigmas, and the extremes of a ``window``-sample running mean stay within half a window
+    of steps of it; each end is the one of ``extreme ∓ 2.5 σ`` (``σ``: the input's sample noise; the extreme
+    itself for exact inputs) and the running-mean extreme that lies further out."""
     lo, hi = math.inf, -math.inf
-    for u in arrays:
+    for u in currents:
+        u = np.asarray(u, dtype=float)
+        if not u.size:
+            continue
         w = max(1, min(window, u.size))
         mean = np.convolve(u, np.full(w, 1.0 / w), mode="valid")
-        lo = min(lo, float(u.min()) + min(float(mean.min()) - float(u.min()), 3.0 * noise))
-        hi = max(hi, float(u.max()) - min(float(u.max()) - float(mean.max()), 3.0 * noise))
+        sigma = sample_noise(u)
+        lo = min(lo, float(mean.min()), float(u.min()) + 2.5 * sigma)
+        hi = max(hi, float(mean.max()), float(u.max()) - 2.5 * sigma)
     return lo, hi
 
 

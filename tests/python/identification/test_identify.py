@@ -119,7 +119,7 @@ def test_identify_rejects_unknown_method_and_missing_protocol():
         bmr.identify(only_eval, method="forc")
     # The least-squares path works from any excitation.
     model = bmr.identify(only_eval, method="lstsq")
-    assert model.meta["identification"]["lstsq_fit"]["runs"] == ["triangle", "multipeak"]
+    assert [r["name"] for r in model.meta["identification"]["lstsq_fit"]["runs"]] == ["triangle", "multipeak"]
 
 
 def test_everett_fit_errors_are_bmr_errors():

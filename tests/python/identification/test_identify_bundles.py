@@ -102,13 +102,19 @@ def test_heldout_error_is_noise_floor_plus_table_resolution(ideal):
 
 
 @pytest.mark.parametrize("preset", ["ideal", "bmr2013"])
-def test_lstsq_tables_at_least_as_good_as_forc(preset, ideal):
+def test_both_methods_resolve_the_tables_and_the_better_is_kept(preset, ideal):
+    # First-order curves fitted on bins that follow the data, with curves added between the measured reversals,
+    # resolve the tables as finely as the least-squares table on the same runs; whichever predicts the held-out
+    # runs better is kept.
     bundle = ideal if preset == "ideal" else simulate_bundle("bmr2013", seed=4)
     model = bmr.identify(bundle, method="both")
     info = model.meta["identification"]
-    for run in ("triangle", "multipeak", "multi_step"):
-        assert info["heldout_rms"]["lstsq"][run] <= info["heldout_rms"]["forc"][run], info
-    assert info["chosen"] == "lstsq"
+    mean = {m: float(np.mean([info["heldout_rms"][m][r] for r in ("triangle", "multipeak", "multi_step")]))
+            for m in ("forc", "lstsq")}
+    assert info["chosen"] == min(mean, key=mean.get), mean
+    # ideal: noise-free, exactly Preisach (0.04 % of its 1200 N·mm span); bmr2013: 1.5 N·mm sensor noise.
+    bound = 0.5 if preset == "ideal" else 1.9
+    assert max(mean.values()) < bound, mean
     # How long identification takes is measured by benches/identify_bundle.py, not asserted here.
     assert info["time_s"]["total"] > 0
 

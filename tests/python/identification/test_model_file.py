@@ -64,7 +64,7 @@ def test_corrupted_files_are_rejected(model, tmp_path):
         bmr.Model.load(_write(tmp_path / "bad_value.json", content))
     content = json.loads(text)
     del content["sha256"]
-    content["hysteresis"]["descending"] = []
+    content["hysteresis"]["descending"] = "nope"
     with pytest.raises(bmr.BmrError, match="descending"):
         bmr.Model.load(_write(tmp_path / "no_desc.json", content))
     (tmp_path / "bin.json").write_bytes(b"\xff\xfe\x00garbage")
