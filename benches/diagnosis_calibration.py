@@ -25,7 +25,10 @@ at medium size, and clean bundles are diagnosed blind:
 Usage::
 
     python benches/diagnosis_calibration.py [--seeds 2] [--sizes 0.5,1,2] [--plants rig_preisach,rig_soft,piezo]
-        [--effects a,b] [--no-pairs] [--workers 2] [--json OUT]
+        [--effects a,b] [--no-pairs] [--workers 2] [--json OUT] [--record]
+
+``--record`` stores the table for the README (``docs/measurements.json``, section ``calibration``; rendered by
+``python benches/readme_figures.py render``).
 
 Bundles are made and diagnosed on Dask workers (``bmr.diagnose_many``; ``--workers 0``: one after the other in
 this process).
@@ -38,6 +41,7 @@ import json
 import math
 import sys
 import time
+from pathlib import Path
 from typing import Any, Callable
 
 import numpy as np
@@ -109,21 +113,23 @@ def effect_at(medium: dict[str, tuple[dict[str, float], str, list[str]]], name: 
     return out
 
 
-def _diagnose_all(makers: list[Any], workers: int) -> list[dict[str, Any] | str]:
+def _diagnose_all(makers: list[Any], workers: int) -> list[tuple[dict[str, Any] | str, float]]:
     """The ``bmr-diagnosis/1`` JSON of every bundle (a bundle-making callable, run where the diagnosis runs), or
-    the error message of a bundle that failed: on Dask through ``bmr.diagnose_many`` (``workers`` local worker
-    processes; 0: one after the other here)."""
+    the error message of a bundle that failed, with the CPU time its worker spent on it (making and diagnosing):
+    on Dask through ``bmr.diagnose_many`` (``workers`` local worker processes; 0: one after the other here)."""
     from bmr.diagnosis.many import diagnose_many
 
     table = diagnose_many(makers, workers=workers, progress=True, closed_loop=False)
-    out: list[dict[str, Any] | str] = []
+    out: list[tuple[dict[str, Any] | str, float]] = []
     for _, row in table.sort_values("index").iterrows():
-        out.append(json.loads(row["diagnosis"]) if row["status"] == "ok" else str(row["error"]))
+        d = json.loads(row["diagnosis"]) if row["status"] == "ok" else str(row["error"])
+        out.append((d, float(row["cpu_s"])))
     return out
 
 
-def _row(case: dict[str, Any], d: dict[str, Any] | str, medium: dict[str, Any]) -> dict[str, Any]:
+def _row(case: dict[str, Any], d: dict[str, Any] | str, cpu_s: float, medium: dict[str, Any]) -> dict[str, Any]:
     row = dict(case)
+    row["cpu_s"] = cpu_s
     if isinstance(d, str):
         row.update(error=d, found=[], detected=False, wrong=False, false_alarm=False)
         return row
@@ -156,6 +162,9 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--no-pairs", action="store_true")
     p.add_argument("--workers", type=int, default=2)
     p.add_argument("--json", help="write every row as JSON here")
+    p.add_argument("--record", action="store_true", help="store the table in docs/measurements.json (README)")
+    p.add_argument("--rows", help="summarize (and --record) the rows a previous --json run wrote instead of "
+                                  "diagnosing again")
     args = p.parse_args(argv)
     sizes = [float(s) for s in args.sizes.split(",")]
     plants = _plants()
@@ -180,10 +189,15 @@ def main(argv: list[str] | None = None) -> int:
                                       "effects": {a: effect_at(medium, a, 1.0), b: effect_at(medium, b, 1.0)}})
     t0 = time.perf_counter()
     c0 = time.process_time()
-    makers = [functools.partial(_make_bundle, c["plant"], c["effects"] or None, c["seed"]) for c in cases]
-    results = _diagnose_all(makers, args.workers)
-    rows = [_row(c, d, plants[c["plant"]][1]) for c, d in zip(cases, results)]
-    wall, cpu = time.perf_counter() - t0, time.process_time() - c0
+    if args.rows:
+        saved = json.loads(Path(args.rows).read_text())
+        rows, wall = saved["rows"], saved["wall_s"]
+    else:
+        makers = [functools.partial(_make_bundle, c["plant"], c["effects"] or None, c["seed"]) for c in cases]
+        results = _diagnose_all(makers, args.workers)
+        rows = [_row(c, d, cpu, plants[c["plant"]][1]) for c, (d, cpu) in zip(cases, results)]
+        wall = time.perf_counter() - t0
+    cpu = time.process_time() - c0
     for r in rows:
         print(f"{r['plant']} {r['label']} ×{r['size']:g} seed {r['seed']}: {r.get('found')} "
               f"{r.get('error', '')}", file=sys.stderr)
@@ -200,32 +214,101 @@ def main(argv: list[str] | None = None) -> int:
     if clean:
         print(f"clean bundles: false alarm {np.mean([r['false_alarm'] for r in clean]):.2f} over {len(clean)}; "
               f"learned term kept in {sum(r['learned'] for r in clean)}\n")
+    groups = summarize(rows)
     print("| plant | effect | size | detection | wrong name | false alarm | median param. error | held-out RMS "
           "nominal → extended (noise) |")
     print("|---|---|---|---|---|---|---|---|")
+    for g in groups:
+        print(table_line(g))
+    if args.json:
+        with open(args.json, "w") as fh:
+            json.dump({"rows": rows, "wall_s": wall}, fh, indent=1)
+    if args.record:
+        sys.path.insert(0, str(Path(__file__).resolve().parent))
+        from measurements import record
+
+        given = [a for a in (argv if argv is not None else sys.argv[1:])]
+        for opt in ("--rows", "--json"):  # files of this run, not part of the measurement's command
+            while opt in given:
+                k = given.index(opt)
+                del given[k:k + 2]
+        command = " ".join(["python benches/diagnosis_calibration.py", *given])
+        record("calibration", command, {
+            "groups": groups, "bundles": len(rows), "failed": sum("error" in r for r in rows),
+            "workers": args.workers, "wall_s": wall,
+            "bundle_wall_s": _quantiles([r["wall_s"] for r in rows if "wall_s" in r]),
+            "bundle_cpu_s": _quantiles([r["cpu_s"] for r in rows if "error" not in r]),
+            "rates": rates(rows)})
+    return 0
+
+
+def _quantiles(values: list[float]) -> dict[str, float]:
+    v = np.asarray(values, dtype=float)
+    return {"median": float(np.median(v)), "max": float(v.max()), "total": float(v.sum())} if v.size else {}
+
+
+def _mean(rows: list[dict[str, Any]], key: str) -> float | None:
+    return float(np.mean([bool(r[key]) for r in rows])) if rows else None
+
+
+def rates(rows: list[dict[str, Any]]) -> dict[str, Any]:
+    """Detection and wrong-name rates of single effects and pairs, false alarms on clean bundles, per plant and
+    over all."""
+    out: dict[str, Any] = {}
+    for plant in sorted({r["plant"] for r in rows}) + ["all"]:
+        sel = [r for r in rows if (plant == "all" or r["plant"] == plant) and "error" not in r]
+        single = [r for r in sel if r["label"] != "clean" and " + " not in r["label"]]
+        pairs = [r for r in sel if " + " in r["label"]]
+        clean = [r for r in sel if r["label"] == "clean"]
+        out[plant] = {"single": {"n": len(single), "detection": _mean(single, "detected"),
+                                 "wrong": _mean(single, "wrong")},
+                      "pairs": {"n": len(pairs), "detection": _mean(pairs, "detected"), "wrong": _mean(pairs, "wrong")},
+                      "clean": {"n": len(clean), "false_alarm": _mean(clean, "false_alarm"),
+                                "learned": sum(bool(r.get("learned")) for r in clean)}}
+    return out
+
+
+def summarize(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    """One entry per plant, effect (or pair, or clean) and size: rates over seeds, the median parameter error and
+    the median held-out RMS of the nominal and the extended model with the noise floor (output units)."""
     groups: dict[tuple[str, str, float], list[dict[str, Any]]] = {}
     for r in rows:
         groups.setdefault((r["plant"], r["label"], r["size"]), []).append(r)
+    out = []
     for (plant, label, size), sel in groups.items():
         ok = [r for r in sel if "error" not in r]
+        g: dict[str, Any] = {"plant": plant, "label": label, "size": size, "n": len(ok), "failed": len(sel) - len(ok)}
         if not ok:
-            print(f"| {plant} | {label} | ×{size:g} | failed: {sel[0]['error'][:60]} | | | | |")
+            g["error"] = sel[0]["error"][:200]
+            out.append(g)
             continue
-        clean = label == "clean"
-        det = "—" if clean else f"{np.mean([r['detected'] for r in ok]):.2f}"
-        wrong = "—" if clean else f"{np.mean([r['wrong'] for r in ok]):.2f}"
-        fa = f"{np.mean([r['false_alarm'] for r in ok]):.2f}" if clean else "—"
+        if label == "clean":
+            g["false_alarm"] = _mean(ok, "false_alarm")
+            g["found"] = sorted({n for r in ok for n in r["found"] if n in PHYSICAL})
+        else:
+            g["detection"] = _mean(ok, "detected")
+            g["wrong"] = _mean(ok, "wrong")
+            g["wrong_names"] = sorted({n for r in ok for n in r["found"] if n in PHYSICAL and n not in r["effects"]})
         errs = [r.get("param_err", math.nan) for r in ok]
-        err = f"{np.nanmedian(errs):.3f}" if any(math.isfinite(e) for e in errs) else "—"
-        nom, fin, noise = (np.median([r[k] for r in ok]) for k in ("nominal", "final", "noise"))
-        size_text = "—" if clean else f"×{size:g}"
-        print(f"| {plant} | {label} | {size_text} | {det} | {wrong} | {fa} | {err} | {nom:.3g} → {fin:.3g} "
-              f"({noise:.3g}) |")
-    if args.json:
-        with open(args.json, "w") as fh:
-            json.dump(rows, fh, indent=1, default=lambda x: x if not isinstance(x, float) or math.isfinite(x)
-                      else None)
-    return 0
+        errs = [e for e in errs if e is not None and math.isfinite(e)]
+        g["param_err"] = float(np.median(errs)) if errs else None
+        for k in ("nominal", "final", "noise"):
+            g[k] = float(np.median([r[k] for r in ok]))
+        out.append(g)
+    return out
+
+
+def table_line(g: dict[str, Any]) -> str:
+    """One Markdown table line of a :func:`summarize` entry."""
+    size = "—" if g["label"] == "clean" else f"×{g['size']:g}"
+    if "error" in g:
+        return f"| {g['plant']} | {g['label']} | {size} | failed: {g['error'][:60]} | | | | |"
+    det = "—" if g["label"] == "clean" else f"{g['detection']:.2f}"
+    wrong = "—" if g["label"] == "clean" else f"{g['wrong']:.2f}"
+    fa = f"{g['false_alarm']:.2f}" if g["label"] == "clean" else "—"
+    err = f"{g['param_err']:.3f}" if g["param_err"] is not None else "—"
+    return (f"| {g['plant']} | {g['label']} | {size} | {det} | {wrong} | {fa} | {err} | {g['nominal']:.3g} → "
+            f"{g['final']:.3g} ({g['noise']:.3g}) |")
 
 
 if __name__ == "__main__":

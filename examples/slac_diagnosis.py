@@ -6,18 +6,21 @@ identification, runs 7 and 8 held out (their samples cut into blocked folds).
 Prints what the diagnosis names (or learns), the held-out RMS before and after in T and in measurement sigmas
 (the RMS of the sigmas the measurement system reports), the residual structure no effect explains, and writes a
 figure of the held-out runs: measured vs predicted integrated gradient and the residual in sigmas. The data are
-not part of the repository (see the data folder's README); DIR defaults to ../shared/data/slac-quad-4194.
+not part of the repository (see the data folder's README); DIR defaults to ``$BMR_SLAC_DATA``, else
+../shared/data/slac-quad-4194 beside the repository.
 """
 from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 from pathlib import Path
 
 import numpy as np
 
-DEFAULT_DATA = Path(__file__).resolve().parents[1] / ".." / "shared" / "data" / "slac-quad-4194"
+DEFAULT_DATA = Path(os.environ.get("BMR_SLAC_DATA")
+                    or Path(__file__).resolve().parents[1] / ".." / "shared" / "data" / "slac-quad-4194")
 
 
 def run(data_dir: Path, folds: int = 5) -> tuple[dict, object]:
@@ -35,8 +38,10 @@ def run(data_dir: Path, folds: int = 5) -> tuple[dict, object]:
            "sigma_t": sigma, "noise_method": d.noise["method"],
            "heldout_rms_before_sigmas": d.nominal_heldout_rms_nmm / sigma,
            "heldout_rms_after_sigmas": d.residual_rms_nmm / sigma,
-           "unexplained": d.unexplained, "rejected": {r["name"]: r["gain"] for r in d.rejected},
-           "wall_time_s": d.wall_time_s}
+           "unexplained": d.unexplained,
+           "rejected": {r["name"]: {"gain": r["gain"], "folds_positive": r["folds_positive"],
+                                    "heldout_rms_after_t": r["heldout_rms_after_nmm"]} for r in d.rejected},
+           "folds": folds, "noise_samples": d.noise.get("samples"), "wall_time_s": d.wall_time_s}
     return out, d
 
 
@@ -54,7 +59,7 @@ def figure(d: object, path: Path) -> None:
         axes[0].axhspan(-1, 1, color="0.85", zorder=0, label="±1 measurement sigma")
         axes[0].set_ylabel("residual (sigmas)")
         axes[0].set_xlabel("time in the run (s)")
-        axes[0].legend(ncol=2, fontsize=7)
+        plot.legend_outside(axes[0])
         names = [k for k in d.structure_nominal]  # type: ignore[attr-defined]
         axes[1].bar(np.arange(len(names)) - 0.2, [d.structure_nominal[k] / sigma for k in names], 0.4,
                     label="nominal")  # type: ignore[attr-defined]
@@ -65,7 +70,7 @@ def figure(d: object, path: Path) -> None:
         axes[1].set_ylabel("structure (sigmas RMS)")
         axes[1].legend()
         fig.suptitle("SLAC quadrupole 4194, held-out runs 7 and 8: residual and the signals it depends on")
-        fig.savefig(path, dpi=120, bbox_inches="tight")
+        plot.save(fig, path)
 
 
 def main(argv: list[str] | None = None) -> int:
