@@ -64,6 +64,9 @@ pub struct Hysteresis<S, const N: usize> {
     anchor: Reversal,
     fingerprint: u64,
     pub(crate) state: State<N>,
+    /// The exact inverse's shortcut for the branch and cell of its last committed answer (see
+    /// `inverse::FastBranch`); dropped by every other change of the state.
+    pub(crate) fast: Option<crate::inverse::FastBranch>,
 }
 
 impl<S: AsRef<[f64]>, const N: usize> Hysteresis<S, N> {
@@ -123,6 +126,7 @@ impl<S: AsRef<[f64]>, const N: usize> Hysteresis<S, N> {
             anchor,
             fingerprint,
             state,
+            fast: None,
         };
         h.reset(initial);
         Ok(h)
@@ -159,11 +163,13 @@ impl<S: AsRef<[f64]>, const N: usize> Hysteresis<S, N> {
             return Err(TableError::ForeignState);
         }
         self.state = *s;
+        self.fast = None;
         Ok(())
     }
 
     /// Forget all memory and start from `initial`. A major-branch input outside the range saturates.
     pub fn reset(&mut self, initial: Initial) {
+        self.fast = None;
         let st = &mut self.state;
         st.history = History::new(self.anchor);
         st.u = self.lo;
@@ -196,6 +202,7 @@ impl<S: AsRef<[f64]>, const N: usize> Hysteresis<S, N> {
             return f64::NAN;
         }
         let u = u.clamp(self.lo, self.hi);
+        self.fast = None;
         self.advance(u);
         let y = self.branch_output(u);
         self.state.u = u;

@@ -285,14 +285,15 @@ impl<S: AsRef<[f64]>, const N: usize, const K: usize> Compensator<S, N, K> {
         if !target.is_finite() {
             return self.fault();
         }
-        let InverseInput { input, saturated } = self.inverse_input(target);
-        let limited = input.clamp(-self.limit_a, self.limit_a);
+        let inv = self.inverse_input(target);
+        let (input, saturated) = (inv.input, inv.saturated);
+        let limited = limit(input, self.limit_a);
         if !limited.is_finite() {
             return self.fault();
         }
         if matches!(self.inverse, InverseKind::Exact) && !saturated && limited == input {
             // The exact inverse already knows the output: commit without evaluating the branch again.
-            self.forward.commit(input, target);
+            self.forward.commit(input, target, inv.cell, inv.fast);
             return Command::from_current(input, self.gain_a_per_v, false, false);
         }
         self.forward.step(limited);
@@ -305,7 +306,7 @@ impl<S: AsRef<[f64]>, const N: usize, const K: usize> Compensator<S, N, K> {
     }
 
     /// The extended compensator (module doc), for the reference and angle of the sample the command acts on.
-    #[inline]
+    #[inline(always)]
     fn step_extended(&mut self, torque_ref_nmm: f64, theta_rad: f64) -> Command {
         let terms = self.friction.angle_terms(theta_rad);
         let current_a = self.stages.friction_current.map_or(0.0, |f| f.current_a());
@@ -326,12 +327,13 @@ impl<S: AsRef<[f64]>, const N: usize, const K: usize> Compensator<S, N, K> {
         if !target.is_finite() {
             return self.fault();
         }
-        let InverseInput { input, saturated } = self.inverse_input(target);
+        let inv = self.inverse_input(target);
+        let (input, saturated) = (inv.input, inv.saturated);
         let command = match &self.stages.coil_lag {
             Some(l) => l.command_for(input),
             None => input,
         };
-        let limited = command.clamp(-self.limit_a, self.limit_a);
+        let limited = limit(command, self.limit_a);
         if !limited.is_finite() {
             return self.fault();
         }
@@ -352,23 +354,20 @@ impl<S: AsRef<[f64]>, const N: usize, const K: usize> Compensator<S, N, K> {
             f.commit(field_a);
         }
         if exact && matches!(self.inverse, InverseKind::Exact) {
-            self.forward.commit(field_a, target);
+            self.forward.commit(field_a, target, inv.cell, inv.fast);
         } else {
             self.forward.step(field_a);
         }
         Command::from_current(limited, self.gain_a_per_v, !exact, false)
     }
 
-    #[inline]
+    #[inline(always)]
     fn inverse_input(&mut self, target: f64) -> InverseInput {
         match &mut self.inverse {
             InverseKind::Exact => self.forward.inverse_input(target),
             InverseKind::Paper(inv) => {
                 let (lo, hi) = inv.input_range();
-                InverseInput {
-                    input: inv.step(target),
-                    saturated: target < lo || target > hi,
-                }
+                InverseInput::new(inv.step(target), target < lo || target > hi)
             }
         }
     }
@@ -458,6 +457,18 @@ impl<S: AsRef<[f64]>, const N: usize, const K: usize> Compensator<S, N, K> {
     }
 }
 
+/// `x` limited to `±limit` (NaN stays NaN: the caller turns it into a fault).
+#[inline(always)]
+fn limit(x: f64, limit: f64) -> f64 {
+    if x > limit {
+        limit
+    } else if x < -limit {
+        -limit
+    } else {
+        x
+    }
+}
+
 /// Reference and angle `d` samples after sample `i` of a run of `n` (past the end: the last reference held, the
 /// angle continued at its last step, wrapped).
 #[inline]
@@ -468,9 +479,7 @@ pub fn ahead(refs: &[f64], thetas: &[f64], n: usize, i: usize, d: usize) -> (f64
     }
     let last = thetas[n - 1];
     let step = if n > 1 {
-        let s = last - thetas[n - 2];
-        let tau = core::f64::consts::TAU;
-        s - tau * libm::round(s / tau)
+        crate::stages::wrap_angle(last - thetas[n - 2])
     } else {
         0.0
     };

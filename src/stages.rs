@@ -116,14 +116,20 @@ impl Predictor {
             self.seen += 1;
             return (reference, theta);
         }
-        let d_theta = theta - t_old;
-        let tau = core::f64::consts::TAU;
-        let d_theta = d_theta - tau * libm::round(d_theta / tau);
+        let d_theta = wrap_angle(theta - t_old);
         (
             reference + self.reach * (reference - r_old),
             theta + self.reach * d_theta,
         )
     }
+}
+
+/// `x` wrapped to (−π, π] (up to the rounding of the nearest whole turn; exact for |x| < 2^51 turns).
+#[inline(always)]
+pub fn wrap_angle(x: f64) -> f64 {
+    const SHIFT: f64 = 6_755_399_441_055_744.0; // 1.5·2^52: adding and subtracting it rounds to an integer
+    let turns = (x * (1.0 / core::f64::consts::TAU) + SHIFT) - SHIFT;
+    x - turns * core::f64::consts::TAU
 }
 
 /// `thermal_drift`: the field torque is scaled by `1 − gain_loss·x`, `x` the coil heating state.

@@ -1,9 +1,6 @@
 //! `bmr.Compensator`: hysteresis + friction compensation for one control loop (optionally extended by a model's
 //! stages), its `Command`, and `bmr.ExtendedSimulation`, the forward chain the extended compensator inverts.
-use numpy::{
-    AllowTypeChange, PyArray1, PyArrayLike1, PyArrayMethods, PyReadwriteArray1,
-    PyUntypedArrayMethods,
-};
+use numpy::{AllowTypeChange, PyArray1, PyArrayLike1, PyArrayMethods, PyUntypedArrayMethods};
 use pyo3::exceptions::PyTypeError;
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList, PyMapping, PyTuple};
@@ -443,18 +440,24 @@ impl PyCompensator {
         slf: &Bound<'_, Self>,
         torque_ref_nmm: f64,
         theta_rad: f64,
-        mut out: PyReadwriteArray1<'_, f64>,
+        out: &Bound<'_, PyAny>,
     ) -> PyResult<f64> {
-        let c = busy(slf)?.core.step(torque_ref_nmm, theta_rad);
-        let o = out
-            .as_slice_mut()
-            .map_err(|_| BmrError::new_err("step_into: out must be a contiguous float64 array"))?;
-        if o.len() < 7 {
-            return Err(BmrError::new_err(format!(
-                "step_into: out needs at least 7 elements, has {}",
-                o.len()
-            )));
+        let bad = || {
+            BmrError::new_err(
+                "step_into: out must be a writeable, contiguous float64 array of at least 7 elements",
+            )
+        };
+        let arr = out.cast::<PyArray1<f64>>().map_err(|_| bad())?;
+        // SAFETY: a raw read of the array's flags field.
+        let writeable =
+            unsafe { (*arr.as_array_ptr()).fields.flags } & numpy::npyffi::NPY_ARRAY_WRITEABLE != 0;
+        if !(writeable && arr.is_contiguous() && arr.len() >= 7) {
+            return Err(bad());
         }
+        let c = busy(slf)?.core.step(torque_ref_nmm, theta_rad);
+        // SAFETY: checked writeable and contiguous; the GIL is held and nothing else runs while we write (numpy's
+        // borrow tracking is skipped on purpose: it costs more than the step).
+        let o = unsafe { arr.as_slice_mut() }.map_err(|_| bad())?;
         o[..7].copy_from_slice(&[
             c.current_a,
             c.coil1_a,

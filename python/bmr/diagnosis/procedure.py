@@ -270,10 +270,8 @@ def _simulator_plant(sim: dict[str, Any], sample_rate_hz: float) -> Callable[[],
     overrides = sim.get("overrides") or None
 
     def make() -> Any:
-        act = VirtualActuator(preset, seed=seed, sample_rate_hz=sample_rate_hz, effects=effects,
-                              **({"overrides": overrides} if overrides else {}))
-        act.plant_name = f"simulator {preset}"  # type: ignore[attr-defined]
-        return act
+        return VirtualActuator(preset, seed=seed, sample_rate_hz=sample_rate_hz, effects=effects,
+                               **({"overrides": overrides} if overrides else {}))
 
     return make
 
