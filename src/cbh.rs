@@ -97,6 +97,11 @@ impl<S: AsRef<[f64]>, const N: usize> Hysteresis<S, N> {
         if !(y_lo.is_finite() && y_hi.is_finite() && y_hi > y_lo) {
             return Err(TableError::NoOutputSpan { lo: y_lo, hi: y_hi });
         }
+        for (name, value) in [("y_lo", y_lo), ("y_hi", y_hi)] {
+            if value.abs() > crate::limits::MAX_MAGNITUDE {
+                return Err(TableError::BadParameter { name, value });
+            }
+        }
         let strip = asc.strip(lo);
         let e_top = asc.everett_max(&strip);
         let k = branch_scale(y_hi - y_lo, e_top);
@@ -286,6 +291,143 @@ impl<S: AsRef<[f64]>, const N: usize> Hysteresis<S, N> {
     }
 }
 
+/// First word of a serialised [`State`] (format tag and version).
+const STATE_TAG: u64 = 0x626d_725f_7374_0001;
+/// Words before the memory entries: tag, fingerprint, length, input, output, two hints.
+const STATE_HEADER: usize = 7;
+/// Words per memory entry: input, output, scale, second-piece flag and its four values.
+const ENTRY_WORDS: usize = 8;
+
+#[cfg(feature = "alloc")]
+impl<const N: usize> State<N> {
+    /// The state as plain words (for pickling and files); [`Hysteresis::state_from_words`] reads it back
+    /// bit for bit. Where a reversal sits in its table is not stored: it is recomputed from the table.
+    pub fn to_words(&self) -> alloc::vec::Vec<u64> {
+        let mut w = alloc::vec::Vec::with_capacity(STATE_HEADER + ENTRY_WORDS * self.history.len());
+        w.extend([
+            STATE_TAG,
+            self.fingerprint,
+            self.history.len() as u64,
+            self.u.to_bits(),
+            self.y.to_bits(),
+            self.hint_a as u64,
+            self.hint_d as u64,
+        ]);
+        for r in self.history.entries() {
+            w.extend([r.u.to_bits(), r.y.to_bits(), r.k.to_bits()]);
+            match r.via {
+                None => w.extend([0, 0, 0, 0, 0]),
+                Some(v) => w.extend([
+                    1,
+                    v.u.to_bits(),
+                    v.y.to_bits(),
+                    v.e.to_bits(),
+                    v.k.to_bits(),
+                ]),
+            }
+        }
+        w
+    }
+}
+
+/// Input and output stored in serialised state words (`None` if the words are too short to be a state).
+pub fn state_words_io(words: &[u64]) -> Option<(f64, f64, usize)> {
+    if words.len() < STATE_HEADER || words[0] != STATE_TAG {
+        return None;
+    }
+    Some((
+        f64::from_bits(words[3]),
+        f64::from_bits(words[4]),
+        usize::try_from(words[2]).unwrap_or(usize::MAX),
+    ))
+}
+
+impl<S: AsRef<[f64]>, const N: usize> Hysteresis<S, N> {
+    /// Read back a state written by [`State::to_words`] from an operator with the same tables. Everything is
+    /// checked (format, tables, memory length, finite values inside the input range, the saturation anchor), so
+    /// damaged words give an error, never a state that could index outside the tables.
+    pub fn state_from_words(&self, w: &[u64]) -> Result<State<N>, TableError> {
+        let bad = |what| Err(TableError::BadState { what });
+        if w.len() < STATE_HEADER || w[0] != STATE_TAG {
+            return bad("not a serialised operator state");
+        }
+        if w[1] != self.fingerprint {
+            return Err(TableError::ForeignState);
+        }
+        let len = match usize::try_from(w[2]) {
+            Ok(len) if (1..=N).contains(&len) => len,
+            _ => return bad("memory length outside 1..=capacity"),
+        };
+        if w.len() != STATE_HEADER + ENTRY_WORDS * len {
+            return bad("word count does not match the memory length");
+        }
+        let f = f64::from_bits;
+        let in_range = |u: f64| u >= self.lo && u <= self.hi;
+        let (u, y) = (f(w[3]), f(w[4]));
+        if !(in_range(u) && y.is_finite()) {
+            return bad("input outside the table range or output not finite");
+        }
+        // Hints only speed searches up; keep them inside each family's cells all the same.
+        let hint = |x: u64, fam: &Family<S>| {
+            usize::try_from(x)
+                .unwrap_or(usize::MAX)
+                .min(fam.nodes() - 2)
+        };
+        let mut history = History::new(self.anchor);
+        for i in 0..len {
+            let e = &w[STATE_HEADER + ENTRY_WORDS * i..STATE_HEADER + ENTRY_WORDS * (i + 1)];
+            let (ru, ry, rk) = (f(e[0]), f(e[1]), f(e[2]));
+            if !(in_range(ru) && ry.is_finite() && rk.is_finite()) {
+                return bad("memory entry outside the table range or not finite");
+            }
+            let via = match e[3] {
+                0 => None,
+                1 => {
+                    let v = Via {
+                        u: f(e[4]),
+                        y: f(e[5]),
+                        e: f(e[6]),
+                        k: f(e[7]),
+                    };
+                    if !(in_range(v.u) && v.y.is_finite() && v.e.is_finite() && v.k.is_finite()) {
+                        return bad("second branch piece outside the table range or not finite");
+                    }
+                    Some(v)
+                }
+                _ => return bad("second branch piece flag"),
+            };
+            if i == 0 {
+                let a = self.anchor;
+                if (ru, ry, rk) != (a.u, a.y, a.k) || via.is_some() {
+                    return bad("first memory entry is not the saturation anchor");
+                }
+                continue;
+            }
+            // Even entries are minima (ascending branch ahead), odd ones maxima (see crate::history).
+            let strip = if i % 2 == 1 {
+                self.desc.strip(-ru)
+            } else {
+                self.asc.strip(ru)
+            };
+            history.push(Reversal {
+                u: ru,
+                y: ry,
+                k: rk,
+                strip,
+                via,
+            });
+        }
+        Ok(State {
+            history,
+            u,
+            y,
+            hint_a: hint(w[5], &self.asc),
+            hint_d: hint(w[6], &self.desc),
+            fingerprint: self.fingerprint,
+        })
+    }
+}
+
 /// Push the state's current point as a reversal, merging first when the memory is full.
 pub(crate) fn push_reversal<S: AsRef<[f64]>, const N: usize>(
     asc: &Family<S>,
@@ -364,24 +506,23 @@ fn second_piece<S: AsRef<[f64]>>(
     }
 }
 
-/// FNV-1a over the table dimensions, end points and a few values: tells snapshots of different tables apart.
+/// A 64-bit hash of both tables (dimensions and every stored value) and the end points: tells snapshots of
+/// different tables apart. Each word goes through a bijective mix, so a change of any single value (even its
+/// last bit) changes the hash. `O(table size)`, once at construction.
 fn fingerprint<S: AsRef<[f64]>>(asc: &Family<S>, desc: &Family<S>, y_lo: f64, y_hi: f64) -> u64 {
     let mut h: u64 = 0xcbf2_9ce4_8422_2325;
     let mut mix = |x: u64| {
-        for b in x.to_le_bytes() {
-            h ^= b as u64;
-            h = h.wrapping_mul(0x0100_0000_01b3);
-        }
+        h = (h ^ x).wrapping_mul(0x0000_0100_0000_01b3).rotate_left(29);
     };
     for f in [asc, desc] {
         mix(f.nodes() as u64);
         mix(f.curves() as u64);
-        let d = f.data();
-        for i in [0, d.len() / 3, d.len() / 2, 2 * d.len() / 3, d.len() - 1] {
-            mix(d[i].to_bits());
-        }
+        f.data().iter().for_each(|v| mix(v.to_bits()));
     }
     mix(y_lo.to_bits());
     mix(y_hi.to_bits());
-    h
+    // Final avalanche (splitmix64) so that nearby tables do not give nearby hashes.
+    h = (h ^ (h >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+    h = (h ^ (h >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+    h ^ (h >> 31)
 }

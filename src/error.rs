@@ -1,6 +1,8 @@
 //! Errors raised when a curve table is built or validated (never in `step`).
 use core::fmt;
 
+use crate::limits::LimitError;
+
 /// Which first-order curve family a table error refers to.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum FamilyKind {
@@ -58,6 +60,35 @@ pub enum TableError {
         other: usize,
         input: f64,
     },
+    /// Two curves start at reversals closer together than the table's input resolution.
+    ReversalsTooClose {
+        family: FamilyKind,
+        curve: usize,
+        input: f64,
+        other: usize,
+        other_input: f64,
+        resolution: f64,
+    },
+    /// A curve starts within the table's input resolution of the saturation input: it has no room.
+    ReversalAtSaturation {
+        family: FamilyKind,
+        curve: usize,
+        input: f64,
+        saturation: f64,
+    },
+    /// An input or output beyond the supported magnitude [`crate::limits::MAX_MAGNITUDE`].
+    OutOfRange {
+        family: FamilyKind,
+        curve: usize,
+        sample: usize,
+        what: &'static str,
+        value: f64,
+    },
+    /// The table would exceed a documented size limit (see [`crate::limits`]).
+    TooLarge {
+        family: Option<FamilyKind>,
+        limit: LimitError,
+    },
     /// A curve does not reach the saturation input of its direction.
     ShortCurve {
         family: FamilyKind,
@@ -89,6 +120,8 @@ pub enum TableError {
     },
     /// Snapshot taken from another table.
     ForeignState,
+    /// A serialised state that is damaged or not an operator state.
+    BadState { what: &'static str },
     /// A parameter outside its documented range.
     BadParameter { name: &'static str, value: f64 },
 }
@@ -164,6 +197,48 @@ impl fmt::Display for TableError {
                     "{family} curves {other} and {curve} start at the same reversal input {input}"
                 )
             }
+            TableError::ReversalsTooClose {
+                family,
+                curve,
+                input,
+                other,
+                other_input,
+                resolution,
+            } => write!(
+                f,
+                "{family} curves {other} and {curve} start at reversal inputs {other_input} and {input}, closer than \
+                 the table's input resolution {resolution:e}; drop one of them or merge them"
+            ),
+            TableError::ReversalAtSaturation {
+                family,
+                curve,
+                input,
+                saturation,
+            } => write!(
+                f,
+                "{family} curve {curve} starts at {input}, within the table's input resolution of the saturation \
+                 input {saturation}: a curve there has no room"
+            ),
+            TableError::OutOfRange {
+                family,
+                curve,
+                sample,
+                what,
+                value,
+            } => write!(
+                f,
+                "{family} curve {curve}, sample {sample}: {what} {value:e} is beyond the supported magnitude {:e} \
+                 (express the data in other units)",
+                crate::limits::MAX_MAGNITUDE
+            ),
+            TableError::TooLarge {
+                family: Some(family),
+                limit,
+            } => write!(f, "{family} family: {limit}"),
+            TableError::TooLarge {
+                family: None,
+                limit,
+            } => write!(f, "{limit}"),
             TableError::ShortCurve {
                 family,
                 curve,
@@ -204,6 +279,9 @@ impl fmt::Display for TableError {
             }
             TableError::ForeignState => {
                 f.write_str("snapshot does not belong to this operator's table")
+            }
+            TableError::BadState { what } => {
+                write!(f, "serialised operator state is not valid: {what}")
             }
             TableError::BadParameter { name, value } => {
                 write!(f, "parameter {name} = {value} is out of range")

@@ -15,6 +15,7 @@
 //! `(1-λ)[E_j(u) - E_j(m)] + λ E_{j+1}(u)` misses the strip's triangle by `λ(1-λ)²T_j` under the same density.
 //! Above the highest measured reversal the strip closes on a virtual curve at saturation (`E ≡ 0`).
 use crate::error::{FamilyKind, TableError};
+use crate::limits::{self, MAX_MAGNITUDE};
 
 /// Where a reversal point sits in the family: the strip `[r_j, r_next)` and its interpolation weights.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -68,14 +69,16 @@ pub struct Family<S> {
     kind: FamilyKind,
 }
 
-/// Total storage length (in `f64`) of a family table with these dimensions.
+/// Total storage length (in `f64`) of a family table with these dimensions (saturating at `usize::MAX`, which
+/// no storage has).
 pub const fn family_len(nodes: usize, curves: usize) -> usize {
-    nodes + curves + curves * nodes
+    limits::sum(limits::sum(nodes, curves), limits::product(curves, nodes))
 }
 
 impl<S: AsRef<[f64]>> Family<S> {
-    /// Validate a raw table once: strictly increasing finite grid, reversals on grid nodes, rows zero up to their
-    /// reversal and non-decreasing after it. `O(curves × nodes)`; nothing is checked again per step.
+    /// Validate a raw table once: strictly increasing finite grid within ±[`MAX_MAGNITUDE`], reversals on grid
+    /// nodes, rows zero up to their reversal, non-decreasing after it and at most `MAX_MAGNITUDE`.
+    /// `O(curves × nodes)`; nothing is checked again per step.
     pub fn new(data: S, nodes: usize, curves: usize, kind: FamilyKind) -> Result<Self, TableError> {
         let bad = |what, index| TableError::BadTable {
             family: kind,
@@ -108,6 +111,9 @@ impl<S: AsRef<[f64]>> Family<S> {
             if !(w[0].is_finite() && w[1].is_finite()) {
                 return Err(bad("grid value not finite", i));
             }
+            if w[0].abs() > MAX_MAGNITUDE || w[1].abs() > MAX_MAGNITUDE {
+                return Err(bad("grid value beyond the supported magnitude 1e150", i));
+            }
             if w[1] <= w[0] {
                 return Err(bad("grid not strictly increasing", i + 1));
             }
@@ -139,6 +145,15 @@ impl<S: AsRef<[f64]>> Family<S> {
                         family: kind,
                         curve: j,
                         sample: k,
+                    });
+                }
+                if v > MAX_MAGNITUDE {
+                    return Err(TableError::OutOfRange {
+                        family: kind,
+                        curve: j,
+                        sample: k,
+                        what: "increment",
+                        value: v,
                     });
                 }
                 if k <= node && v != 0.0 {

@@ -23,6 +23,7 @@ pub mod friction;
 pub mod from_curves;
 pub mod history;
 pub mod inverse;
+pub mod limits;
 pub mod model_data;
 #[cfg(feature = "alloc")]
 pub mod paper_inverse;
@@ -42,6 +43,7 @@ pub use error::{FamilyKind, TableError};
 pub use everett::{Family, Strip};
 pub use friction::{Friction, FrictionError};
 pub use inverse::InverseInput;
+pub use limits::LimitError;
 #[cfg(feature = "alloc")]
 pub use table_builder::{BuildOptions, MeasuredCurve, build_tables};
 

@@ -6,7 +6,8 @@
 use alloc::vec::Vec;
 
 use crate::error::{FamilyKind, TableError};
-use crate::everett::{Family, family_len};
+use crate::everett::Family;
+use crate::limits::{self, MAX_CURVES, MAX_MAGNITUDE, MAX_NODES, MAX_TABLE_VALUES};
 
 /// One measured curve: inputs and outputs in sample order, starting at the reversal point.
 pub type MeasuredCurve<'a> = (&'a [f64], &'a [f64]);
@@ -21,7 +22,8 @@ pub struct BuildOptions {
     pub reach_tolerance: f64,
     /// How far the major branches may disagree at the saturations, as a fraction of the output span.
     pub closure_tolerance: f64,
-    /// Above this many distinct sample inputs the grid is resampled uniformly to this many nodes.
+    /// Above this many distinct sample inputs the grid is resampled uniformly to this many nodes
+    /// (8 to [`MAX_NODES`]).
     pub max_nodes: usize,
 }
 
@@ -48,6 +50,10 @@ pub struct BuiltTables {
 }
 
 /// Validate the measured curves and build the tables. Errors name the family, curve and sample.
+///
+/// Sizes are bounded before anything is allocated: at most [`MAX_CURVES`] curves per family, `max_nodes` at most
+/// [`MAX_NODES`], at most [`MAX_TABLE_VALUES`] values (curves × grid nodes) per family; inputs and outputs
+/// within ±[`MAX_MAGNITUDE`].
 pub fn build_tables(
     ascending: &[MeasuredCurve<'_>],
     descending: &[MeasuredCurve<'_>],
@@ -69,6 +75,12 @@ pub fn build_tables(
             value: opts.max_nodes as f64,
         });
     }
+    limits::check("max_nodes", opts.max_nodes, MAX_NODES).map_err(|limit| {
+        TableError::TooLarge {
+            family: None,
+            limit,
+        }
+    })?;
     check_shape(ascending, Ascending)?;
     check_shape(descending, Descending)?;
     // Rising orientation: descending curves mirrored (v = -u, increments positive).
@@ -177,6 +189,12 @@ fn check_shape(curves: &[MeasuredCurve<'_>], family: FamilyKind) -> Result<(), T
             curves: curves.len(),
         });
     }
+    limits::check("number of curves", curves.len(), MAX_CURVES).map_err(|limit| {
+        TableError::TooLarge {
+            family: Some(family),
+            limit,
+        }
+    })?;
     for (c, &(u, y)) in curves.iter().enumerate() {
         if u.len() != y.len() || u.len() < 2 {
             return Err(TableError::BadLength {
@@ -196,6 +214,17 @@ fn check_shape(curves: &[MeasuredCurve<'_>], family: FamilyKind) -> Result<(), T
                 curve: c,
                 sample: s,
             });
+        }
+        for (what, values) in [("input", u), ("output", y)] {
+            if let Some(s) = values.iter().position(|v| v.abs() > MAX_MAGNITUDE) {
+                return Err(TableError::OutOfRange {
+                    family,
+                    curve: c,
+                    sample: s,
+                    what,
+                    value: values[s],
+                });
+            }
         }
     }
     Ok(())
@@ -218,19 +247,26 @@ fn check_inputs(curves: &[Curve], family: FamilyKind) -> Result<(), TableError> 
             });
         }
     }
-    for a in 0..curves.len() {
-        for b in a + 1..curves.len() {
-            if curves[a].u[0] == curves[b].u[0] {
-                return Err(TableError::DuplicateReversal {
-                    family,
-                    curve: b,
-                    other: a,
-                    input: sign * curves[a].u[0],
-                });
-            }
+    let order = by_reversal(curves);
+    for w in order.windows(2) {
+        if curves[w[0]].u[0] == curves[w[1]].u[0] {
+            let (a, b) = (w[0].min(w[1]), w[0].max(w[1]));
+            return Err(TableError::DuplicateReversal {
+                family,
+                curve: b,
+                other: a,
+                input: sign * curves[a].u[0],
+            });
         }
     }
     Ok(())
+}
+
+/// Curve indices sorted by reversal input (rising orientation); ties keep the user's order.
+fn by_reversal(curves: &[Curve]) -> Vec<usize> {
+    let mut order: Vec<usize> = (0..curves.len()).collect();
+    order.sort_by(|&a, &b| curves[a].u[0].total_cmp(&curves[b].u[0]));
+    order
 }
 
 fn argmin_start(curves: &[Curve]) -> usize {
@@ -308,9 +344,39 @@ fn build_family(
     max_nodes: usize,
     kind: FamilyKind,
 ) -> Result<Family<Vec<f64>>, TableError> {
-    let mut order: Vec<usize> = (0..curves.len()).collect();
-    order.sort_by(|&a, &b| curves[a].u[0].total_cmp(&curves[b].u[0]));
+    let order = by_reversal(curves);
     let reversals: Vec<f64> = order.iter().map(|&i| curves[i].u[0]).collect();
+    // Nodes closer than this are merged; reversals must stay apart by more (and from saturation).
+    let eps = 1e-12 * (hi - lo);
+    let sign = if kind == FamilyKind::Ascending {
+        1.0
+    } else {
+        -1.0
+    };
+    for w in order.windows(2) {
+        let (a, b) = (curves[w[0]].u[0], curves[w[1]].u[0]);
+        if b - a <= eps {
+            let (first, second) = (w[0].min(w[1]), w[0].max(w[1]));
+            return Err(TableError::ReversalsTooClose {
+                family: kind,
+                curve: second,
+                input: sign * curves[second].u[0],
+                other: first,
+                other_input: sign * curves[first].u[0],
+                resolution: eps,
+            });
+        }
+    }
+    if let Some(&top) = order.last()
+        && hi - curves[top].u[0] <= eps
+    {
+        return Err(TableError::ReversalAtSaturation {
+            family: kind,
+            curve: top,
+            input: sign * curves[top].u[0],
+            saturation: sign * hi,
+        });
+    }
 
     let mut grid: Vec<f64> = curves
         .iter()
@@ -330,7 +396,6 @@ fn build_family(
     grid.push(hi);
     grid.sort_by(f64::total_cmp);
     // Merge nodes closer than round-off, keeping reversals exact.
-    let eps = 1e-12 * (hi - lo);
     let mut merged: Vec<f64> = Vec::with_capacity(grid.len());
     for x in grid {
         match merged.last_mut() {
@@ -344,7 +409,16 @@ fn build_family(
         }
     }
     let nodes = merged.len();
-    let mut data = Vec::with_capacity(family_len(nodes, curves.len()));
+    let values = limits::check(
+        "table size (curves × grid nodes)",
+        limits::product(curves.len(), nodes),
+        MAX_TABLE_VALUES,
+    )
+    .map_err(|limit| TableError::TooLarge {
+        family: Some(kind),
+        limit,
+    })?;
+    let mut data = Vec::with_capacity(nodes + curves.len() + values);
     data.extend_from_slice(&merged);
     data.extend_from_slice(&reversals);
     for &i in &order {

@@ -13,6 +13,17 @@ _Initial = Union[str, Tuple[str, float]]
 __all__ = [
     "ACTUATOR_PARAMETERS",
     "BmrError",
+    "BundleError",
+    "ExcitationError",
+    "IdentificationError",
+    "InUseError",
+    "LIMITS",
+    "ModelFileError",
+    "ResourceLimitError",
+    "TableError",
+    "_rebuild_hysteresis",
+    "_rebuild_hysteresis_state",
+    "_rebuild_virtual_actuator",
     "Command",
     "Compensator",
     "CompensatorState",
@@ -27,14 +38,60 @@ __all__ = [
     "effect_parameters",
     "fit_everett",
     "fit_friction_order",
+    "FRICTION_MAX_ORDER",
+    "MODEL_EXTENSIONS",
+    "check_extensions",
+    "delay",
+    "export_source",
+    "friction_series",
+    "heating_state",
+    "lag",
+    "lead",
+    "output_map",
+    "output_map_inverse",
 ]
 
 class BmrError(ValueError):
     """Invalid bmr input, table or file."""
 
+class TableError(BmrError):
+    """Curves or tables that cannot make a hysteresis operator (the message names family, curve and sample)."""
+
+class BundleError(BmrError):
+    """A bundle folder, manifest or run file that cannot be read or written (the message names the file)."""
+
+class ModelFileError(BmrError):
+    """A model file that cannot be read or written (the message names the file and the field)."""
+
+class ExcitationError(BmrError):
+    """An excitation or experiment protocol with invalid parameters."""
+
+class IdentificationError(BmrError):
+    """Data from which friction or tables cannot be identified."""
+
+class ResourceLimitError(BmrError):
+    """A requested size above its documented limit (checked before anything is allocated)."""
+
+class InUseError(BmrError):
+    """The object is in use by another thread (inside a run() that released the interpreter lock)."""
+
+LIMITS: dict[str, float]
+"""Documented bounds on every size and magnitude a caller can ask for (checked before allocation)."""
+
+def _rebuild_hysteresis(
+    asc: bytes, asc_nodes: int, asc_curves: int, desc: bytes, desc_nodes: int, desc_curves: int, y_lo: float,
+    y_hi: float, state: bytes,
+) -> Hysteresis: ...
+def _rebuild_hysteresis_state(state: bytes) -> HysteresisState: ...
+def _rebuild_virtual_actuator(
+    preset: str, seed: int, sample_rate_hz: float, effects: object, overrides: object, state: object
+) -> VirtualActuator: ...
+
 @final
 class HysteresisState:
     """Opaque snapshot of a Hysteresis state."""
+    def __copy__(self) -> HysteresisState: ...
+    def __deepcopy__(self, memo: dict[int, object]) -> HysteresisState: ...
     @property
     def input(self) -> float: ...
     @property
@@ -83,7 +140,11 @@ class Friction:
     """Seal friction c0 + (1 + gain_per_a·|I|)·Σ a_k sin kθ + b_k cos kθ (N·mm), up to FRICTION_MAX_ORDER
     harmonics."""
     def __new__(
-        cls, c0: float = 0.0, a: Sequence[float] = ..., b: Sequence[float] = ..., gain_per_a: float = 0.0
+        cls,
+        c0: float = 0.0,
+        a: Sequence[float] | None = None,
+        b: Sequence[float] | None = None,
+        gain_per_a: float = 0.0,
     ) -> Self: ...
     @staticmethod
     def from_amplitude_phase(c0: float, amplitude: Sequence[float], phase: Sequence[float]) -> "Friction": ...
@@ -120,6 +181,8 @@ def fit_friction_order(theta_rad: np.ndarray, torque_nmm: np.ndarray, order: int
 @final
 class EverettModel:
     """Preisach model with a tabulated Everett function E(β, α) on an input grid (nonnegative cell masses)."""
+    def __copy__(self) -> EverettModel: ...
+    def __deepcopy__(self, memo: dict[int, object]) -> EverettModel: ...
     def __new__(cls, grid: np.ndarray, masses: np.ndarray, offset: float) -> Self: ...
     @property
     def grid(self) -> np.ndarray: ...
@@ -181,6 +244,8 @@ _EffectsSpec = Union[None, dict[str, Union[dict[str, float], None]], Sequence[st
 class VirtualActuator:
     """Seeded physical simulator of the BMR rig (converters, hysteretic steel per coil, MR fluid, rotors, seal
     friction, torque sensor, switchable effects). Bit-for-bit deterministic for a seed."""
+    def __copy__(self) -> VirtualActuator: ...
+    def __deepcopy__(self, memo: dict[int, object]) -> VirtualActuator: ...
     def __new__(
         cls,
         preset: str = "bmr2013",

@@ -7,13 +7,13 @@
 //! (mass per cell area, or per diagonal length for the reversible part) and `D` takes first differences between
 //! neighbouring cells (smoothness). `λ_s = smoothing · tr(Q)/tr(DᵀD)` and `λ_r = ridge · tr(Q)/n` make both
 //! weights dimensionless.
-use alloc::format;
-use alloc::string::String;
 use alloc::vec::Vec;
 
+use super::error::IdentificationError;
 use super::everett_regressors::{EverettGrid, NormalEquations, simulate_everett};
 use super::nnls::nnls_gram;
 use crate::from_curves::CurveData;
+use crate::limits::{self, MAX_CURVE_POINTS, MAX_SOLVER_ITERATIONS};
 
 /// A Preisach model: Everett table on a grid (from nonnegative cell masses) and the output at negative saturation.
 #[derive(Clone, Debug, PartialEq)]
@@ -27,23 +27,30 @@ pub struct EverettModel {
 impl EverettModel {
     /// Build from cell masses (packed like [`EverettGrid::cell_index`], finite, nonnegative) and the output at
     /// negative saturation `offset`.
-    pub fn new(grid: EverettGrid, masses: Vec<f64>, offset: f64) -> Result<Self, String> {
+    pub fn new(
+        grid: EverettGrid,
+        masses: Vec<f64>,
+        offset: f64,
+    ) -> Result<Self, IdentificationError> {
         if masses.len() != grid.n_cells() {
-            return Err(format!(
-                "Everett model on {} intervals needs {} cell masses, got {}",
-                grid.n_intervals(),
-                grid.n_cells(),
-                masses.len()
-            ));
+            return Err(IdentificationError::MassCount {
+                intervals: grid.n_intervals(),
+                expected: grid.n_cells(),
+                got: masses.len(),
+            });
         }
         if let Some(i) = masses.iter().position(|m| !m.is_finite() || *m < 0.0) {
-            return Err(format!(
-                "cell mass {i} must be finite and nonnegative, got {}",
-                masses[i]
-            ));
+            return Err(IdentificationError::NegativeMass {
+                index: i,
+                value: masses[i],
+            });
         }
         if !offset.is_finite() {
-            return Err(format!("offset must be finite, got {offset}"));
+            return Err(IdentificationError::NonFinite {
+                what: "offset",
+                index: 0,
+                value: offset,
+            });
         }
         let node_values = grid.masses_to_nodes(&masses);
         Ok(Self {
@@ -96,26 +103,44 @@ impl EverettModel {
         subdivisions: usize,
         opts: &crate::table_builder::BuildOptions,
         initial: crate::cbh::Initial,
-    ) -> Result<crate::cbh::Hysteresis<Vec<f64>, N>, crate::error::TableError> {
-        let (asc, desc) = self.first_order_curves_subdivided(subdivisions);
-        crate::cbh::Hysteresis::from_curve_data(&asc, &desc, opts, initial)
+    ) -> Result<crate::cbh::Hysteresis<Vec<f64>, N>, IdentificationError> {
+        let (asc, desc) = self.first_order_curves_subdivided(subdivisions)?;
+        Ok(crate::cbh::Hysteresis::from_curve_data(
+            &asc, &desc, opts, initial,
+        )?)
     }
 
     /// First-order curves at every grid node: ascending from each reversal minimum `g_i` (i < N) up to
     /// positive saturation (`y(m) + E(m, u)`), descending from each reversal maximum `g_j` (j > 0) down to
     /// negative saturation (`y(M) − E(u, M)`), in traversal order. The first of each family is the major branch.
     pub fn first_order_curves(&self) -> (Vec<CurveData>, Vec<CurveData>) {
-        self.first_order_curves_subdivided(1)
+        // At most MAX_EVERETT_INTERVALS intervals: the points stay within MAX_CURVE_POINTS.
+        self.curves_with_subdivisions(1)
     }
 
     /// As [`Self::first_order_curves`], with reversals also at `subdivisions − 1` evenly spaced points inside
     /// every grid interval. The curves stay exact (piecewise linear in `u` with nodes at the reversal and the
     /// grid nodes beyond it); more reversals make a CBH operator built from them follow the Everett table
-    /// closely between grid reversals as well.
+    /// closely between grid reversals as well. The points of both families are at most [`MAX_CURVE_POINTS`].
     pub fn first_order_curves_subdivided(
         &self,
         subdivisions: usize,
-    ) -> (Vec<CurveData>, Vec<CurveData>) {
+    ) -> Result<(Vec<CurveData>, Vec<CurveData>), IdentificationError> {
+        let n = self.grid.n_intervals();
+        // Each family: n·k curves of at most n + 2 points.
+        let points = limits::product(
+            2,
+            limits::product(limits::product(n, subdivisions.max(1)), n + 2),
+        );
+        limits::check(
+            "points of the first-order curves (both families)",
+            points,
+            MAX_CURVE_POINTS,
+        )?;
+        Ok(self.curves_with_subdivisions(subdivisions))
+    }
+
+    fn curves_with_subdivisions(&self, subdivisions: usize) -> (Vec<CurveData>, Vec<CurveData>) {
         let k = subdivisions.max(1);
         let g = self.grid.nodes();
         let n = self.grid.n_intervals();
@@ -208,23 +233,27 @@ pub fn fit_everett(
     runs: &[EverettRun<'_>],
     n_offsets: usize,
     options: EverettFitOptions,
-) -> Result<EverettFit, String> {
+) -> Result<EverettFit, IdentificationError> {
     if n_offsets == 0 {
-        return Err(String::from("at least one offset column is needed"));
+        return Err(IdentificationError::NoOffsets);
     }
-    if !(options.smoothing >= 0.0 && options.ridge >= 0.0) {
-        return Err(format!(
-            "smoothing and ridge must be nonnegative (got {}, {})",
-            options.smoothing, options.ridge
-        ));
+    for (name, value) in [("smoothing", options.smoothing), ("ridge", options.ridge)] {
+        if !(value.is_finite() && value >= 0.0) {
+            return Err(IdentificationError::BadParameter { name, value });
+        }
     }
-    let mut ne = NormalEquations::new(grid, n_offsets);
+    limits::check(
+        "solver iterations (max_iter)",
+        options.max_iter,
+        MAX_SOLVER_ITERATIONS,
+    )?;
+    let mut ne = NormalEquations::new(grid, n_offsets)?;
     for (k, run) in runs.iter().enumerate() {
         ne.add_run(grid, run.u, run.y, run.weight, run.offset_col)
-            .map_err(|e| format!("run {k}: {e}"))?;
+            .map_err(|error| IdentificationError::Run { run: k, error })?;
     }
     if ne.n_rows == 0 {
-        return Err(String::from("no samples with positive weight to fit"));
+        return Err(IdentificationError::NoSamples);
     }
     let nn = ne.n_nodes;
     let m = ne.n_cols();
@@ -273,7 +302,7 @@ pub fn fit_everett(
     }
     for o in nn..m {
         if q[o * m + o] <= 0.0 {
-            return Err(format!("offset column {} has no samples", o - nn));
+            return Err(IdentificationError::EmptyOffset { column: o - nn });
         }
         q[o * m + o] *= 1.0 + 1e-12;
     }
@@ -431,7 +460,7 @@ mod tests {
         assert!((asc[0].1[0] - 1.0).abs() < 1e-12);
         assert!(model.everett(0.5, 0.4) == 0.0);
         // Subdivided reversals: same major branches, four times the curves, each exact against `everett`.
-        let (asc4, desc4) = model.first_order_curves_subdivided(4);
+        let (asc4, desc4) = model.first_order_curves_subdivided(4).unwrap();
         assert_eq!((asc4.len(), desc4.len()), (24, 24));
         assert_eq!(asc4[0], asc[0]);
         assert_eq!(desc4[0], desc[0]);
@@ -440,6 +469,37 @@ mod tests {
         let mid = 0.5 * (u[0] + u[1]);
         let y_mid = y[0] + 0.5 * (y[1] - y[0]);
         assert!((y_mid - (y[0] + model.everett(m, mid))).abs() < 1e-12);
+    }
+
+    #[test]
+    fn sizes_are_bounded_before_allocation() {
+        use crate::limits::{MAX_EVERETT_INTERVALS, MAX_EVERETT_UNKNOWNS};
+        let limit = |e: IdentificationError| matches!(e, IdentificationError::Limit(_));
+        assert!(limit(
+            EverettGrid::uniform(0.0, 1.0, MAX_EVERETT_INTERVALS + 1).unwrap_err()
+        ));
+        let grid = EverettGrid::uniform(0.0, 1.0, 8).unwrap();
+        let run = EverettRun {
+            u: &[0.0, 1.0],
+            y: &[0.0, 1.0],
+            weight: &[1.0, 1.0],
+            offset_col: 0,
+        };
+        let fit = |n_offsets, max_iter| {
+            let opts = EverettFitOptions {
+                max_iter,
+                ..Default::default()
+            };
+            fit_everett(&grid, &[run], n_offsets, opts)
+        };
+        assert!(limit(fit(MAX_EVERETT_UNKNOWNS, 10).unwrap_err()));
+        assert!(limit(fit(usize::MAX, 10).unwrap_err()));
+        assert!(limit(fit(1, usize::MAX).unwrap_err()));
+        let model = EverettModel::new(grid.clone(), alloc::vec![0.1; grid.n_cells()], 0.0).unwrap();
+        assert!(limit(
+            model.first_order_curves_subdivided(1 << 40).unwrap_err()
+        ));
+        assert!(model.first_order_curves_subdivided(3).is_ok());
     }
 
     #[test]

@@ -11,9 +11,10 @@
 //!
 //! Given the input history, the output is `offset + Σ ±E(β_k, α_k)` over the reversal pairs of the memory
 //! staircase, i.e. linear in the node values and hence in the masses: this module produces those weights.
-use alloc::format;
-use alloc::string::String;
 use alloc::vec::Vec;
+
+use super::error::{IdentificationError, RunError};
+use crate::limits::{self, MAX_EVERETT_INTERVALS, MAX_EVERETT_UNKNOWNS};
 
 /// Strictly increasing input grid `g_0 < … < g_N` (N ≥ 1) of an Everett table.
 #[derive(Clone, Debug, PartialEq)]
@@ -22,38 +23,48 @@ pub struct EverettGrid {
 }
 
 impl EverettGrid {
-    /// Validate and wrap the grid nodes (finite, strictly increasing, at least two).
-    pub fn new(nodes: Vec<f64>) -> Result<Self, String> {
+    /// Validate and wrap the grid nodes (finite, strictly increasing, at least two, at most
+    /// [`MAX_EVERETT_INTERVALS`] intervals).
+    pub fn new(nodes: Vec<f64>) -> Result<Self, IdentificationError> {
         if nodes.len() < 2 {
-            return Err(format!(
-                "Everett grid needs at least 2 nodes, got {}",
-                nodes.len()
-            ));
+            return Err(IdentificationError::GridTooShort { nodes: nodes.len() });
         }
+        limits::check(
+            "number of Everett grid intervals",
+            nodes.len() - 1,
+            MAX_EVERETT_INTERVALS,
+        )?;
         if let Some(i) = nodes.iter().position(|v| !v.is_finite()) {
-            return Err(format!(
-                "Everett grid node {i} is not finite ({})",
-                nodes[i]
-            ));
+            return Err(IdentificationError::NonFinite {
+                what: "Everett grid node",
+                index: i,
+                value: nodes[i],
+            });
         }
         if let Some(i) = nodes.windows(2).position(|w| w[1] <= w[0]) {
-            return Err(format!(
-                "Everett grid must strictly increase; node {} ({}) follows {}",
-                i + 1,
-                nodes[i + 1],
-                nodes[i]
-            ));
+            return Err(IdentificationError::GridNotIncreasing {
+                index: i + 1,
+                value: nodes[i + 1],
+                previous: nodes[i],
+            });
         }
         Ok(Self { nodes })
     }
 
     /// Uniform grid of `n_intervals` intervals over `[lo, hi]`.
-    pub fn uniform(lo: f64, hi: f64, n_intervals: usize) -> Result<Self, String> {
+    pub fn uniform(lo: f64, hi: f64, n_intervals: usize) -> Result<Self, IdentificationError> {
         if n_intervals == 0 || !(lo.is_finite() && hi.is_finite()) || hi <= lo {
-            return Err(format!(
-                "uniform Everett grid needs finite lo < hi and at least one interval (lo={lo}, hi={hi}, n={n_intervals})"
-            ));
+            return Err(IdentificationError::BadUniformGrid {
+                lo,
+                hi,
+                intervals: n_intervals,
+            });
         }
+        limits::check(
+            "number of Everett grid intervals",
+            n_intervals,
+            MAX_EVERETT_INTERVALS,
+        )?;
         let h = (hi - lo) / n_intervals as f64;
         let mut nodes: Vec<f64> = (0..=n_intervals).map(|i| lo + h * i as f64).collect();
         nodes[n_intervals] = hi;
@@ -311,11 +322,16 @@ pub struct NormalEquations {
 }
 
 impl NormalEquations {
-    /// Empty normal equations for `grid` with `n_offsets` offset columns.
-    pub fn new(grid: &EverettGrid, n_offsets: usize) -> Self {
+    /// Empty normal equations for `grid` with `n_offsets` offset columns; the unknowns (cells plus offsets) are
+    /// at most [`MAX_EVERETT_UNKNOWNS`], checked before the dense Gram matrix is allocated.
+    pub fn new(grid: &EverettGrid, n_offsets: usize) -> Result<Self, IdentificationError> {
         let n_nodes = grid.n_cells();
-        let m = n_nodes + n_offsets;
-        Self {
+        let m = limits::check(
+            "unknowns of the Everett fit (grid cells + offsets)",
+            limits::sum(n_nodes, n_offsets),
+            MAX_EVERETT_UNKNOWNS,
+        )?;
+        Ok(Self {
             n_nodes,
             n_offsets,
             gram: alloc::vec![0.0; m * m],
@@ -323,7 +339,7 @@ impl NormalEquations {
             yy: 0.0,
             n_rows: 0,
             weight_sum: 0.0,
-        }
+        })
     }
 
     /// Total number of columns.
@@ -340,23 +356,26 @@ impl NormalEquations {
         y: &[f64],
         weight: &[f64],
         offset_col: usize,
-    ) -> Result<(), String> {
+    ) -> Result<(), RunError> {
         if y.len() != u.len() || weight.len() != u.len() {
-            return Err(format!(
-                "input has {} samples, output {}, weights {}",
-                u.len(),
-                y.len(),
-                weight.len()
-            ));
+            return Err(RunError::Lengths {
+                inputs: u.len(),
+                outputs: y.len(),
+                weights: weight.len(),
+            });
         }
         if offset_col >= self.n_offsets {
-            return Err(format!(
-                "offset column {offset_col} out of range ({} offsets)",
-                self.n_offsets
-            ));
+            return Err(RunError::OffsetColumn {
+                column: offset_col,
+                columns: self.n_offsets,
+            });
         }
         if let Some(i) = u.iter().position(|v| !v.is_finite()) {
-            return Err(format!("input sample {i} is not finite ({})", u[i]));
+            return Err(RunError::NonFinite {
+                what: "input",
+                sample: i,
+                value: u[i],
+            });
         }
         let m = self.n_cols();
         let off = self.n_nodes + offset_col;
@@ -369,7 +388,11 @@ impl NormalEquations {
                 continue;
             }
             if !y[i].is_finite() {
-                return Err(format!("output sample {i} is not finite ({})", y[i]));
+                return Err(RunError::NonFinite {
+                    what: "output",
+                    sample: i,
+                    value: y[i],
+                });
             }
             row.clear();
             memory

@@ -1,14 +1,19 @@
 //! Least-squares fit of the angle-dependent seal friction (paper eq 22):
 //! `T_f(θ) = c0 + Σ_{k=1..K} a_k sin kθ + b_k cos kθ`, linear in its `2K + 1` coefficients.
 //!
-//! Solved with a QR factorisation (faer); the coefficient covariance is `σ² (XᵀX)⁻¹` with `σ²` the residual
-//! variance `RSS / (n − p)`, obtained from the triangular factor `R` (`(XᵀX)⁻¹ = R⁻¹ R⁻ᵀ`).
-use alloc::format;
-use alloc::string::String;
+//! Solved with a QR factorisation (faer) of the regressors augmented with the data column, taken block by block
+//! (the triangular factor of the rows so far stacked on the next block), so memory stays `O(block × p)` whatever
+//! the number of samples. The coefficient covariance is `σ² (XᵀX)⁻¹` with `σ²` the residual variance
+//! `RSS / (n − p)`, obtained from the triangular factor `R` (`(XᵀX)⁻¹ = R⁻¹ R⁻ᵀ`).
 use alloc::vec::Vec;
 
 use faer::Mat;
-use faer::prelude::SolveLstsq;
+
+use super::error::IdentificationError;
+use crate::limits::{self, MAX_FIT_ORDER};
+
+/// Rows of regressors factorised at a time.
+const BLOCK_ROWS: usize = 4096;
 
 /// Result of one friction fit at a fixed harmonic order.
 #[derive(Clone, Debug, PartialEq)]
@@ -54,74 +59,99 @@ impl FrictionFit {
     }
 }
 
-/// Fit `c0 + Σ a_k sin kθ + b_k cos kθ` of order `order` to `(theta_rad, torque_nmm)` by least squares.
+/// Fit `c0 + Σ a_k sin kθ + b_k cos kθ` of order `order` (at most [`MAX_FIT_ORDER`]) to
+/// `(theta_rad, torque_nmm)` by least squares.
 ///
-/// Errors (as text) when lengths differ, values are not finite, or there are too few samples or too little
-/// angle coverage for the requested order (the regressors would be rank deficient).
+/// Errors when lengths differ, values are not finite, the order is above its limit, or there are too few samples
+/// or too little angle coverage for the requested order (the regressors would be rank deficient).
 pub fn fit_friction(
     theta_rad: &[f64],
     torque_nmm: &[f64],
     order: usize,
-) -> Result<FrictionFit, String> {
+) -> Result<FrictionFit, IdentificationError> {
     let n = theta_rad.len();
+    limits::check("friction fit harmonic order", order, MAX_FIT_ORDER)?;
     if torque_nmm.len() != n {
-        return Err(format!(
-            "theta has {} samples but torque has {}",
-            n,
-            torque_nmm.len()
-        ));
+        return Err(IdentificationError::LengthMismatch {
+            first: "theta",
+            first_len: n,
+            second: "torque",
+            second_len: torque_nmm.len(),
+        });
     }
-    if let Some(i) = theta_rad.iter().position(|v| !v.is_finite()) {
-        return Err(format!("theta sample {i} is not finite ({})", theta_rad[i]));
-    }
-    if let Some(i) = torque_nmm.iter().position(|v| !v.is_finite()) {
-        return Err(format!(
-            "torque sample {i} is not finite ({})",
-            torque_nmm[i]
-        ));
+    for (what, values) in [("theta sample", theta_rad), ("torque sample", torque_nmm)] {
+        if let Some(i) = values.iter().position(|v| !v.is_finite()) {
+            return Err(IdentificationError::NonFinite {
+                what,
+                index: i,
+                value: values[i],
+            });
+        }
     }
     let p = 2 * order + 1;
     if n <= p {
-        return Err(format!(
-            "friction order {order} needs more than {p} samples, got {n}"
-        ));
+        return Err(IdentificationError::TooFewSamples {
+            order,
+            needed: p,
+            got: n,
+        });
     }
-    let x = Mat::<f64>::from_fn(n, p, |i, j| regressor(theta_rad[i], j));
-    let y = Mat::<f64>::from_fn(n, 1, |i, _| torque_nmm[i]);
-    let qr = x.qr();
-    let r = qr.thin_R();
+    // Triangular factor of [X | y], updated block by block: QR of [R; X_block y_block].
+    let mut r_aug = Mat::<f64>::zeros(p + 1, p + 1);
+    let mut start = 0;
+    while start < n {
+        let end = (start + BLOCK_ROWS).min(n);
+        let rows = p + 1 + (end - start);
+        let stacked = Mat::<f64>::from_fn(rows, p + 1, |i, j| {
+            if i <= p {
+                r_aug[(i, j)]
+            } else {
+                let s = start + i - (p + 1);
+                if j < p {
+                    regressor(theta_rad[s], j)
+                } else {
+                    torque_nmm[s]
+                }
+            }
+        });
+        let qr = stacked.qr();
+        let r = qr.thin_R();
+        r_aug = Mat::<f64>::from_fn(p + 1, p + 1, |i, j| if j >= i { r[(i, j)] } else { 0.0 });
+        start = end;
+    }
     // Rank check: a tiny diagonal of R means the angles do not excite some harmonic.
-    let rmax = (0..p).map(|i| r[(i, i)].abs()).fold(0.0, f64::max);
+    let rmax = (0..p).map(|i| r_aug[(i, i)].abs()).fold(0.0, f64::max);
     for i in 0..p {
-        let d = r[(i, i)].abs();
+        let d = r_aug[(i, i)].abs();
         if d.is_nan() || d <= 1e-9 * rmax.max(f64::MIN_POSITIVE) {
-            return Err(format!(
-                "friction order {order}: the angle samples do not determine coefficient {} \
-                 (too little angle coverage); lower the order or use a run covering full revolutions",
-                coefficient_name(i)
-            ));
+            return Err(IdentificationError::Undetermined {
+                order,
+                coefficient: i,
+            });
         }
     }
-    let coef = qr.solve_lstsq(&y);
-    let mut rss = 0.0;
-    for i in 0..n {
-        let mut f = 0.0;
-        for j in 0..p {
-            f += x[(i, j)] * coef[(j, 0)];
+    // R c = Qᵀy by back substitution.
+    let mut coef = alloc::vec![0.0; p];
+    for i in (0..p).rev() {
+        let mut s = r_aug[(i, p)];
+        for (k, c) in coef.iter().enumerate().skip(i + 1) {
+            s -= r_aug[(i, k)] * c;
         }
-        let e = torque_nmm[i] - f;
-        rss += e * e;
+        coef[i] = s / r_aug[(i, i)];
     }
+    // The last diagonal entry of the augmented factor is the residual norm.
+    let rss = r_aug[(p, p)] * r_aug[(p, p)];
     let sigma2 = rss / (n - p) as f64;
     // R⁻¹ by back substitution (upper triangular p × p), then (XᵀX)⁻¹ = R⁻¹ R⁻ᵀ.
+    let r = |i: usize, j: usize| r_aug[(i, j)];
     let mut rinv = alloc::vec![0.0; p * p];
     for col in 0..p {
         for row in (0..=col).rev() {
             let mut s = if row == col { 1.0 } else { 0.0 };
             for k in row + 1..=col {
-                s -= r[(row, k)] * rinv[k * p + col];
+                s -= r(row, k) * rinv[k * p + col];
             }
-            rinv[row * p + col] = s / r[(row, row)];
+            rinv[row * p + col] = s / r(row, row);
         }
     }
     let mut cov = alloc::vec![0.0; p * p];
@@ -137,9 +167,9 @@ pub fn fit_friction(
     let se = |j: usize| cov[j * p + j].max(0.0).sqrt();
     Ok(FrictionFit {
         order,
-        c0: coef[(0, 0)],
-        a: (0..order).map(|k| coef[(1 + 2 * k, 0)]).collect(),
-        b: (0..order).map(|k| coef[(2 + 2 * k, 0)]).collect(),
+        c0: coef[0],
+        a: (0..order).map(|k| coef[1 + 2 * k]).collect(),
+        b: (0..order).map(|k| coef[2 + 2 * k]).collect(),
         c0_stderr: se(0),
         a_stderr: (0..order).map(|k| se(1 + 2 * k)).collect(),
         b_stderr: (0..order).map(|k| se(2 + 2 * k)).collect(),
@@ -159,18 +189,6 @@ fn regressor(theta: f64, j: usize) -> f64 {
         (k * theta).sin()
     } else {
         (k * theta).cos()
-    }
-}
-
-fn coefficient_name(j: usize) -> String {
-    if j == 0 {
-        return String::from("c0");
-    }
-    let k = j.div_ceil(2);
-    if j % 2 == 1 {
-        format!("a_{k}")
-    } else {
-        format!("b_{k}")
     }
 }
 
@@ -203,5 +221,29 @@ mod tests {
         let theta = [0.5; 100];
         let y = [1.0; 100];
         assert!(fit_friction(&theta, &y, 1).is_err());
+    }
+
+    #[test]
+    fn order_is_bounded_before_anything_is_allocated() {
+        let e = fit_friction(&[0.0; 4], &[0.0; 4], usize::MAX / 2 + 1).unwrap_err();
+        assert!(matches!(e, IdentificationError::Limit(_)), "{e}");
+        assert!(e.to_string().contains("harmonic order"), "{e}");
+    }
+
+    #[test]
+    fn blocks_give_the_single_factorisation_answer() {
+        // More samples than one block: the block-updated factor must give the same fit as a small sample.
+        let theta: Vec<f64> = (0..3 * BLOCK_ROWS + 17)
+            .map(|i| i as f64 * 0.0137)
+            .collect();
+        let y: Vec<f64> = theta
+            .iter()
+            .map(|t| -1.5 + 0.7 * (2.0 * t).sin() + 0.2 * (5.0 * t).cos())
+            .collect();
+        let fit = fit_friction(&theta, &y, 5).unwrap();
+        assert!((fit.c0 + 1.5).abs() < 1e-10);
+        assert!((fit.a[1] - 0.7).abs() < 1e-10);
+        assert!((fit.b[4] - 0.2).abs() < 1e-10);
+        assert!(fit.rss < 1e-16 * y.len() as f64);
     }
 }

@@ -1,9 +1,11 @@
 //! Identification from measured runs (least squares with faer): seal friction harmonics and Everett tables.
+pub mod error;
 pub mod everett_fit;
 pub mod everett_regressors;
 pub mod friction_fit;
 pub mod nnls;
 
+pub use error::{IdentificationError, RunError};
 pub use everett_fit::{EverettFit, EverettFitOptions, EverettModel, EverettRun, fit_everett};
 pub use everett_regressors::{EverettGrid, NormalEquations, PreisachMemory, simulate_everett};
 pub use friction_fit::{FrictionFit, fit_friction};

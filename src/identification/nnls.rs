@@ -4,9 +4,9 @@
 //! Each iteration solves one unconstrained system on the passive set with a Cholesky factorisation (faer) and
 //! exchanges every infeasible variable at once; when that stops reducing the number of infeasibilities it
 //! falls back to exchanging a single variable (Murty's rule), which guarantees termination.
-use alloc::format;
-use alloc::string::String;
 use alloc::vec::Vec;
+
+use super::error::IdentificationError;
 
 use faer::prelude::Solve;
 use faer::{Mat, Side};
@@ -27,15 +27,14 @@ pub fn nnls_gram(
     c: &[f64],
     constrained: &[bool],
     max_iter: usize,
-) -> Result<NnlsSolution, String> {
+) -> Result<NnlsSolution, IdentificationError> {
     let n = c.len();
-    if q.len() != n * n || constrained.len() != n {
-        return Err(format!(
-            "NNLS dimension mismatch: Q has {} entries, c {} and the constraint mask {}",
-            q.len(),
-            n,
-            constrained.len()
-        ));
+    if q.len() != crate::limits::product(n, n) || constrained.len() != n {
+        return Err(IdentificationError::SolverDimensions {
+            q: q.len(),
+            c: n,
+            mask: constrained.len(),
+        });
     }
     // Passive (free to move) set F; every other variable sits at its bound 0.
     let mut passive: Vec<bool> = constrained.iter().map(|&c| !c).collect();
@@ -87,13 +86,18 @@ pub fn nnls_gram(
             passive[i] = !passive[i];
         }
     }
-    Err(format!(
-        "nonnegative least squares did not converge in {max_iter} iterations"
-    ))
+    Err(IdentificationError::NotConverged {
+        iterations: max_iter,
+    })
 }
 
 /// `x_F = Q_FF⁻¹ c_F`, zero elsewhere.
-fn solve_passive(q: &[f64], c: &[f64], passive: &[bool], x: &mut [f64]) -> Result<(), String> {
+fn solve_passive(
+    q: &[f64],
+    c: &[f64],
+    passive: &[bool],
+    x: &mut [f64],
+) -> Result<(), IdentificationError> {
     let n = c.len();
     let idx: Vec<usize> = (0..n).filter(|&i| passive[i]).collect();
     x.iter_mut().for_each(|v| *v = 0.0);
@@ -103,9 +107,9 @@ fn solve_passive(q: &[f64], c: &[f64], passive: &[bool], x: &mut [f64]) -> Resul
     let k = idx.len();
     let a = Mat::<f64>::from_fn(k, k, |r, s| q[idx[r] * n + idx[s]]);
     let b = Mat::<f64>::from_fn(k, 1, |r, _| c[idx[r]]);
-    let llt = a.llt(Side::Lower).map_err(|_| {
-        String::from("normal equations are not positive definite; increase the ridge")
-    })?;
+    let llt = a
+        .llt(Side::Lower)
+        .map_err(|_| IdentificationError::NotPositiveDefinite)?;
     let sol = llt.solve(&b);
     for (r, &i) in idx.iter().enumerate() {
         x[i] = sol[(r, 0)];

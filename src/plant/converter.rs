@@ -82,6 +82,15 @@ impl Converter {
     pub fn reset(&mut self) {
         self.lag.set_output(0.0);
     }
+
+    pub(crate) fn save_state(&self, out: &mut Vec<u64>) {
+        out.push(self.lag.output().to_bits());
+    }
+
+    pub(crate) fn load_state(&mut self, r: &mut super::StateReader<'_>) -> Result<(), PlantError> {
+        self.lag.set_output(r.float()?);
+        Ok(())
+    }
 }
 
 #[cfg(test)]

@@ -34,12 +34,17 @@ pub enum PlantError {
     InvalidEffect(String),
     /// No preset by that name.
     UnknownPreset(String),
+    /// A serialised simulator state that is damaged or belongs to another configuration.
+    BadState(&'static str),
 }
 
 impl fmt::Display for PlantError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
             PlantError::InvalidParameter(m) | PlantError::InvalidEffect(m) => f.write_str(m),
+            PlantError::BadState(what) => {
+                write!(f, "serialised virtual actuator state is not valid: {what}")
+            }
             PlantError::UnknownPreset(name) => write!(
                 f,
                 "unknown virtual actuator preset {name:?}; available: {}",
@@ -50,6 +55,53 @@ impl fmt::Display for PlantError {
 }
 
 impl std::error::Error for PlantError {}
+
+/// Reads back the dynamic state words a simulator wrote (pickling), checking each value as it goes.
+pub(crate) struct StateReader<'a> {
+    words: &'a [u64],
+}
+
+impl<'a> StateReader<'a> {
+    pub(crate) fn new(words: &'a [u64]) -> Self {
+        StateReader { words }
+    }
+
+    pub(crate) fn word(&mut self) -> Result<u64, PlantError> {
+        let (&first, rest) = self
+            .words
+            .split_first()
+            .ok_or(PlantError::BadState("too few words"))?;
+        self.words = rest;
+        Ok(first)
+    }
+
+    /// A finite float.
+    pub(crate) fn float(&mut self) -> Result<f64, PlantError> {
+        let v = f64::from_bits(self.word()?);
+        if v.is_finite() {
+            Ok(v)
+        } else {
+            Err(PlantError::BadState("a state value is not finite"))
+        }
+    }
+
+    /// A count no larger than the words left (so that nothing is allocated beyond the input's size).
+    pub(crate) fn count(&mut self) -> Result<usize, PlantError> {
+        let n = self.word()?;
+        match usize::try_from(n) {
+            Ok(n) if n <= self.words.len() => Ok(n),
+            _ => Err(PlantError::BadState("a length is larger than the state")),
+        }
+    }
+
+    pub(crate) fn finish(self) -> Result<(), PlantError> {
+        if self.words.is_empty() {
+            Ok(())
+        } else {
+            Err(PlantError::BadState("words left over"))
+        }
+    }
+}
 
 /// Check that `value` is finite and within `[lo, hi]`; the error names `what` and its unit.
 pub(crate) fn check_range(what: &str, value: f64, lo: f64, hi: f64) -> Result<f64, PlantError> {

@@ -34,6 +34,29 @@ impl Rng {
         }
     }
 
+    pub(crate) fn save_state(&self, out: &mut Vec<u64>) {
+        out.extend_from_slice(&self.s);
+        match self.spare_normal {
+            None => out.extend([0, 0]),
+            Some(z) => out.extend([1, z.to_bits()]),
+        }
+    }
+
+    pub(crate) fn load_state(
+        &mut self,
+        r: &mut super::StateReader<'_>,
+    ) -> Result<(), super::PlantError> {
+        let s = [r.word()?, r.word()?, r.word()?, r.word()?];
+        let spare = match (r.word()?, r.float()?) {
+            (0, _) => None,
+            (1, z) => Some(z),
+            _ => return Err(super::PlantError::BadState("noise generator flag")),
+        };
+        self.s = s;
+        self.spare_normal = spare;
+        Ok(())
+    }
+
     /// Next 64 random bits.
     pub fn next_u64(&mut self) -> u64 {
         let result = self.s[1].wrapping_mul(5).rotate_left(7).wrapping_mul(9);

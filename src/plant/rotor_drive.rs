@@ -57,6 +57,22 @@ impl RotorDrive {
         self.theta_rad = self.params.theta0_rad.rem_euclid(TAU);
     }
 
+    pub(crate) fn save_state(&self, out: &mut Vec<u64>) {
+        out.push(self.theta_rad.to_bits());
+    }
+
+    pub(crate) fn load_state(
+        &mut self,
+        r: &mut super::StateReader<'_>,
+    ) -> Result<(), super::PlantError> {
+        let theta = r.float()?;
+        if !(0.0..TAU).contains(&theta) {
+            return Err(super::PlantError::BadState("rotor angle outside [0, 2π)"));
+        }
+        self.theta_rad = theta;
+        Ok(())
+    }
+
     /// Current rotor speed, rad/s.
     #[inline]
     pub fn speed_rad_s(&self) -> f64 {

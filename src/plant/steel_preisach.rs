@@ -313,6 +313,39 @@ impl PreisachSteel {
         self.output * self.params.saturation_t
     }
 
+    pub(crate) fn save_state(&self, out: &mut Vec<u64>) {
+        out.push(self.extrema.len() as u64);
+        out.extend(self.extrema.iter().map(|v| v.to_bits()));
+        out.extend(self.prefix.iter().map(|v| v.to_bits()));
+        out.extend([self.input_a.to_bits(), self.output.to_bits()]);
+    }
+
+    pub(crate) fn load_state(&mut self, r: &mut super::StateReader<'_>) -> Result<(), PlantError> {
+        let n = r.count()?;
+        let range = self.params.range_a;
+        let inside = |v: f64| (-range..=range).contains(&v);
+        let mut extrema = Vec::with_capacity(n);
+        for _ in 0..n {
+            extrema.push(r.float()?);
+        }
+        let mut prefix = Vec::with_capacity(n);
+        for _ in 0..n {
+            prefix.push(r.float()?);
+        }
+        let (input, output) = (r.float()?, r.float()?);
+        if extrema.first() != Some(&-range) || !extrema.iter().all(|&v| inside(v)) || !inside(input)
+        {
+            return Err(PlantError::BadState(
+                "steel memory outside its current range or without its saturation anchor",
+            ));
+        }
+        self.extrema = extrema;
+        self.prefix = prefix;
+        self.input_a = input;
+        self.output = output;
+        Ok(())
+    }
+
     /// Number of reversal points the memory holds (for tests and diagnostics).
     pub fn memory_depth(&self) -> usize {
         self.extrema.len() - 1

@@ -15,7 +15,7 @@ use super::rotor_geometry::RotorGeometry;
 use super::seal_friction::SealFriction;
 use super::steel_preisach::{PreisachSteel, SteelParams};
 use super::torque_sensor::SensorParams;
-use super::{PlantError, check_range};
+use super::{PlantError, StateReader, check_range};
 use crate::filters::{DelayLine, Heating, Lag};
 
 /// Everything that defines a virtual actuator (a preset is one of these).
@@ -311,6 +311,9 @@ impl ActiveEffects {
     }
 }
 
+/// First word of a serialised simulator state (format tag and version).
+const PLANT_STATE_TAG: u64 = 0x626d_725f_7661_0001;
+
 /// The simulator. `new(config, seed)`, then `step`/`run` with commanded nominal current (A).
 #[derive(Clone, Debug)]
 pub struct VirtualActuator {
@@ -409,6 +412,68 @@ impl VirtualActuator {
         self.index = 0;
     }
 
+    /// Everything that evolves (memories, filter states, angle, noise stream, time) as plain words, for pickling.
+    /// [`Self::load_state`] on an actuator built from the same configuration and seed continues bit for bit.
+    pub fn save_state(&self) -> Vec<u64> {
+        let mut w = vec![
+            PLANT_STATE_TAG,
+            self.index,
+            self.delay_line.samples() as u64,
+        ];
+        w.extend(self.delay_line.values().map(f64::to_bits));
+        self.converter1.save_state(&mut w);
+        self.converter2.save_state(&mut w);
+        w.extend(
+            [
+                self.field1.output(),
+                self.field2.output(),
+                self.heating.state(),
+            ]
+            .map(f64::to_bits),
+        );
+        self.drive.save_state(&mut w);
+        self.rng.save_state(&mut w);
+        self.steel1.save_state(&mut w);
+        self.steel2.save_state(&mut w);
+        w
+    }
+
+    /// Continue from words written by [`Self::save_state`] of an actuator with the same configuration. Every
+    /// value is checked; on error the actuator is unchanged.
+    pub fn load_state(&mut self, words: &[u64]) -> Result<(), PlantError> {
+        let mut next = self.clone();
+        let mut r = StateReader::new(words);
+        if r.word()? != PLANT_STATE_TAG {
+            return Err(PlantError::BadState("not a virtual actuator state"));
+        }
+        next.index = r.word()?;
+        if next.index > 1 << 53 {
+            return Err(PlantError::BadState("sample index beyond 2^53"));
+        }
+        if r.count()? != self.fx.delay_samples {
+            return Err(PlantError::BadState(
+                "delay line length differs from this configuration's",
+            ));
+        }
+        let mut delayed = Vec::with_capacity(self.fx.delay_samples);
+        for _ in 0..self.fx.delay_samples {
+            delayed.push(r.float()?);
+        }
+        next.delay_line.set_values(delayed);
+        next.converter1.load_state(&mut r)?;
+        next.converter2.load_state(&mut r)?;
+        next.field1.set_output(r.float()?);
+        next.field2.set_output(r.float()?);
+        next.heating.set_state(r.float()?);
+        next.drive.load_state(&mut r)?;
+        next.rng.load_state(&mut r)?;
+        next.steel1.load_state(&mut r)?;
+        next.steel2.load_state(&mut r)?;
+        r.finish()?;
+        *self = next;
+        Ok(())
+    }
+
     /// Noise-free seal friction (N·mm) at zero current and angle `theta_rad`, including any extra harmonic.
     pub fn true_friction_nmm(&self, theta_rad: f64) -> f64 {
         self.friction_nmm(theta_rad, 0.0)
@@ -426,15 +491,18 @@ impl VirtualActuator {
 
     /// The encoder angles (rad) of the next `n` samples, without advancing the actuator (the rotor angle does
     /// not depend on the current, so a controller can be fed it ahead of time).
-    pub fn theta_ahead(&self, n: usize) -> Vec<f64> {
+    /// At most [`crate::limits::MAX_GENERATED_SAMPLES`] at a time (checked before allocating).
+    pub fn theta_ahead(&self, n: usize) -> Result<Vec<f64>, crate::limits::LimitError> {
+        use crate::limits::{MAX_GENERATED_SAMPLES, check};
+        check("angle samples asked for ahead", n, MAX_GENERATED_SAMPLES)?;
         let mut d = self.drive.clone();
-        (0..n)
+        Ok((0..n)
             .map(|_| {
                 let th = d.theta_rad();
                 d.advance();
                 th
             })
-            .collect()
+            .collect())
     }
 
     /// Output map of one rotor's field torque (the `non_congruent` effect; identity when off).

@@ -1,5 +1,6 @@
 //! Conversions between numpy arrays / Python sequences and slices.
-use numpy::{AllowTypeChange, PyArray1, PyArrayLike1};
+use numpy::{AllowTypeChange, PyArray1, PyArrayLike1, PyArrayMethods};
+use pyo3::exceptions::PyTypeError;
 use pyo3::prelude::*;
 use pyo3::types::{PyList, PyTuple};
 
@@ -17,10 +18,45 @@ pub(crate) fn to_numpy<'py>(py: Python<'py>, v: Vec<f64>) -> Bound<'py, PyArray1
     PyArray1::from_vec(py, v)
 }
 
-/// A 1-D float array from a Python object, with a clear error naming the argument.
+/// A 1-D float array from a Python object (floats or integers); anything else is a `TypeError` naming the
+/// argument. Booleans and complex numbers are refused rather than silently turned into 0/1 or real parts.
 pub(crate) fn extract_f64_array(obj: &Bound<'_, PyAny>, what: &str) -> PyResult<Vec<f64>> {
-    let a: PyArrayLike1<'_, f64, AllowTypeChange> = obj.extract().map_err(|_| {
-        crate::python::BmrError::new_err(format!("{what}: expected a 1-D array of numbers"))
+    if let Ok(a) = obj.cast::<PyArray1<f64>>() {
+        return Ok(a.readonly().as_array().iter().copied().collect());
+    }
+    let type_err = |detail: String| PyTypeError::new_err(format!("{what}: {detail}"));
+    let arr = obj
+        .py()
+        .import("numpy")?
+        .call_method1("asarray", (obj,))
+        .map_err(|e| type_err(format!("expected a 1-D array of numbers ({e})")))?;
+    let dtype = arr.getattr("dtype")?;
+    let kind: String = dtype.getattr("kind")?.extract()?;
+    match kind.as_str() {
+        "f" | "i" | "u" => {}
+        "b" => {
+            return Err(type_err(String::from(
+                "boolean values are not numbers; convert them explicitly (e.g. astype(float))",
+            )));
+        }
+        "c" => {
+            return Err(type_err(String::from(
+                "complex values; pass the real part or the magnitude explicitly",
+            )));
+        }
+        _ => {
+            return Err(type_err(format!(
+                "expected numbers, got an array of dtype {}",
+                dtype.str()?
+            )));
+        }
+    }
+    // Numbers in the wrong shape are a value problem (as in numpy), not a type problem.
+    let a: PyArrayLike1<'_, f64, AllowTypeChange> = arr.extract().map_err(|_| {
+        let ndim: usize = arr.getattr("ndim").and_then(|n| n.extract()).unwrap_or(0);
+        crate::python::BmrError::new_err(format!(
+            "{what}: expected a 1-D array, got {ndim} dimensions"
+        ))
     })?;
     Ok(to_vec(a))
 }

@@ -1,6 +1,6 @@
 //! `bmr.Compensator`: hysteresis + friction compensation for one control loop (optionally extended by a model's
 //! stages), its `Command`, and `bmr.ExtendedSimulation`, the forward chain the extended compensator inverts.
-use numpy::{AllowTypeChange, PyArray1, PyArrayLike1, PyArrayMethods, PyUntypedArrayMethods};
+use numpy::{PyArray1, PyArrayMethods, PyUntypedArrayMethods};
 use pyo3::exceptions::PyTypeError;
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList, PyMapping, PyTuple};
@@ -9,7 +9,7 @@ use crate::cbh::Initial;
 use crate::compensator::{Command, Compensator, CompensatorState, InverseKind};
 use crate::friction::{Friction, MAX_ORDER};
 use crate::model_data::{EffectValues, ModelData};
-use crate::python::arrays::{DETACH_LEN, to_numpy, to_vec};
+use crate::python::arrays::{DETACH_LEN, extract_f64_array, to_numpy};
 use crate::python::friction::PyFriction;
 use crate::python::hysteresis::{MEMORY, PyHysteresis, initial_or_negative};
 use crate::python::{BmrError, bmr_err};
@@ -247,23 +247,37 @@ pub(crate) struct PyCompensator {
     full_torque_nmm: f64,
 }
 
-/// Borrow `slf` mutably, or say that it is in use (inside a `run` on another thread).
+/// Borrow `slf` (an `InUseError` while another thread is inside its `run`).
 fn busy<'py>(slf: &Bound<'py, PyCompensator>) -> PyResult<PyRefMut<'py, PyCompensator>> {
-    slf.try_borrow_mut().map_err(|_| {
-        BmrError::new_err(
-            "this Compensator is in use by another thread (inside run()); give each thread its own copy \
-             (copy.copy(compensator))",
-        )
-    })
+    crate::python::borrow_mut(slf)
 }
 
 fn shared<'py>(slf: &Bound<'py, PyCompensator>) -> PyResult<PyRef<'py, PyCompensator>> {
-    slf.try_borrow().map_err(|_| {
-        BmrError::new_err(
-            "this Compensator is in use by another thread (inside run()); give each thread its own copy \
-             (copy.copy(compensator))",
-        )
-    })
+    crate::python::borrow(slf)
+}
+
+/// A float64 argument as a slice: a contiguous float64 array is read in place, anything else is converted
+/// (`TypeError` naming the argument for non-numbers).
+enum Floats<'py> {
+    Borrowed(numpy::PyReadonlyArray1<'py, f64>),
+    Owned(Vec<f64>),
+}
+
+impl<'py> Floats<'py> {
+    fn of(obj: &Bound<'py, PyAny>, what: &str) -> PyResult<Self> {
+        if let Ok(a) = obj.cast::<PyArray1<f64>>()
+            && a.is_contiguous()
+        {
+            return Ok(Floats::Borrowed(a.readonly()));
+        }
+        Ok(Floats::Owned(extract_f64_array(obj, what)?))
+    }
+    fn slice(&self) -> &[f64] {
+        match self {
+            Floats::Borrowed(a) => a.as_slice().unwrap_or(&[]),
+            Floats::Owned(v) => v,
+        }
+    }
 }
 
 impl PyCompensator {
@@ -478,17 +492,19 @@ impl PyCompensator {
     #[pyo3(signature = (torque_ref_nmm, theta_rad, *, columns=None, out=None))]
     fn run<'py>(
         slf: &Bound<'py, Self>,
-        torque_ref_nmm: PyArrayLike1<'py, f64, AllowTypeChange>,
-        theta_rad: PyArrayLike1<'py, f64, AllowTypeChange>,
+        torque_ref_nmm: &Bound<'py, PyAny>,
+        theta_rad: &Bound<'py, PyAny>,
         columns: Option<Vec<String>>,
         out: Option<&Bound<'py, PyDict>>,
     ) -> PyResult<Bound<'py, PyDict>> {
         let py = slf.py();
-        let n = torque_ref_nmm.len();
-        if n != theta_rad.len() {
+        let ref_in = Floats::of(torque_ref_nmm, "torque_ref_nmm")?;
+        let th_in = Floats::of(theta_rad, "theta_rad")?;
+        let n = ref_in.slice().len();
+        if n != th_in.slice().len() {
             return Err(BmrError::new_err(format!(
                 "run: torque_ref_nmm has {n} samples but theta_rad has {}",
-                theta_rad.len()
+                th_in.slice().len()
             )));
         }
         let wanted: Vec<usize> = match &columns {
@@ -574,22 +590,7 @@ impl PyCompensator {
             }
             flag_slices.push((*col, s));
         }
-        let refs_owned;
-        let refs: &[f64] = match torque_ref_nmm.as_slice() {
-            Ok(s) => s,
-            Err(_) => {
-                refs_owned = torque_ref_nmm.as_array().to_vec();
-                &refs_owned
-            }
-        };
-        let th_owned;
-        let th: &[f64] = match theta_rad.as_slice() {
-            Ok(s) => s,
-            Err(_) => {
-                th_owned = theta_rad.as_array().to_vec();
-                &th_owned
-            }
-        };
+        let (refs, th) = (ref_in.slice(), th_in.slice());
         {
             let mut me = busy(slf)?;
             let core = &mut me.core;
@@ -791,15 +792,15 @@ impl PySimulation {
     fn run<'py>(
         &mut self,
         py: Python<'py>,
-        current_a: PyArrayLike1<'py, f64, AllowTypeChange>,
-        theta_rad: PyArrayLike1<'py, f64, AllowTypeChange>,
+        current_a: &Bound<'py, PyAny>,
+        theta_rad: &Bound<'py, PyAny>,
         initial: Option<&Bound<'_, PyAny>>,
         heating: f64,
         t0_s: f64,
     ) -> PyResult<Bound<'py, PyDict>> {
         let initial: Initial = initial_or_negative(initial)?;
-        let u = to_vec(current_a);
-        let th = to_vec(theta_rad);
+        let u = extract_f64_array(current_a, "current_a")?;
+        let th = extract_f64_array(theta_rad, "theta_rad")?;
         if u.len() != th.len() {
             return Err(BmrError::new_err(format!(
                 "run: current_a has {} samples but theta_rad has {}",
@@ -937,12 +938,12 @@ fn output_map_of(curvature: f64, scale_nmm: f64) -> PyResult<OutputMap> {
 #[pyfunction]
 fn output_map<'py>(
     py: Python<'py>,
-    core_nmm: PyArrayLike1<'py, f64, AllowTypeChange>,
+    core_nmm: &Bound<'py, PyAny>,
     curvature: f64,
     scale_nmm: f64,
 ) -> PyResult<Bound<'py, PyArray1<f64>>> {
     let m = output_map_of(curvature, scale_nmm)?;
-    let x = to_vec(core_nmm);
+    let x = extract_f64_array(core_nmm, "core_nmm")?;
     Ok(to_numpy(py, x.iter().map(|&v| m.forward(v)).collect()))
 }
 
@@ -950,12 +951,12 @@ fn output_map<'py>(
 #[pyfunction]
 fn output_map_inverse<'py>(
     py: Python<'py>,
-    field_nmm: PyArrayLike1<'py, f64, AllowTypeChange>,
+    field_nmm: &Bound<'py, PyAny>,
     curvature: f64,
     scale_nmm: f64,
 ) -> PyResult<Bound<'py, PyArray1<f64>>> {
     let mut m = output_map_of(curvature, scale_nmm)?;
-    let x = to_vec(field_nmm);
+    let x = extract_f64_array(field_nmm, "field_nmm")?;
     Ok(to_numpy(py, x.iter().map(|&v| m.inverse(v)).collect()))
 }
 

@@ -5,7 +5,7 @@ use pyo3::prelude::*;
 use pyo3::types::PyTuple;
 
 use crate::friction::{Friction, MAX_MAGNITUDE, MAX_ORDER, harmonic_series};
-use crate::python::arrays::{DETACH_LEN, to_numpy, to_vec};
+use crate::python::arrays::{DETACH_LEN, extract_f64_array, to_numpy, to_vec};
 use crate::python::{BmrError, bmr_err};
 
 pub(crate) type Model = Friction<MAX_ORDER>;
@@ -51,8 +51,15 @@ impl PyFriction {
     /// `c0` (N·mm), sine coefficients `a` and cosine coefficients `b` of harmonics 1..K (K ≤ 24), and the
     /// growth of the angle-dependent part per ampere of |I| `gain_per_a` (1/A).
     #[new]
-    #[pyo3(signature = (c0=0.0, a=Vec::new(), b=Vec::new(), gain_per_a=0.0))]
-    fn new(c0: f64, a: Vec<f64>, b: Vec<f64>, gain_per_a: f64) -> PyResult<Self> {
+    #[pyo3(signature = (c0=0.0, a=None, b=None, gain_per_a=0.0))]
+    fn new(
+        c0: f64,
+        a: Option<&Bound<'_, PyAny>>,
+        b: Option<&Bound<'_, PyAny>>,
+        gain_per_a: f64,
+    ) -> PyResult<Self> {
+        let a = a.map_or(Ok(Vec::new()), |x| extract_f64_array(x, "a"))?;
+        let b = b.map_or(Ok(Vec::new()), |x| extract_f64_array(x, "b"))?;
         Model::from_coefficients(c0, &a, &b)
             .and_then(|f| f.with_current_gain(gain_per_a))
             .map(|f| PyFriction { f })
@@ -61,7 +68,13 @@ impl PyFriction {
 
     /// From the paper's form `c0 + Σ A_k sin(kθ + φ_k)` (amplitudes N·mm, phases rad).
     #[staticmethod]
-    fn from_amplitude_phase(c0: f64, amplitude: Vec<f64>, phase: Vec<f64>) -> PyResult<Self> {
+    fn from_amplitude_phase(
+        c0: f64,
+        amplitude: &Bound<'_, PyAny>,
+        phase: &Bound<'_, PyAny>,
+    ) -> PyResult<Self> {
+        let amplitude = extract_f64_array(amplitude, "amplitude")?;
+        let phase = extract_f64_array(phase, "phase")?;
         Model::from_amplitude_phase(c0, &amplitude, &phase)
             .map(|f| PyFriction { f })
             .map_err(bmr_err)

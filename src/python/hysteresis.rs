@@ -1,12 +1,14 @@
 //! `bmr.Hysteresis`: the CBH operator with a 64-point memory.
-use numpy::{AllowTypeChange, PyArray1, PyArrayLike1};
+use numpy::PyArray1;
 use pyo3::prelude::*;
-use pyo3::types::{PyDict, PyList, PyString, PyTuple};
+use pyo3::types::{PyBytes, PyDict, PyList, PyString, PyTuple};
 
-use crate::cbh::{Hysteresis, Initial, State};
+use crate::cbh::{Hysteresis, Initial, State, state_words_io};
 use crate::congruency::congruency;
-use crate::python::arrays::{DETACH_LEN, curves_to_py, extract_f64_array, to_numpy, to_vec};
-use crate::python::{BmrError, bmr_err};
+use crate::error::FamilyKind;
+use crate::everett::Family;
+use crate::python::arrays::{DETACH_LEN, curves_to_py, extract_f64_array, to_numpy};
+use crate::python::{BmrError, borrow, borrow_mut, bytes_to_words, table_err, words_to_bytes};
 use crate::table_builder::BuildOptions;
 
 /// Memory capacity (reversal points) of the Python operator.
@@ -31,11 +33,16 @@ fn parse_initial(obj: &Bound<'_, PyAny>) -> PyResult<Initial> {
             ))),
         };
     }
+    let shape_err = || {
+        pyo3::exceptions::PyTypeError::new_err(
+            "initial: expected 'negative', 'positive', ('ascending', u) or ('descending', u)",
+        )
+    };
     if let Ok(t) = obj.cast::<PyTuple>()
         && t.len() == 2
     {
-        let kind: String = t.get_item(0)?.extract()?;
-        let u: f64 = t.get_item(1)?.extract()?;
+        let kind: String = t.get_item(0)?.extract().map_err(|_| shape_err())?;
+        let u: f64 = t.get_item(1)?.extract().map_err(|_| shape_err())?;
         if !u.is_finite() {
             return Err(BmrError::new_err(format!(
                 "initial=({kind:?}, {u}): the input must be finite"
@@ -49,21 +56,21 @@ fn parse_initial(obj: &Bound<'_, PyAny>) -> PyResult<Initial> {
             ))),
         };
     }
-    Err(BmrError::new_err(
-        "initial: expected 'negative', 'positive', ('ascending', u) or ('descending', u)",
-    ))
+    Err(shape_err())
 }
 
 /// A family argument: a sequence of `(u, y)` pairs of 1-D arrays.
 fn parse_family(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<Vec<(Vec<f64>, Vec<f64>)>> {
     let seq = obj.try_iter().map_err(|_| {
-        BmrError::new_err(format!("{name}: expected a sequence of (u, y) array pairs"))
+        pyo3::exceptions::PyTypeError::new_err(format!(
+            "{name}: expected a sequence of (u, y) array pairs"
+        ))
     })?;
     let mut out = Vec::new();
     for (i, item) in seq.enumerate() {
         let item = item?;
         let pair: (Bound<'_, PyAny>, Bound<'_, PyAny>) = item.extract().map_err(|_| {
-            BmrError::new_err(format!(
+            pyo3::exceptions::PyTypeError::new_err(format!(
                 "{name} curve {i}: expected a (u, y) pair of 1-D arrays"
             ))
         })?;
@@ -74,31 +81,128 @@ fn parse_family(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<Vec<(Vec<f64>, V
     Ok(out)
 }
 
+/// A snapshot as taken, or as read back from a pickle (checked against the operator's tables when restored).
+#[derive(Clone)]
+#[allow(clippy::large_enum_variant)] // the live snapshot stays inline (no extra allocation per snapshot)
+pub(crate) enum StateData {
+    Live(State<MEMORY>),
+    Words(Vec<u64>),
+}
+
 /// Snapshot of a `Hysteresis` state (an opaque copy; restore it into the operator it came from).
 #[pyclass(name = "HysteresisState", module = "bmr", frozen)]
 #[derive(Clone)]
-pub(crate) struct PyState(pub(crate) State<MEMORY>);
+pub(crate) struct PyState(pub(crate) StateData);
+
+impl PyState {
+    /// `(input, output, reversals)`.
+    fn summary(&self) -> (f64, f64, usize) {
+        match &self.0 {
+            StateData::Live(s) => (s.input(), s.output(), s.history().len()),
+            StateData::Words(w) => state_words_io(w).unwrap_or((f64::NAN, f64::NAN, 0)),
+        }
+    }
+
+    fn words(&self) -> Vec<u64> {
+        match &self.0 {
+            StateData::Live(s) => s.to_words(),
+            StateData::Words(w) => w.clone(),
+        }
+    }
+}
 
 #[pymethods]
 impl PyState {
     /// Input at the time of the snapshot.
     #[getter]
     fn input(&self) -> f64 {
-        self.0.input()
+        self.summary().0
     }
     /// Output at the time of the snapshot.
     #[getter]
     fn output(&self) -> f64 {
-        self.0.output()
+        self.summary().1
+    }
+    fn __copy__(slf: PyRef<'_, Self>) -> PyRef<'_, Self> {
+        slf // immutable: a copy is the object itself
+    }
+    fn __deepcopy__<'py>(slf: PyRef<'py, Self>, _memo: &Bound<'py, PyAny>) -> PyRef<'py, Self> {
+        slf
+    }
+    fn __reduce__<'py>(
+        &self,
+        py: Python<'py>,
+    ) -> PyResult<(Bound<'py, PyAny>, (Bound<'py, PyBytes>,))> {
+        let rebuild = py
+            .import("bmr._core")?
+            .getattr("_rebuild_hysteresis_state")?;
+        Ok((rebuild, (words_to_bytes(py, &self.words()),)))
     }
     fn __repr__(&self) -> String {
-        format!(
-            "HysteresisState(input={}, output={}, reversals={})",
-            self.0.input(),
-            self.0.output(),
-            self.0.history().len()
-        )
+        let (u, y, n) = self.summary();
+        format!("HysteresisState(input={u}, output={y}, reversals={n})")
     }
+}
+
+/// Unpickle a `HysteresisState` (checked against the tables when it is restored).
+#[pyfunction]
+fn _rebuild_hysteresis_state(state: &[u8]) -> PyResult<PyState> {
+    let words = bytes_to_words(state, "HysteresisState")?;
+    if state_words_io(&words).is_none() {
+        return Err(BmrError::new_err(
+            "HysteresisState: the pickled data is not an operator state",
+        ));
+    }
+    Ok(PyState(StateData::Words(words)))
+}
+
+fn f64_bytes<'py>(py: Python<'py>, values: &[f64]) -> Bound<'py, PyBytes> {
+    let bytes: Vec<u8> = values.iter().flat_map(|v| v.to_le_bytes()).collect();
+    PyBytes::new(py, &bytes)
+}
+
+fn bytes_f64(bytes: &[u8]) -> PyResult<Vec<f64>> {
+    Ok(bytes_to_words(bytes, "Hysteresis")?
+        .into_iter()
+        .map(f64::from_bits)
+        .collect())
+}
+
+/// Unpickle a `Hysteresis`: both raw tables (validated as on any construction), the major-loop outputs and the
+/// state.
+#[pyfunction]
+#[allow(clippy::too_many_arguments)]
+fn _rebuild_hysteresis(
+    asc: &[u8],
+    asc_nodes: usize,
+    asc_curves: usize,
+    desc: &[u8],
+    desc_nodes: usize,
+    desc_curves: usize,
+    y_lo: f64,
+    y_hi: f64,
+    state: &[u8],
+) -> PyResult<PyHysteresis> {
+    let a = Family::new(
+        bytes_f64(asc)?,
+        asc_nodes,
+        asc_curves,
+        FamilyKind::Ascending,
+    )
+    .map_err(table_err)?;
+    let d = Family::new(
+        bytes_f64(desc)?,
+        desc_nodes,
+        desc_curves,
+        FamilyKind::Descending,
+    )
+    .map_err(table_err)?;
+    let mut op = Operator::new(a, d, y_lo, y_hi, Initial::Negative).map_err(table_err)?;
+    let st = op
+        .state_from_words(&bytes_to_words(state, "Hysteresis")?)
+        .map_err(table_err)?;
+    op.restore(&st).map_err(table_err)?;
+    Ok(PyHysteresis { op })
 }
 
 /// CBH hysteresis operator built from measured first-order reversal curves.
@@ -135,89 +239,100 @@ impl PyHysteresis {
             closure_tolerance,
             max_nodes,
         };
-        let op = Operator::from_curve_data(&asc, &desc, &opts, initial).map_err(bmr_err)?;
+        let op = Operator::from_curve_data(&asc, &desc, &opts, initial).map_err(table_err)?;
         Ok(PyHysteresis { op })
     }
 
     /// Apply one input (A) and return the output. NaN returns NaN and leaves the memory unchanged; inputs outside
     /// `input_range` saturate.
-    fn step(&mut self, u: f64) -> f64 {
-        self.op.step(u)
+    fn step(slf: &Bound<'_, Self>, u: f64) -> PyResult<f64> {
+        Ok(borrow_mut(slf)?.op.step(u))
     }
 
     /// Apply an array of inputs, continuing from the current state; returns the outputs.
     fn run<'py>(
-        &mut self,
-        py: Python<'py>,
-        u: PyArrayLike1<'py, f64, AllowTypeChange>,
-    ) -> Bound<'py, PyArray1<f64>> {
-        let inputs = to_vec(u);
+        slf: &Bound<'py, Self>,
+        u: &Bound<'py, PyAny>,
+    ) -> PyResult<Bound<'py, PyArray1<f64>>> {
+        let py = slf.py();
+        let inputs = extract_f64_array(u, "u")?;
         let mut out = vec![0.0; inputs.len()];
+        let mut me = borrow_mut(slf)?;
         if inputs.len() > DETACH_LEN {
-            let op = &mut self.op;
+            let op = &mut me.op;
             py.detach(|| op.run_into(&inputs, &mut out));
         } else {
-            self.op.run_into(&inputs, &mut out);
+            me.op.run_into(&inputs, &mut out);
         }
-        to_numpy(py, out)
+        Ok(to_numpy(py, out))
     }
 
     /// Forget the memory and start from `initial` ("negative", "positive", ("ascending", u), ("descending", u)).
     #[pyo3(signature = (initial=None))]
-    fn reset(&mut self, initial: Option<&Bound<'_, PyAny>>) -> PyResult<()> {
+    fn reset(slf: &Bound<'_, Self>, initial: Option<&Bound<'_, PyAny>>) -> PyResult<()> {
         let initial = initial_or_negative(initial)?;
-        self.op.reset(initial);
+        borrow_mut(slf)?.op.reset(initial);
         Ok(())
     }
 
-    fn snapshot(&self) -> PyState {
-        PyState(self.op.snapshot())
+    /// A copy of the state (memory, input, output): `restore` it into this operator (or one with identical
+    /// tables) to continue bit for bit from here.
+    fn snapshot(slf: &Bound<'_, Self>) -> PyResult<PyState> {
+        Ok(PyState(StateData::Live(borrow(slf)?.op.snapshot())))
     }
 
-    fn restore(&mut self, state: &PyState) -> PyResult<()> {
-        self.op.restore(&state.0).map_err(bmr_err)
+    /// Return to a `snapshot` of this operator (or of one with identical tables; a `TableError` otherwise).
+    fn restore(slf: &Bound<'_, Self>, state: &PyState) -> PyResult<()> {
+        let mut me = borrow_mut(slf)?;
+        let st = match &state.0 {
+            StateData::Live(s) => *s,
+            StateData::Words(w) => me.op.state_from_words(w).map_err(table_err)?,
+        };
+        me.op.restore(&st).map_err(table_err)
     }
 
     /// Reversal points `(u, y)` now stored, oldest (the negative-saturation anchor) first.
     #[getter]
-    fn memory(&self) -> Vec<(f64, f64)> {
-        self.op.state().memory().collect()
+    fn memory(slf: &Bound<'_, Self>) -> PyResult<Vec<(f64, f64)>> {
+        Ok(borrow(slf)?.op.state().memory().collect())
     }
 
     /// Maximum number of stored reversal points.
     #[getter]
-    fn capacity(&self) -> usize {
+    fn capacity(_slf: &Bound<'_, Self>) -> usize {
         MEMORY
     }
 
     /// Current (saturated) input.
     #[getter]
-    fn input(&self) -> f64 {
-        self.op.state().input()
+    fn input(slf: &Bound<'_, Self>) -> PyResult<f64> {
+        Ok(borrow(slf)?.op.state().input())
     }
 
     /// Current output.
     #[getter]
-    fn output(&self) -> f64 {
-        self.op.output()
+    fn output(slf: &Bound<'_, Self>) -> PyResult<f64> {
+        Ok(borrow(slf)?.op.output())
     }
 
     /// `(lowest, highest)` input of the tables.
     #[getter]
-    fn input_range(&self) -> (f64, f64) {
-        self.op.input_range()
+    fn input_range(slf: &Bound<'_, Self>) -> PyResult<(f64, f64)> {
+        Ok(borrow(slf)?.op.input_range())
     }
 
     /// `(output at negative saturation, output at positive saturation)`.
     #[getter]
-    fn output_range(&self) -> (f64, f64) {
-        self.op.output_range()
+    fn output_range(slf: &Bound<'_, Self>) -> PyResult<(f64, f64)> {
+        Ok(borrow(slf)?.op.output_range())
     }
 
     /// Mismatch between the ascending and descending families (output units): `max_abs`, `rms`, `pairs`.
     /// Zero for Preisach data; large values mean the data are not congruent.
-    fn consistency<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
-        let c = congruency(self.op.ascending(), self.op.descending());
+    fn consistency<'py>(slf: &Bound<'py, Self>) -> PyResult<Bound<'py, PyDict>> {
+        let py = slf.py();
+        let me = borrow(slf)?;
+        let c = congruency(me.op.ascending(), me.op.descending());
         let d = PyDict::new(py);
         d.set_item("max_abs", c.max_abs)?;
         d.set_item("rms", c.rms)?;
@@ -226,8 +341,9 @@ impl PyHysteresis {
     }
 
     /// The stored tables as `(ascending, descending)` curve lists in `from_curves` form.
-    fn curves<'py>(&self, py: Python<'py>) -> PyResult<(Bound<'py, PyList>, Bound<'py, PyList>)> {
-        let (a, d) = self.op.curves();
+    fn curves<'py>(slf: &Bound<'py, Self>) -> PyResult<(Bound<'py, PyList>, Bound<'py, PyList>)> {
+        let py = slf.py();
+        let (a, d) = borrow(slf)?.op.curves();
         Ok((curves_to_py(py, a)?, curves_to_py(py, d)?))
     }
 
@@ -235,36 +351,67 @@ impl PyHysteresis {
     /// `(torque, current)` pairs with torque strictly monotone along each curve; the paper's inverse operator is
     /// built from them.
     fn current_curves<'py>(
-        &self,
+        slf: &Bound<'py, Self>,
         py: Python<'py>,
     ) -> PyResult<(Bound<'py, PyList>, Bound<'py, PyList>)> {
-        let (a, d) = self.op.current_curves();
+        let (a, d) = borrow(slf)?.op.current_curves();
         Ok((curves_to_py(py, a)?, curves_to_py(py, d)?))
     }
 
-    fn __copy__(&self) -> Self {
-        self.clone()
+    /// An independent operator with the same tables and state.
+    fn __copy__(slf: &Bound<'_, Self>) -> PyResult<Self> {
+        Ok(borrow(slf)?.clone())
     }
 
-    fn __deepcopy__(&self, _memo: &Bound<'_, PyAny>) -> Self {
-        self.clone()
+    fn __deepcopy__(slf: &Bound<'_, Self>, _memo: &Bound<'_, PyAny>) -> PyResult<Self> {
+        Ok(borrow(slf)?.clone())
     }
 
-    fn __repr__(&self) -> String {
-        let (lo, hi) = self.op.input_range();
-        let (ylo, yhi) = self.op.output_range();
-        format!(
-            "Hysteresis(input_range=({lo}, {hi}), output_range=({ylo}, {yhi}), curves=({}, {}), nodes=({}, {}))",
-            self.op.ascending().curves(),
-            self.op.descending().curves(),
-            self.op.ascending().nodes(),
-            self.op.descending().nodes()
+    /// Pickled as its raw tables and state: an unpickled operator continues bit for bit.
+    #[allow(clippy::type_complexity)]
+    fn __reduce__<'py>(
+        slf: &Bound<'py, Self>,
+    ) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyTuple>)> {
+        let py = slf.py();
+        let me = borrow(slf)?;
+        let op = &me.op;
+        let (y_lo, y_hi) = op.output_range();
+        let (a, d) = (op.ascending(), op.descending());
+        let args = (
+            f64_bytes(py, a.data()),
+            a.nodes(),
+            a.curves(),
+            f64_bytes(py, d.data()),
+            d.nodes(),
+            d.curves(),
+            y_lo,
+            y_hi,
+            words_to_bytes(py, &op.snapshot().to_words()),
         )
+            .into_pyobject(py)?;
+        let rebuild = py.import("bmr._core")?.getattr("_rebuild_hysteresis")?;
+        Ok((rebuild, args))
+    }
+
+    fn __repr__(slf: &Bound<'_, Self>) -> PyResult<String> {
+        let me = borrow(slf)?;
+        let op = &me.op;
+        let (lo, hi) = op.input_range();
+        let (ylo, yhi) = op.output_range();
+        Ok(format!(
+            "Hysteresis(input_range=({lo}, {hi}), output_range=({ylo}, {yhi}), curves=({}, {}), nodes=({}, {}))",
+            op.ascending().curves(),
+            op.descending().curves(),
+            op.ascending().nodes(),
+            op.descending().nodes()
+        ))
     }
 }
 
 pub(crate) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<PyHysteresis>()?;
     m.add_class::<PyState>()?;
+    m.add_function(wrap_pyfunction!(_rebuild_hysteresis, m)?)?;
+    m.add_function(wrap_pyfunction!(_rebuild_hysteresis_state, m)?)?;
     Ok(())
 }

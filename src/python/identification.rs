@@ -10,7 +10,7 @@ use crate::identification::{
 };
 use crate::python::arrays::{curves_to_py, to_vec};
 use crate::python::hysteresis::PyHysteresis;
-use crate::python::{BmrError, bmr_err};
+use crate::python::{BmrError, identification_err};
 use crate::table_builder::BuildOptions;
 
 /// A 1-D float array argument (lists and integer arrays accepted).
@@ -34,7 +34,7 @@ fn fit_friction_order<'py>(
     let torque = to_vec(torque_nmm);
     let fit = py
         .detach(|| fit_friction(&theta, &torque, order))
-        .map_err(|e| BmrError::new_err(format!("friction fit: {e}")))?;
+        .map_err(|e| identification_err("friction fit", e))?;
     let p = fit.n_params();
     let d = PyDict::new(py);
     d.set_item("order", fit.order)?;
@@ -68,9 +68,39 @@ impl PyEverettModel {
     #[new]
     #[pyo3(signature = (grid, masses, offset))]
     fn new(grid: Array<'_>, masses: Array<'_>, offset: f64) -> PyResult<Self> {
-        let grid = EverettGrid::new(to_vec(grid)).map_err(BmrError::new_err)?;
-        let inner = EverettModel::new(grid, to_vec(masses), offset).map_err(BmrError::new_err)?;
+        let grid =
+            EverettGrid::new(to_vec(grid)).map_err(|e| identification_err("EverettModel", e))?;
+        let inner = EverettModel::new(grid, to_vec(masses), offset)
+            .map_err(|e| identification_err("EverettModel", e))?;
         Ok(Self { inner })
+    }
+
+    fn __copy__(slf: PyRef<'_, Self>) -> PyRef<'_, Self> {
+        slf // immutable: a copy is the object itself
+    }
+
+    fn __deepcopy__<'py>(slf: PyRef<'py, Self>, _memo: &Bound<'py, PyAny>) -> PyRef<'py, Self> {
+        slf
+    }
+
+    /// Pickled as its constructor arguments.
+    #[allow(clippy::type_complexity)]
+    fn __reduce__<'py>(
+        slf: &Bound<'py, Self>,
+    ) -> PyResult<(
+        Bound<'py, PyAny>,
+        (Bound<'py, PyArray1<f64>>, Bound<'py, PyArray1<f64>>, f64),
+    )> {
+        let py = slf.py();
+        let me = slf.get();
+        Ok((
+            slf.get_type().into_any(),
+            (
+                PyArray1::from_slice(py, me.inner.grid().nodes()),
+                PyArray1::from_slice(py, me.inner.masses()),
+                me.inner.offset(),
+            ),
+        ))
     }
 
     /// Input grid nodes.
@@ -120,7 +150,7 @@ impl PyEverettModel {
     ) -> PyResult<Bound<'py, PyArray1<f64>>> {
         let u = to_vec(u);
         if let Some(i) = u.iter().position(|v| !v.is_finite()) {
-            return Err(BmrError::new_err(format!(
+            return Err(crate::python::BmrError::new_err(format!(
                 "input sample {i} is not finite ({})",
                 u[i]
             )));
@@ -139,9 +169,14 @@ impl PyEverettModel {
         subdivisions: usize,
     ) -> PyResult<Bound<'py, PyTuple>> {
         if subdivisions == 0 {
-            return Err(BmrError::new_err("subdivisions must be at least 1"));
+            return Err(crate::python::BmrError::new_err(
+                "subdivisions must be at least 1",
+            ));
         }
-        let (asc, desc) = self.inner.first_order_curves_subdivided(subdivisions);
+        let (asc, desc) = self
+            .inner
+            .first_order_curves_subdivided(subdivisions)
+            .map_err(|e| identification_err("first_order_curves", e))?;
         PyTuple::new(py, [curves_to_py(py, asc)?, curves_to_py(py, desc)?])
     }
 
@@ -155,7 +190,7 @@ impl PyEverettModel {
         let op = self
             .inner
             .hysteresis(subdivisions, &BuildOptions::default(), Initial::Negative)
-            .map_err(bmr_err)?;
+            .map_err(|e| identification_err("EverettModel.hysteresis", e))?;
         Ok(PyHysteresis { op })
     }
 
@@ -184,7 +219,8 @@ fn fit_everett<'py>(
     ridge: f64,
     max_iter: usize,
 ) -> PyResult<Bound<'py, PyDict>> {
-    let grid = EverettGrid::new(to_vec(grid)).map_err(BmrError::new_err)?;
+    let grid =
+        EverettGrid::new(to_vec(grid)).map_err(|e| identification_err("Everett table fit", e))?;
     let data: Vec<RunData> = runs
         .into_iter()
         .map(|(u, y, w, o)| (to_vec(u), to_vec(y), to_vec(w), o))
@@ -207,7 +243,7 @@ fn fit_everett<'py>(
                 .collect();
             fit_everett_rs(&grid, &views, n_offsets, options)
         })
-        .map_err(|e| BmrError::new_err(format!("Everett table fit: {e}")))?;
+        .map_err(|e| identification_err("Everett table fit", e))?;
     let d = PyDict::new(py);
     d.set_item("offsets", PyArray1::from_slice(py, &fit.offsets))?;
     d.set_item("rss", fit.rss)?;

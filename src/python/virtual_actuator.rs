@@ -1,14 +1,18 @@
 //! Python binding of the virtual BMR actuator (`bmr.VirtualActuator`, `bmr.EFFECTS`, `bmr.effect_parameters`).
+use crate::limits::{MAX_GENERATED_SAMPLES, check};
 use crate::plant::effects::{Effect, EffectKind, EffectSet, kind_named};
 use crate::plant::mr_fluid::YieldStress;
 use crate::plant::presets::{DEFAULT_SAMPLE_RATE_HZ, PRESETS, preset as preset_config};
-use crate::plant::{SETTABLE, VirtualActuator};
+use crate::plant::{ActuatorConfig, SETTABLE, VirtualActuator};
 use crate::python::arrays::{extract_f64_array, to_numpy};
-use crate::python::{BmrError, bmr_err};
+use crate::python::errors::InUseError;
+use crate::python::{BmrError, bmr_err, bytes_to_words, limit_err, words_to_bytes};
 use crate::vocabulary::{EffectSpec, MODEL_ENTRIES, SPECS};
 use numpy::PyArray1;
+use pyo3::exceptions::PyTypeError;
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList, PyString, PyTuple};
+use std::sync::{Mutex, MutexGuard, TryLockError};
 
 /// Apply a Python effects specification to `set`: None, a dict `{name: {param: value} | None}` (None
 /// removes the preset's effect), or a list of `"name:key=value,..."` strings (`"name:off"` removes it).
@@ -19,7 +23,7 @@ fn apply_effects(set: &mut EffectSet, spec: &Bound<'_, PyAny>) -> PyResult<()> {
     if let Ok(dict) = spec.cast::<PyDict>() {
         for (name, params) in dict.iter() {
             let name: String = name.extract().map_err(|_| {
-                BmrError::new_err(format!("effect names must be strings, got {name}"))
+                PyTypeError::new_err(format!("effects: effect names must be strings, got {name}"))
             })?;
             let kind = kind_named(&name).map_err(bmr_err)?;
             if params.is_none() {
@@ -27,17 +31,21 @@ fn apply_effects(set: &mut EffectSet, spec: &Bound<'_, PyAny>) -> PyResult<()> {
                 continue;
             }
             let params = params.cast::<PyDict>().map_err(|_| {
-                BmrError::new_err(format!(
-                    "effect {name}: parameters must be a dict {{param: value}} or None"
+                PyTypeError::new_err(format!(
+                    "effects: effect {name}: parameters must be a dict {{param: value}} or None"
                 ))
             })?;
             let mut given: Vec<(String, f64)> = Vec::new();
             for (k, v) in params.iter() {
                 let k: String = k.extract().map_err(|_| {
-                    BmrError::new_err(format!("effect {name}: parameter names must be strings"))
+                    PyTypeError::new_err(format!(
+                        "effects: effect {name}: parameter names must be strings"
+                    ))
                 })?;
                 let v: f64 = v.extract().map_err(|_| {
-                    BmrError::new_err(format!("effect {name}: {k} = {v} is not a number"))
+                    PyTypeError::new_err(format!(
+                        "effects: effect {name}: {k} = {v} is not a number"
+                    ))
                 })?;
                 given.push((k, v));
             }
@@ -50,10 +58,10 @@ fn apply_effects(set: &mut EffectSet, spec: &Bound<'_, PyAny>) -> PyResult<()> {
         vec![s.to_string()]
     } else if spec.cast::<PyList>().is_ok() || spec.cast::<PyTuple>().is_ok() {
         spec.extract().map_err(|_| {
-            BmrError::new_err("effects list must hold strings like \"coil_lag:tau_s=0.02\"")
+            PyTypeError::new_err("effects: a list must hold strings like \"coil_lag:tau_s=0.02\"")
         })?
     } else {
-        return Err(BmrError::new_err(
+        return Err(PyTypeError::new_err(
             "effects must be None, a dict {name: {param: value}} or a list of \"name:key=value\" strings",
         ));
     };
@@ -74,10 +82,84 @@ fn apply_effects(set: &mut EffectSet, spec: &Bound<'_, PyAny>) -> PyResult<()> {
 /// ``effects`` adds to (or, with ``None`` / ``"name:off"``, removes from) the preset's effects; ``overrides``
 /// changes physical parameters by dotted name, e.g. ``{"sensor.noise_n": 0.0, "friction.scale": 0.5}``
 /// (``bmr.ACTUATOR_PARAMETERS`` lists them).
-#[pyclass(name = "VirtualActuator", module = "bmr._core")]
+///
+/// Copyable and picklable (an unpickled actuator continues bit for bit). The configuration can be read at any
+/// time; a call that needs the simulation state while another thread is inside ``run`` raises ``InUseError``.
+#[pyclass(name = "VirtualActuator", module = "bmr._core", frozen)]
 pub struct PyVirtualActuator {
-    inner: VirtualActuator,
+    /// The simulation; locked (never waited for) by every call that reads or advances its state.
+    inner: Mutex<VirtualActuator>,
+    /// Immutable copies for the getters, and the construction arguments for pickling.
+    config: ActuatorConfig,
+    seed: u64,
     preset: String,
+    sample_rate_hz: f64,
+    overrides: Vec<(String, f64)>,
+}
+
+impl PyVirtualActuator {
+    /// The simulation, or `InUseError` while another thread runs it.
+    fn sim(&self) -> PyResult<MutexGuard<'_, VirtualActuator>> {
+        match self.inner.try_lock() {
+            Ok(guard) => Ok(guard),
+            Err(TryLockError::WouldBlock) => Err(InUseError::new_err(
+                "this VirtualActuator is in use by another thread (inside a run() that released the interpreter \
+                 lock); wait for that call to return, or give each thread its own copy (copy.copy)",
+            )),
+            // A panic inside a locked section would be a bug; the state is still a valid simulator state.
+            Err(TryLockError::Poisoned(p)) => Ok(p.into_inner()),
+        }
+    }
+
+    fn with_state(&self, sim: VirtualActuator) -> Self {
+        PyVirtualActuator {
+            inner: Mutex::new(sim),
+            config: self.config.clone(),
+            seed: self.seed,
+            preset: self.preset.clone(),
+            sample_rate_hz: self.sample_rate_hz,
+            overrides: self.overrides.clone(),
+        }
+    }
+
+    /// Every effect kind: its parameters when active, None when off (rebuilds exactly this effect set).
+    fn effects_spec<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let out = PyDict::new(py);
+        for kind in EffectKind::ALL {
+            out.set_item(kind.name(), py.None())?;
+        }
+        for e in self.config.effects.iter() {
+            let params = PyDict::new(py);
+            for (k, v) in e.params() {
+                params.set_item(k, v)?;
+            }
+            out.set_item(e.name(), params)?;
+        }
+        Ok(out)
+    }
+}
+
+/// Unpickle a `VirtualActuator`: rebuilt from its construction arguments, then its state restored.
+#[pyfunction]
+fn _rebuild_virtual_actuator(
+    preset: &str,
+    seed: u64,
+    sample_rate_hz: f64,
+    effects: &Bound<'_, PyAny>,
+    overrides: &Bound<'_, PyAny>,
+    state: &[u8],
+) -> PyResult<PyVirtualActuator> {
+    let seed = seed.into_pyobject(effects.py())?.into_any();
+    let a = PyVirtualActuator::new(
+        preset,
+        Some(&seed),
+        sample_rate_hz,
+        Some(effects),
+        Some(overrides),
+    )?;
+    let words = bytes_to_words(state, "VirtualActuator")?;
+    a.sim()?.load_state(&words).map_err(bmr_err)?;
+    Ok(a)
 }
 
 #[pymethods]
@@ -94,8 +176,12 @@ impl PyVirtualActuator {
     ) -> PyResult<Self> {
         let seed: u64 = match seed {
             None => 0,
-            Some(s) => s.extract().map_err(|_| {
-                BmrError::new_err(format!("seed must be an integer in [0, 2**64), got {s}"))
+            Some(s) => s.extract().map_err(|e: PyErr| {
+                if e.is_instance_of::<PyTypeError>(s.py()) {
+                    PyTypeError::new_err(format!("seed must be an integer, got {s}"))
+                } else {
+                    BmrError::new_err(format!("seed must be an integer in [0, 2**64), got {s}"))
+                }
             })?,
         };
         let mut config = preset_config(preset).map_err(bmr_err)?;
@@ -103,46 +189,96 @@ impl PyVirtualActuator {
         if let Some(spec) = effects {
             apply_effects(&mut config.effects, spec)?;
         }
+        let mut applied = Vec::new();
         if let Some(over) = overrides.filter(|o| !o.is_none()) {
             let over = over.cast::<PyDict>().map_err(|_| {
-                BmrError::new_err("overrides must be a dict {\"group.parameter\": value}")
+                PyTypeError::new_err("overrides must be a dict {\"group.parameter\": value}")
             })?;
             for (k, v) in over.iter() {
                 let k: String = k.extract().map_err(|_| {
-                    BmrError::new_err(format!(
+                    PyTypeError::new_err(format!(
                         "overrides: parameter names must be strings, got {k}"
                     ))
                 })?;
                 let v: f64 = v.extract().map_err(|_| {
-                    BmrError::new_err(format!("overrides: {k} = {v} is not a number"))
+                    PyTypeError::new_err(format!("overrides: {k} = {v} is not a number"))
                 })?;
                 config.set(&k, v).map_err(bmr_err)?;
+                applied.push((k, v));
             }
         }
         let inner = VirtualActuator::new(config, seed).map_err(bmr_err)?;
         Ok(PyVirtualActuator {
-            inner,
+            config: inner.config().clone(),
+            inner: Mutex::new(inner),
+            seed,
             preset: preset.to_string(),
+            sample_rate_hz,
+            overrides: applied,
         })
+    }
+
+    /// An independent actuator in the same state (same configuration, memory, time and noise stream).
+    fn __copy__(&self) -> PyResult<Self> {
+        let sim = self.sim()?.clone();
+        Ok(self.with_state(sim))
+    }
+
+    fn __deepcopy__(&self, _memo: &Bound<'_, PyAny>) -> PyResult<Self> {
+        self.__copy__()
+    }
+
+    /// Pickled as its construction arguments and its state: an unpickled actuator continues bit for bit.
+    fn __reduce__<'py>(
+        &self,
+        py: Python<'py>,
+    ) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyTuple>)> {
+        let state = self.sim()?.save_state();
+        let overrides = PyDict::new(py);
+        for (k, v) in &self.overrides {
+            overrides.set_item(k, v)?;
+        }
+        let args = (
+            self.preset.as_str(),
+            self.seed,
+            self.sample_rate_hz,
+            self.effects_spec(py)?,
+            overrides,
+            words_to_bytes(py, &state),
+        )
+            .into_pyobject(py)?;
+        let rebuild = py
+            .import("bmr._core")?
+            .getattr("_rebuild_virtual_actuator")?;
+        Ok((rebuild, args))
     }
 
     /// Run commanded nominal currents (A) from the current state; releases the GIL. Returns a dict of arrays:
     /// ``t_s, current_a, coil1_a, coil2_a, theta_rad, speed_rad_s, torque_nmm`` (what the rig logs) and the
     /// hidden truths ``b1_t, b2_t, field_torque_nmm, friction_nmm, torque_true_nmm``.
+    /// At most 2**24 samples per call (``bmr.LIMITS``); longer simulations continue over several calls.
     fn run<'py>(
-        &mut self,
+        &self,
         py: Python<'py>,
         current_a: &Bound<'py, PyAny>,
     ) -> PyResult<Bound<'py, PyDict>> {
         let cmd = extract_f64_array(current_a, "current_a")?;
+        check(
+            "samples in one VirtualActuator.run call",
+            cmd.len(),
+            MAX_GENERATED_SAMPLES,
+        )
+        .map_err(limit_err)?;
         if let Some(i) = cmd.iter().position(|v| !v.is_finite()) {
             return Err(BmrError::new_err(format!(
                 "current_a[{i}] = {} is not finite; commands must be finite currents in A",
                 cmd[i]
             )));
         }
-        let inner = &mut self.inner;
+        let mut sim = self.sim()?;
+        let inner = &mut *sim;
         let trace = py.detach(move || inner.run(&cmd));
+        drop(sim);
         let out = PyDict::new(py);
         let cols: [(&str, Vec<f64>); 12] = [
             ("t_s", trace.t_s),
@@ -166,8 +302,8 @@ impl PyVirtualActuator {
 
     /// Advance one sample with commanded nominal current ``current_a`` (A); returns a dict of floats with the same
     /// keys as ``run`` plus ``command_valid`` (a non-finite command applies the safe 0 A and is flagged False).
-    fn step<'py>(&mut self, py: Python<'py>, current_a: f64) -> PyResult<Bound<'py, PyDict>> {
-        let s = self.inner.step(current_a);
+    fn step<'py>(&self, py: Python<'py>, current_a: f64) -> PyResult<Bound<'py, PyDict>> {
+        let s = self.sim()?.step(current_a);
         let out = PyDict::new(py);
         let items: [(&str, f64); 12] = [
             ("t_s", s.t_s),
@@ -191,8 +327,9 @@ impl PyVirtualActuator {
     }
 
     /// Back to the state right after construction (demagnetised, cold, t = 0, same noise stream).
-    fn reset(&mut self) {
-        self.inner.reset();
+    fn reset(&self) -> PyResult<()> {
+        self.sim()?.reset();
+        Ok(())
     }
 
     /// Noise-free seal friction (N·mm) at zero current for each angle in ``theta_rad``.
@@ -202,23 +339,23 @@ impl PyVirtualActuator {
         theta_rad: &Bound<'py, PyAny>,
     ) -> PyResult<Bound<'py, PyArray1<f64>>> {
         let th = extract_f64_array(theta_rad, "theta_rad")?;
-        let v: Vec<f64> = th
-            .iter()
-            .map(|&t| self.inner.true_friction_nmm(t))
-            .collect();
+        let sim = self.sim()?;
+        let v: Vec<f64> = th.iter().map(|&t| sim.true_friction_nmm(t)).collect();
         Ok(to_numpy(py, v))
     }
 
     /// Encoder angles (rad) of the next ``n`` samples, without advancing (the angle does not depend on current).
-    fn theta_ahead<'py>(&self, py: Python<'py>, n: usize) -> Bound<'py, PyArray1<f64>> {
-        to_numpy(py, self.inner.theta_ahead(n))
+    /// At most 2**24 samples per call (``bmr.LIMITS``).
+    fn theta_ahead<'py>(&self, py: Python<'py>, n: usize) -> PyResult<Bound<'py, PyArray1<f64>>> {
+        let theta = self.sim()?.theta_ahead(n).map_err(limit_err)?;
+        Ok(to_numpy(py, theta))
     }
 
     /// Active effects and their parameters: ``{name: {param: value}}``.
     #[getter]
     fn effects<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
         let out = PyDict::new(py);
-        for e in self.inner.config().effects.iter() {
+        for e in self.config.effects.iter() {
             let params = PyDict::new(py);
             for (k, v) in e.params() {
                 params.set_item(k, v)?;
@@ -236,29 +373,29 @@ impl PyVirtualActuator {
     /// Free-text description of the actuator (written into bundles).
     #[getter]
     fn name(&self) -> &str {
-        &self.inner.config().name
+        &self.config.name
     }
 
     #[getter]
     fn seed(&self) -> u64 {
-        self.inner.seed()
+        self.seed
     }
 
     #[getter]
     fn sample_rate_hz(&self) -> f64 {
-        self.inner.config().sample_rate_hz
+        self.config.sample_rate_hz
     }
 
     /// Time of the next sample, s.
     #[getter]
-    fn time_s(&self) -> f64 {
-        self.inner.time_s()
+    fn time_s(&self) -> PyResult<f64> {
+        Ok(self.sim()?.time_s())
     }
 
     /// The physical parameters of every stage (units in the names), for reports and ground-truth studies.
     #[getter]
     fn parameters<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
-        let c = self.inner.config();
+        let c = &self.config;
         let out = PyDict::new(py);
         let conv = PyDict::new(py);
         conv.set_item("gain_a_per_v", c.converter.gain_a_per_v)?;
@@ -324,35 +461,29 @@ impl PyVirtualActuator {
     /// Standard deviation of the torque sensor noise, N·mm.
     #[getter]
     fn noise_nmm(&self) -> f64 {
-        self.inner.config().sensor.noise_nmm()
+        self.config.sensor.noise_nmm()
     }
 
     /// Torque quantisation step of the sensor, N·mm (0 = none).
     #[getter]
     fn resolution_nmm(&self) -> f64 {
-        let s = &self.inner.config().sensor;
+        let s = &self.config.sensor;
         s.resolution_n * s.lever_mm
     }
 
     /// Converter gain, A/V.
     #[getter]
     fn converter_gain_a_per_v(&self) -> f64 {
-        self.inner.config().converter.gain_a_per_v
+        self.config.converter.gain_a_per_v
     }
 
     fn __repr__(&self) -> String {
-        let effects: Vec<String> = self
-            .inner
-            .config()
-            .effects
-            .iter()
-            .map(|e| e.to_string())
-            .collect();
+        let effects: Vec<String> = self.config.effects.iter().map(|e| e.to_string()).collect();
         format!(
             "VirtualActuator(preset={:?}, seed={}, sample_rate_hz={}, effects=[{}])",
             self.preset,
-            self.inner.seed(),
-            self.inner.config().sample_rate_hz,
+            self.seed,
+            self.config.sample_rate_hz,
             effects.join(", ")
         )
     }
@@ -389,6 +520,7 @@ fn effect_parameters(py: Python<'_>, model_entries: bool) -> PyResult<Bound<'_, 
 
 pub(crate) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<PyVirtualActuator>()?;
+    m.add_function(wrap_pyfunction!(_rebuild_virtual_actuator, m)?)?;
     m.add_function(wrap_pyfunction!(effect_parameters, m)?)?;
     m.add(
         "EFFECTS",

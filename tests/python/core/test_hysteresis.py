@@ -183,7 +183,8 @@ def test_reversal_outside_major_range_is_rejected():
 
 
 def test_non_sequence_arguments_are_clear_errors():
-    with pytest.raises(bmr.BmrError, match="ascending"):
+    # Wrong types are TypeErrors that name the argument.
+    with pytest.raises(TypeError, match="ascending"):
         bmr.Hysteresis.from_curves(3, [])
-    with pytest.raises(bmr.BmrError, match="ascending curve 0"):
+    with pytest.raises(TypeError, match="ascending curve 0"):
         bmr.Hysteresis.from_curves([("a", "b")], [])

@@ -96,11 +96,22 @@ def test_properties_and_repr():
     (dict(sample_rate_hz=0.0), "sample_rate_hz"),
     (dict(sample_rate_hz=float("nan")), "sample_rate_hz"),
     (dict(seed=-1), "seed must be an integer"),
-    (dict(seed="x"), "seed must be an integer"),
+
 ])
 def test_bad_construction_is_a_clear_error(kwargs, message):
     with pytest.raises(bmr.BmrError, match=message):
         bmr.VirtualActuator(**kwargs)
+
+
+def test_wrong_argument_types_are_type_errors_naming_the_argument():
+    with pytest.raises(TypeError, match="seed must be an integer"):
+        bmr.VirtualActuator(seed="x")
+    with pytest.raises(TypeError, match="effects"):
+        bmr.VirtualActuator(effects=3)
+    with pytest.raises(TypeError, match="current_a: complex values"):
+        bmr.VirtualActuator().run(np.array([1 + 1j]))
+    with pytest.raises(TypeError, match="current_a: boolean values"):
+        bmr.VirtualActuator().run(np.array([True, False]))
 
 
 def test_bad_commands_are_clear_errors_and_leave_the_state_untouched():
@@ -110,7 +121,7 @@ def test_bad_commands_are_clear_errors_and_leave_the_state_untouched():
         act.run([0.0, 0.3, float("nan")])
     with pytest.raises(bmr.BmrError, match="current_a"):
         act.run([[1.0, 2.0]])
-    with pytest.raises(bmr.BmrError, match="current_a"):
+    with pytest.raises(TypeError, match="current_a"):
         act.run("abc")
     assert act.time_s == pytest.approx(2e-3)
 
@@ -166,5 +177,5 @@ def test_overrides_change_physical_parameters_by_name():
         bmr.VirtualActuator(overrides={"sensor.noize_n": 0.0})
     with pytest.raises(bmr.BmrError, match="sensor.lever_mm"):
         bmr.VirtualActuator(overrides={"sensor.lever_mm": -1.0})
-    with pytest.raises(bmr.BmrError, match="overrides must be a dict"):
+    with pytest.raises(TypeError, match="overrides must be a dict"):
         bmr.VirtualActuator(overrides=[("sensor.noise_n", 0.0)])

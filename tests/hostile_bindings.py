@@ -1,0 +1,184 @@
+"""Call every binding of ``bmr._core`` with hostile sizes and values, one argument at a time.
+
+Run as a script (in a child process, so that an abort cannot take the test session down): prints one JSON line per
+call whose outcome is not allowed, then ``DONE <calls>``. Allowed outcomes: a return value, a ``bmr.BmrError`` (or
+subclass), a ``TypeError`` that names the argument, an ``OverflowError`` for integers beyond 64 bits. Not allowed:
+a Rust panic (``PanicException``), any other exception or warning (a silent conversion), an abort.
+"""
+from __future__ import annotations
+
+import inspect
+import json
+import pickle
+import sys
+import warnings
+
+import numpy as np
+
+import bmr._core as core
+
+HOSTILE = [
+    None, True, -1, 0, 1, 2**31 - 1, 2**62, 2**63, 2**64, 10**12, 10**30,
+    float("nan"), float("inf"), -float("inf"), 1e308, -1e308, 5e-324, -0.0,
+    "", "nope", b"\x00" * 16, [], [[]], [1.0, "x"], {}, {"a": 1}, (1, 2), object(),
+    np.array([]), np.full(5, np.nan), np.array([1e308, -1e308, 1e308]), np.zeros((3, 3)),
+    np.array([1 + 2j, 3.0]), np.array([True, False, True]), np.arange(5000, dtype=float) * 1e300,
+]
+
+
+def _family(sign: float, n: int = 4) -> list[tuple[np.ndarray, np.ndarray]]:
+    out = []
+    for k in range(n):
+        r = -1.0 + 2.0 * k / n
+        if sign > 0:
+            u = np.linspace(r, 1.0, 9)
+        else:
+            u = np.linspace(-r, -1.0, 9)
+        out.append((u, 100.0 * (u + 1.0)))
+    return out
+
+
+def _hysteresis() -> core.Hysteresis:
+    return core.Hysteresis.from_curves(_family(1.0), _family(-1.0))
+
+
+def _everett() -> core.EverettModel:
+    return core.EverettModel(np.linspace(-1, 1, 9), np.full(36, 0.1), 0.0)
+
+
+U = np.sin(np.linspace(0, 20, 300))
+TH = np.linspace(0, 30, 300)
+SANE: dict[str, object] = {
+    "ascending": _family(1.0), "descending": _family(-1.0), "initial": None, "monotone_tolerance": 0.005,
+    "reach_tolerance": 0.01, "closure_tolerance": 0.05, "max_nodes": 1024, "u": U, "theta_rad": TH,
+    "torque_nmm": np.sin(TH), "order": 2, "grid": np.linspace(-1, 1, 9),
+    "runs": [(U, 10 * U, np.ones_like(U), 0)], "n_offsets": 1, "smoothing": 1e-4, "ridge": 1e-9, "max_iter": 500,
+    "masses": np.full(36, 0.1), "offset": 0.0, "beta": -0.5, "alpha": 0.5, "subdivisions": 2, "current_a": U,
+    "n": 10, "preset": "bmr2013", "seed": 0, "sample_rate_hz": 1000.0, "effects": None, "overrides": None,
+    "friction": None, "inverse": "exact", "converter_gain": 0.125, "current_limit": 1.25,
+    "torque_ref_nmm": 100 * U, "c0": 1.0, "a": [0.5], "b": [0.2], "amplitude": [1.0], "phase": [0.3],
+}
+# Per-callable values where the generic ones do not fit (scalars for single steps, objects for methods).
+SPECIFIC: dict[str, dict[str, object]] = {
+    "VirtualActuator.step": {"current_a": 0.3},
+    "Compensator.step": {"torque_ref_nmm": 50.0, "theta_rad": 0.3},
+    "EverettModel.simulate": {"offset": None},
+    "VirtualActuator.true_friction": {"theta_rad": TH},
+}
+
+
+def _reduce_args(obj: object) -> tuple:
+    return obj.__reduce__()[1]
+
+
+def _targets() -> list[tuple[str, object, dict[str, object]]]:
+    """(name, callable, sane arguments) for every function and method."""
+    h = _hysteresis()
+    h.run(U)
+    va = core.VirtualActuator()
+    comp = core.Compensator(_hysteresis(), core.Friction(1.0, [0.5], [0.2]))
+    asc, an, ac, desc, dn, dc, ylo, yhi, state = _reduce_args(h)
+    vargs = _reduce_args(va)
+    targets: list[tuple[str, object, dict[str, object]]] = [
+        ("Hysteresis.from_curves", core.Hysteresis.from_curves, {}),
+        ("Hysteresis.step", _hysteresis().step, {"u": 0.3}),
+        ("Hysteresis.run", _hysteresis().run, {}),
+        ("Hysteresis.reset", _hysteresis().reset, {}),
+        ("Hysteresis.restore", _hysteresis().restore, {"state": _hysteresis().snapshot()}),
+        ("fit_friction_order", core.fit_friction_order, {}),
+        ("fit_everett", core.fit_everett, {}),
+        ("EverettModel", core.EverettModel, {}),
+        ("EverettModel.everett", _everett().everett, {}),
+        ("EverettModel.simulate", _everett().simulate, {}),
+        ("EverettModel.first_order_curves", _everett().first_order_curves, {}),
+        ("VirtualActuator", core.VirtualActuator, {}),
+        ("VirtualActuator.run", va.run, {}),
+        ("VirtualActuator.step", va.step, {}),
+        ("VirtualActuator.theta_ahead", va.theta_ahead, {}),
+        ("VirtualActuator.true_friction", va.true_friction, {}),
+        ("Friction", core.Friction, {}),
+        ("Friction.from_amplitude_phase", core.Friction.from_amplitude_phase, {}),
+        ("Compensator", core.Compensator, {"hysteresis": _hysteresis()}),
+        ("Compensator.step", comp.step, {}),
+        ("Compensator.run", comp.run, {}),
+        ("Compensator.reset", comp.reset, {}),
+        ("_rebuild_hysteresis", core._rebuild_hysteresis,
+         dict(asc=asc, asc_nodes=an, asc_curves=ac, desc=desc, desc_nodes=dn, desc_curves=dc, y_lo=ylo, y_hi=yhi,
+              state=state)),
+        ("_rebuild_hysteresis_state", core._rebuild_hysteresis_state, {"state": state}),
+        ("_rebuild_virtual_actuator", core._rebuild_virtual_actuator,
+         dict(zip(("preset", "seed", "sample_rate_hz", "effects", "overrides", "state"), vargs))),
+    ]
+    return targets
+
+
+def _params(fn: object) -> list[inspect.Parameter]:
+    try:
+        sig = inspect.signature(fn)
+    except (TypeError, ValueError):
+        return []
+    return [p for p in sig.parameters.values() if p.name not in ("self", "$self")]
+
+
+def _call(fn: object, params: list[inspect.Parameter], values: dict[str, object]) -> None:
+    args, kwargs = [], {}
+    for p in params:
+        if p.kind == p.KEYWORD_ONLY:
+            kwargs[p.name] = values[p.name]
+        else:
+            args.append(values[p.name])
+    fn(*args, **kwargs)
+
+
+def main() -> int:
+    # A silent conversion (complex to real, say) is a finding too.
+    warnings.simplefilter("error")
+    allowed = (core.BmrError, OverflowError)
+    calls = 0
+    for name, fn, specific in _targets():
+        params = _params(fn)
+        base = {p.name: SANE[p.name] for p in params if p.name in SANE}
+        base.update(SPECIFIC.get(name, {}))
+        base.update(specific)
+        missing = [p.name for p in params if p.name not in base]
+        if missing:
+            print(json.dumps({"call": name, "problem": f"no sane value for {missing}"}), flush=True)
+            continue
+        _call(fn, params, base)  # the sane call itself must work
+        for p in params:
+            for value in HOSTILE:
+                values = dict(base)
+                values[p.name] = value
+                calls += 1
+                try:
+                    _call(fn, params, values)
+                except allowed:
+                    pass
+                except TypeError as exc:
+                    # The argument's name is in the message or in a note ("while processing 'n'").
+                    if p.name not in str(exc) + " ".join(getattr(exc, "__notes__", [])):
+                        print(json.dumps({"call": name, "arg": p.name, "value": repr(value)[:60],
+                                          "problem": f"TypeError not naming the argument: {exc}"}), flush=True)
+                except BaseException as exc:  # noqa: BLE001 - PanicException is a BaseException
+                    print(json.dumps({"call": name, "arg": p.name, "value": repr(value)[:60],
+                                      "problem": f"{type(exc).__name__}: {exc}"[:300]}), flush=True)
+    # Pickled data is data too: damaged pickles of every picklable object give errors, never panics.
+    for obj in (_hysteresis(), _hysteresis().snapshot(), core.VirtualActuator(), _everett()):
+        blob = pickle.dumps(obj)
+        for i in range(0, len(blob), max(1, len(blob) // 200)):
+            for b in (0, 0xFF, 0x7F):
+                calls += 1
+                damaged = blob[:i] + bytes([b]) + blob[i + 1:]
+                try:
+                    pickle.loads(damaged)
+                except Exception:  # noqa: BLE001 - any ordinary error is fine; a panic is not
+                    pass
+                except BaseException as exc:  # noqa: BLE001
+                    print(json.dumps({"call": f"pickle.loads({type(obj).__name__})", "arg": str(i),
+                                      "problem": f"{type(exc).__name__}: {exc}"[:300]}), flush=True)
+    print(f"DONE {calls}", flush=True)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,294 @@
+//! Hostile sizes and values: documented limits checked before allocation, clear range errors instead of wrong
+//! output, whole-table snapshot fingerprints, state serialisation that refuses damaged words.
+mod common;
+
+use bmr::limits::{MAX_CURVES, MAX_GENERATED_SAMPLES, MAX_NODES, MAX_TABLE_VALUES};
+use bmr::plant::{VirtualActuator, preset};
+use bmr::{BuildOptions, FamilyKind, Hysteresis, Initial, TableError};
+
+type Op = Hysteresis<Vec<f64>, 16>;
+type Curves = Vec<common::Curve>;
+
+fn build(a: &[common::Curve], d: &[common::Curve]) -> Result<Op, TableError> {
+    Op::from_curve_data(a, d, &BuildOptions::default(), Initial::Negative)
+}
+
+/// What a result is, without the (huge) tables of a successful build.
+fn outcome(r: Result<Op, TableError>) -> Result<(), TableError> {
+    r.map(|_| ())
+}
+
+/// `count` first-order curves per family of a congruent table on `[-scale, scale]` with outputs scaled by
+/// `out_scale`, each with `samples` points (at positions that differ from curve to curve).
+fn scaled_curves(count: usize, samples: usize, scale: f64, out_scale: f64) -> (Curves, Curves) {
+    let shape = |x: f64| out_scale * (x + 1.0); // output as a function of the normalised input
+    let mut asc = Vec::new();
+    let mut desc = Vec::new();
+    for c in 0..count {
+        let r = -1.0 + 2.0 * c as f64 / count as f64;
+        let warp = 1.0 + c as f64 / count as f64;
+        let u: Vec<f64> = (0..samples)
+            .map(|k| r + (1.0 - r) * (k as f64 / (samples - 1) as f64).powf(warp))
+            .collect();
+        let y: Vec<f64> = u.iter().map(|&x| shape(x)).collect();
+        asc.push((u.iter().map(|x| x * scale).collect(), y));
+        let top = -r;
+        let u: Vec<f64> = (0..samples)
+            .map(|k| top - (top + 1.0) * k as f64 / (samples - 1) as f64)
+            .collect();
+        let y: Vec<f64> = u.iter().map(|&x| shape(x)).collect();
+        desc.push((u.iter().map(|x| x * scale).collect(), y));
+    }
+    (asc, desc)
+}
+
+#[test]
+fn curve_count_is_bounded_before_the_table_is_allocated() {
+    // 100 001 curves asked for ~80 GB (table = curves × nodes) and aborted the process.
+    let (a, d) = scaled_curves(100_001, 2, 1.0, 1.0);
+    match outcome(build(&a, &d)) {
+        Err(TableError::TooLarge {
+            family: Some(FamilyKind::Ascending),
+            limit,
+        }) => {
+            assert_eq!(limit.requested, 100_001);
+            assert_eq!(limit.limit, MAX_CURVES);
+        }
+        other => panic!("expected a size limit error, got {other:?}"),
+    }
+}
+
+#[test]
+fn table_values_are_bounded_and_max_nodes_is_limited() {
+    // Below the curve limit but with a grid so fine that curves × nodes exceeds the value limit.
+    let (a, d) = scaled_curves(300, 300, 1.0, 1.0);
+    let opts = BuildOptions {
+        max_nodes: MAX_NODES,
+        ..BuildOptions::default()
+    };
+    match outcome(Op::from_curve_data(&a, &d, &opts, Initial::Negative)) {
+        Err(TableError::TooLarge { limit, .. }) => {
+            assert_eq!(limit.limit, MAX_TABLE_VALUES);
+            assert!(limit.requested > MAX_TABLE_VALUES);
+        }
+        other => panic!("expected a size limit error, got {other:?}"),
+    }
+    let opts = BuildOptions {
+        max_nodes: usize::MAX,
+        ..BuildOptions::default()
+    };
+    let (a, d) = scaled_curves(3, 5, 1.0, 1.0);
+    assert!(matches!(
+        outcome(Op::from_curve_data(&a, &d, &opts, Initial::Negative)),
+        Err(TableError::TooLarge { family: None, .. })
+    ));
+    // The largest allowed number of curves still builds.
+    let (a, d) = scaled_curves(2000, 2, 1.0, 1.0);
+    let h = build(&a, &d).unwrap();
+    assert_eq!(h.ascending().curves(), 2000);
+}
+
+#[test]
+fn inputs_beyond_the_supported_magnitude_are_a_range_error() {
+    // At 4e154 the strip interpolation `(r_next - r_j) * (u - m)` overflowed and the operator returned inf.
+    for scale in [4e154, 1e200, 1e308] {
+        let (a, d) = scaled_curves(5, 9, scale, 1.0);
+        let err = outcome(build(&a, &d)).unwrap_err();
+        assert!(
+            matches!(err, TableError::OutOfRange { what: "input", .. }),
+            "{scale}: {err}"
+        );
+        let msg = err.to_string();
+        assert!(msg.contains("supported magnitude"), "{msg}");
+        assert!(!msg.contains("grid nodes"), "{msg}");
+    }
+    let (a, d) = scaled_curves(5, 9, 1.0, 1e300);
+    assert!(matches!(
+        outcome(build(&a, &d)),
+        Err(TableError::OutOfRange { what: "output", .. })
+    ));
+}
+
+#[test]
+fn tables_at_the_magnitude_limit_give_finite_outputs_and_exact_inverses() {
+    // Inputs and outputs just inside ±1e150: every step must stay finite.
+    let (a, d) = scaled_curves(7, 11, 0.99e150, 1e149);
+    let mut h = build(&a, &d).unwrap();
+    let mut rng = common::Rng(5);
+    let (y_lo, y_hi) = h.output_range();
+    for u in common::random_history(&mut rng, 60, 7) {
+        let y = h.step(u * 0.99e150);
+        assert!(y.is_finite(), "output {y} at input {}", u * 0.99e150);
+        // And the exact inverse to a random reachable target: a finite input that reproduces it.
+        let target = y_lo + (y_hi - y_lo) * rng.uniform();
+        let mut probe = h.clone();
+        let inv = probe.step_inverse(target);
+        assert!(inv.input.is_finite(), "inverse {inv:?} of {target}");
+        if !inv.saturated {
+            let mut check = h.clone();
+            let back = check.step(inv.input);
+            assert!(
+                (back - target).abs() <= 1e-9 * (y_hi - y_lo),
+                "{back} vs {target}"
+            );
+        }
+    }
+}
+
+#[test]
+fn reversals_closer_than_the_resolution_name_the_users_curves() {
+    // Two ascending curves 1e-13 apart used to fail with "reversal is not a grid node (at index 1)", an index
+    // after sorting; the error names both curves in the caller's numbering and their inputs.
+    let (mut a, d) = scaled_curves(5, 9, 1.0, 1.0);
+    let mut near = a[2].clone();
+    near.0[0] += 1e-13;
+    a.push(near);
+    match outcome(build(&a, &d)) {
+        Err(TableError::ReversalsTooClose {
+            family: FamilyKind::Ascending,
+            curve: 5,
+            other: 2,
+            ..
+        }) => {}
+        other => panic!("expected curves 2 and 5 to be named, got {other:?}"),
+    }
+    let (a, mut d) = scaled_curves(5, 9, 1.0, 1.0);
+    let mut near = d[3].clone();
+    near.0[0] -= 1e-13;
+    d.insert(1, near);
+    let err = outcome(build(&a, &d)).unwrap_err();
+    match err {
+        TableError::ReversalsTooClose {
+            family: FamilyKind::Descending,
+            curve,
+            other,
+            input,
+            other_input,
+            ..
+        } => {
+            assert_eq!((other, curve), (1, 4));
+            // Descending inputs in the caller's units and sign.
+            assert!(
+                (input + 0.2).abs() < 1e-9 && (other_input + 0.2).abs() < 1e-9,
+                "{err}"
+            );
+        }
+        other => panic!("expected descending curves 1 and 4, got {other:?}"),
+    }
+    assert!(err.to_string().contains("curves 1 and 4"), "{err}");
+}
+
+#[test]
+fn snapshot_of_a_table_with_one_value_changed_is_refused() {
+    // The fingerprint used to sample 5 table values: a table with one output changed by 1e-6 accepted it.
+    let (a, d) = common::measure_first_order(40, 9);
+    let h1 = build(&a, &d).unwrap();
+    let s = h1.snapshot();
+    for (family, curve) in [(0usize, 3usize), (1, 5)] {
+        let (mut a2, mut d2) = (a.clone(), d.clone());
+        let target = if family == 0 { &mut a2 } else { &mut d2 };
+        let mid = target[curve].1.len() / 2;
+        target[curve].1[mid] += if family == 0 { 1e-6 } else { -1e-6 };
+        let mut h2 = build(&a2, &d2).unwrap();
+        assert_eq!(h2.restore(&s), Err(TableError::ForeignState));
+    }
+    let mut same = build(&a, &d).unwrap();
+    assert_eq!(same.restore(&s), Ok(()));
+}
+
+#[test]
+fn state_words_round_trip_and_damaged_words_are_errors() {
+    let (a, d) = common::measure_first_order(40, 9);
+    let mut h = build(&a, &d).unwrap();
+    let mut rng = common::Rng(11);
+    // Enough reversals to fill the 16-point memory and merge.
+    let hist = common::random_history(&mut rng, 80, 5);
+    for &u in &hist {
+        h.step(u);
+    }
+    let words = h.snapshot().to_words();
+    let mut fresh = build(&a, &d).unwrap();
+    let st = fresh.state_from_words(&words).unwrap();
+    fresh.restore(&st).unwrap();
+    assert_eq!(fresh.snapshot().to_words(), words);
+    let tail = common::random_history(&mut rng, 30, 5);
+    for &u in &tail {
+        assert_eq!(fresh.step(u).to_bits(), h.step(u).to_bits());
+    }
+    // Every single-word corruption is either refused or gives a state with finite outputs: never a panic.
+    for i in 0..words.len() {
+        for bad in [0, u64::MAX, 1 << 62, f64::NAN.to_bits(), 1e300f64.to_bits()] {
+            let mut w = words.clone();
+            w[i] = bad;
+            if let Ok(st) = fresh.state_from_words(&w) {
+                let mut g = build(&a, &d).unwrap();
+                g.restore(&st).unwrap();
+                for &u in &tail {
+                    g.step(u);
+                }
+            }
+        }
+    }
+    assert!(fresh.state_from_words(&words[..words.len() - 1]).is_err());
+    assert!(fresh.state_from_words(&[]).is_err());
+}
+
+#[test]
+fn simulator_state_round_trips_with_every_effect_on() {
+    let mut config = preset("bmr2013").unwrap();
+    for spec in [
+        "coil_lag:tau_s=0.01",
+        "time_delay:delay_s=0.004",
+        "thermal_drift",
+        "friction_current",
+        "friction_harmonics",
+        "torque_ripple",
+        "sensor_drift",
+        "non_congruent",
+    ] {
+        config
+            .effects
+            .insert(bmr::plant::Effect::parse(spec).unwrap());
+    }
+    let mut a = VirtualActuator::new(config.clone(), 3).unwrap();
+    let cmd: Vec<f64> = (0..700).map(|k| 1.2 * (k as f64 * 0.021).sin()).collect();
+    a.run(&cmd);
+    let words = a.save_state();
+    let mut b = VirtualActuator::new(config.clone(), 3).unwrap();
+    b.load_state(&words).unwrap();
+    assert_eq!(a.run(&cmd), b.run(&cmd));
+    // Damaged or foreign words are refused and leave the actuator as it was.
+    let before = b.save_state();
+    assert!(b.load_state(&words[..words.len() - 1]).is_err());
+    let mut longer = words.clone();
+    longer.push(0);
+    assert!(b.load_state(&longer).is_err());
+    let mut nan = words.clone();
+    nan[5] = f64::NAN.to_bits();
+    assert!(b.load_state(&nan).is_err());
+    assert_eq!(b.save_state(), before);
+    let plain = VirtualActuator::new(preset("bmr2013").unwrap(), 3).unwrap();
+    let mut plain2 = plain.clone();
+    assert!(
+        plain2.load_state(&words).is_err(),
+        "delay line of another configuration"
+    );
+    for i in 0..words.len() {
+        let mut w = words.clone();
+        w[i] = u64::MAX;
+        let mut c = VirtualActuator::new(config.clone(), 3).unwrap();
+        if c.load_state(&w).is_ok() {
+            for s in c.run(&cmd).torque_nmm {
+                assert!(!s.is_nan());
+            }
+        }
+    }
+}
+
+#[test]
+fn angle_preview_is_bounded() {
+    let a = VirtualActuator::new(preset("bmr2013").unwrap(), 0).unwrap();
+    assert!(a.theta_ahead(1usize << 62).is_err());
+    assert!(a.theta_ahead(MAX_GENERATED_SAMPLES + 1).is_err());
+    assert_eq!(a.theta_ahead(10).unwrap().len(), 10);
+}
