@@ -78,7 +78,7 @@ def measure_performance(repeat: int) -> None:
     values["latency_ns"] = {k: {q: _spread([r[q] for r in v]) for q in ("median", "p99", "p999")}
                             for k, v in latency.items()}
     values["instructions"] = {}
-    for what in ("compensator", "hysteresis"):
+    for what in ("compensator", "extended", "hysteresis"):
         _, _, out = _timed(["bash", "benches/callgrind.sh", what])
         m = re.search(r"(\d+) instructions per step", out)
         values["instructions"][what] = int(m.group(1)) if m else None
@@ -138,8 +138,9 @@ def render_performance(rec: dict[str, Any]) -> str:
                     f"p99 {q['p99']['median']:.0f} ns, p99.9 {q['p999']['median']:.0f} ns over 10⁶ steps | "
                     "`cargo bench --bench latency` |")
     for what, n in ins.items():
-        name = {"compensator": "Compensator::step", "hysteresis": "Hysteresis::step"}[what]
-        rows.append(f"| `{name}` instructions | {n} per step | `benches/callgrind.sh {what}` |")
+        name = {"compensator": "`Compensator::step`", "extended": "`Compensator::step` with every extension stage",
+                "hysteresis": "`Hysteresis::step`"}[what]
+        rows.append(f"| {name} instructions | {n} per step | `benches/callgrind.sh {what}` |")
     cmd = "`python benches/python_peers.py`"
     for name, s in py["per_call_us"].items():
         rows.append(f"| `{name}` from Python | {_pm(s, '{:.3g}', ' µs')} per call | {cmd} |")

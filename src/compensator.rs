@@ -469,6 +469,76 @@ fn limit(x: f64, limit: f64) -> f64 {
     }
 }
 
+/// First word of a serialised [`CompensatorState`] (format tag and version).
+const STATE_TAG: u64 = 0x626d_725f_636f_0001;
+
+#[cfg(feature = "alloc")]
+impl<const N: usize> CompensatorState<N> {
+    /// The state as plain words (pickling); [`Compensator::state_from_words`] reads it back bit for bit.
+    pub fn to_words(&self) -> alloc::vec::Vec<u64> {
+        let fwd = self.forward.to_words();
+        let mut w = alloc::vec![STATE_TAG, fwd.len() as u64];
+        w.extend(fwd);
+        match &self.paper {
+            Some(p) => {
+                let pw = p.to_words();
+                w.push(pw.len() as u64);
+                w.extend(pw);
+            }
+            None => w.push(u64::MAX),
+        }
+        self.stages.to_words(&mut w);
+        w
+    }
+}
+
+impl<S: AsRef<[f64]>, const N: usize, const K: usize> Compensator<S, N, K> {
+    /// Read a state written by [`CompensatorState::to_words`] from a compensator with the same tables and
+    /// stages; damaged or foreign words are an error, never a state that could index outside the tables.
+    pub fn state_from_words(
+        &self,
+        words: &[u64],
+    ) -> Result<CompensatorState<N>, crate::error::TableError> {
+        use crate::error::TableError;
+        let bad = |what| TableError::BadState { what };
+        let mut w = words;
+        let mut take = |n: usize| -> Result<&[u64], TableError> {
+            if n > w.len() {
+                return Err(bad("compensator state words end early"));
+            }
+            let (head, rest) = w.split_at(n);
+            w = rest;
+            Ok(head)
+        };
+        if take(1)? != [STATE_TAG] {
+            return Err(bad("not a serialised compensator state"));
+        }
+        let n = usize::try_from(take(1)?[0]).map_err(|_| bad("word count"))?;
+        let forward = self.forward.state_from_words(take(n)?)?;
+        let n = take(1)?[0];
+        let paper = match (&self.inverse, n) {
+            (InverseKind::Exact, u64::MAX) => None,
+            (InverseKind::Paper(inv), n) if n != u64::MAX => {
+                let n = usize::try_from(n).map_err(|_| bad("word count"))?;
+                Some(inv.state_from_words(take(n)?)?)
+            }
+            _ => return Err(TableError::ForeignState),
+        };
+        let stages = self
+            .stages
+            .state_from_words(&mut w)
+            .ok_or(bad("stage states do not fit this compensator's stages"))?;
+        if !w.is_empty() {
+            return Err(bad("extra words after the compensator state"));
+        }
+        Ok(CompensatorState {
+            forward,
+            paper,
+            stages,
+        })
+    }
+}
+
 /// Reference and angle `d` samples after sample `i` of a run of `n` (past the end: the last reference held, the
 /// angle continued at its last step, wrapped).
 #[inline]

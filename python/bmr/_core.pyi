@@ -49,6 +49,8 @@ __all__ = [
     "lead",
     "output_map",
     "output_map_inverse",
+    "_rebuild_compensator",
+    "_rebuild_compensator_state",
 ]
 
 class BmrError(ValueError):
@@ -309,6 +311,20 @@ class CompensatorState:
     """Opaque snapshot of a Compensator's memory and stage states."""
     def __copy__(self) -> Self: ...
     def __deepcopy__(self, memo: object) -> Self: ...
+    def __reduce__(self) -> tuple[object, tuple[bytes]]: ...
+
+def _rebuild_compensator_state(state: bytes) -> CompensatorState: ...
+def _rebuild_compensator(
+    hysteresis: Hysteresis,
+    friction: Friction,
+    inverse: str,
+    converter_gain: float,
+    current_limit: float,
+    extensions: _Extensions,
+    dt_s: float | None,
+    full_torque_nmm: float,
+    state: bytes,
+) -> Compensator: ...
 
 _Extensions = Sequence[Union[dict[str, object], Tuple[str, dict[str, float]]]]
 
@@ -348,6 +364,7 @@ class Compensator:
     def restore(self, state: CompensatorState) -> None: ...
     def __copy__(self) -> Self: ...
     def __deepcopy__(self, memo: object) -> Self: ...
+    def __reduce__(self) -> tuple[object, tuple[object, ...]]: ...
     @property
     def inverse(self) -> str: ...
     @property

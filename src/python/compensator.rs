@@ -12,7 +12,7 @@ use crate::model_data::{EffectValues, ModelData};
 use crate::python::arrays::{DETACH_LEN, extract_f64_array, to_numpy};
 use crate::python::friction::PyFriction;
 use crate::python::hysteresis::{MEMORY, PyHysteresis, initial_or_negative};
-use crate::python::{BmrError, bmr_err};
+use crate::python::{BmrError, bmr_err, bytes_to_words, table_err, words_to_bytes};
 use crate::simulation::Simulation;
 use crate::stages::{OutputMap, Scales};
 use crate::vocabulary::{NameList, Params, SPECS, extension_spec};
@@ -118,10 +118,18 @@ impl From<Command> for PyCommand {
     }
 }
 
-/// Snapshot of a Compensator's memory and stage states (restore it into the compensator it came from, or a copy).
+/// Snapshot of a Compensator's memory and stage states (restore it into the compensator it came from, or a copy
+/// or unpickled copy of it).
 #[pyclass(name = "CompensatorState", module = "bmr", frozen)]
 #[derive(Clone)]
-pub(crate) struct PyCompensatorState(CompensatorState<MEMORY>);
+pub(crate) struct PyCompensatorState(StateData);
+
+/// A snapshot taken here, or unpickled words (checked against the tables when restored).
+#[derive(Clone)]
+pub(crate) enum StateData {
+    Live(CompensatorState<MEMORY>),
+    Words(Vec<u64>),
+}
 
 #[pymethods]
 impl PyCompensatorState {
@@ -131,6 +139,61 @@ impl PyCompensatorState {
     fn __deepcopy__(&self, _memo: &Bound<'_, PyAny>) -> Self {
         self.clone()
     }
+    fn __reduce__<'py>(
+        &self,
+        py: Python<'py>,
+    ) -> PyResult<(Bound<'py, PyAny>, (Bound<'py, pyo3::types::PyBytes>,))> {
+        let words = match &self.0 {
+            StateData::Live(s) => s.to_words(),
+            StateData::Words(w) => w.clone(),
+        };
+        let rebuild = py
+            .import("bmr._core")?
+            .getattr("_rebuild_compensator_state")?;
+        Ok((rebuild, (words_to_bytes(py, &words),)))
+    }
+}
+
+/// Unpickle a `CompensatorState` (checked against the compensator when it is restored).
+#[pyfunction]
+fn _rebuild_compensator_state(state: &[u8]) -> PyResult<PyCompensatorState> {
+    Ok(PyCompensatorState(StateData::Words(bytes_to_words(
+        state,
+        "CompensatorState",
+    )?)))
+}
+
+/// Unpickle a `Compensator`: rebuilt from its parts, then its state restored.
+#[pyfunction]
+#[allow(clippy::too_many_arguments)]
+fn _rebuild_compensator(
+    hysteresis: PyRef<'_, PyHysteresis>,
+    friction: PyRef<'_, PyFriction>,
+    inverse: &str,
+    converter_gain: f64,
+    current_limit: f64,
+    extensions: &Bound<'_, PyAny>,
+    dt_s: Option<f64>,
+    full_torque_nmm: f64,
+    state: &[u8],
+) -> PyResult<PyCompensator> {
+    let ext = parse_extensions(Some(extensions))?;
+    let mut c = PyCompensator::build(
+        PyHysteresis {
+            op: hysteresis.op.clone(),
+        },
+        friction.f,
+        inverse,
+        converter_gain,
+        current_limit,
+        ext,
+        dt_s,
+        Some(full_torque_nmm),
+    )?;
+    let words = bytes_to_words(state, "Compensator")?;
+    let s = c.core.state_from_words(&words).map_err(table_err)?;
+    c.core.restore(&s).map_err(table_err)?;
+    Ok(c)
 }
 
 /// Parse `extensions`: a sequence of `{"name": str, "params": {param: value}}` (other keys are ignored, e.g. a
@@ -642,12 +705,55 @@ impl PyCompensator {
 
     /// A copy of the memory and stage states (restore it with `restore`).
     fn snapshot(slf: &Bound<'_, Self>) -> PyResult<PyCompensatorState> {
-        Ok(PyCompensatorState(shared(slf)?.core.snapshot()))
+        Ok(PyCompensatorState(StateData::Live(
+            shared(slf)?.core.snapshot(),
+        )))
     }
 
     /// Return to a snapshot of this compensator (or of one with identical tables and stages).
     fn restore(slf: &Bound<'_, Self>, state: &PyCompensatorState) -> PyResult<()> {
-        busy(slf)?.core.restore(&state.0).map_err(bmr_err)
+        let mut me = busy(slf)?;
+        let s = match &state.0 {
+            StateData::Live(s) => *s,
+            StateData::Words(w) => me.core.state_from_words(w).map_err(table_err)?,
+        };
+        me.core.restore(&s).map_err(table_err)
+    }
+
+    /// Pickled as its parts (tables, friction, inverse, gain, limit, extensions, control period) and its state:
+    /// an unpickled compensator continues bit for bit.
+    #[allow(clippy::type_complexity)]
+    fn __reduce__<'py>(
+        slf: &Bound<'py, Self>,
+    ) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyTuple>)> {
+        let py = slf.py();
+        let me = shared(slf)?;
+        let hysteresis = Bound::new(
+            py,
+            PyHysteresis {
+                op: me.hysteresis.op.clone(),
+            },
+        )?;
+        let friction = Bound::new(
+            py,
+            PyFriction {
+                f: me.base_friction,
+            },
+        )?;
+        let args = (
+            hysteresis,
+            friction,
+            me.inverse,
+            me.core.gain_a_per_v(),
+            me.core.limit_a(),
+            extensions_to_py(py, &me.extensions)?,
+            me.dt_s,
+            me.full_torque_nmm,
+            words_to_bytes(py, &me.core.snapshot().to_words()),
+        )
+            .into_pyobject(py)?;
+        let rebuild = py.import("bmr._core")?.getattr("_rebuild_compensator")?;
+        Ok((rebuild, args))
     }
 
     /// "exact" or "paper".
@@ -963,6 +1069,8 @@ fn output_map_inverse<'py>(
 pub(crate) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(check_extensions, m)?)?;
     m.add_function(wrap_pyfunction!(export_source, m)?)?;
+    m.add_function(wrap_pyfunction!(_rebuild_compensator, m)?)?;
+    m.add_function(wrap_pyfunction!(_rebuild_compensator_state, m)?)?;
     m.add_function(wrap_pyfunction!(output_map, m)?)?;
     m.add_function(wrap_pyfunction!(output_map_inverse, m)?)?;
     m.add_class::<PyCompensator>()?;
