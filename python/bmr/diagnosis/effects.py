@@ -21,6 +21,8 @@ from typing import Any
 
 import numpy as np
 
+from bmr import _core
+
 from bmr.diagnosis.field import REIDENTIFY_INTERVALS, FieldPath
 from bmr.diagnosis.residuals import EvalData
 
@@ -149,18 +151,15 @@ _PROTOCOL_HEAT: dict[tuple[float, int], tuple[Any, np.ndarray]] = {}
 
 def bundle_thermal_state(data: EvalData, tau_s: float) -> list[np.ndarray]:
     """Coil heating state (1 = steady full current) of every run of the bundle, in bundle order:
-    ``x' = ((I/I_full)² − x)/tau`` integrated over the runs in order (the actuator's state carries over)."""
-    from scipy.signal import lfilter
-
+    ``x' = ((I/I_full)² − x)/tau`` integrated over the runs in order (the actuator's state carries over); the
+    core's heating filter (``bmr._core.heating_state``), the one the plant and the compensator step."""
     key = ("thermal_all", tau_s)
     if key in data.cache:
         return data.cache[key]
     states = []
     x0 = 0.0
     for u, dt in zip(data.bundle_currents, data.bundle_dt_s):
-        heat = (np.asarray(u, float) / data.full_current_a) ** 2
-        p = math.exp(-dt / tau_s)
-        x, _ = lfilter([1.0 - p], [1.0, -p], heat, zi=[p * x0])
+        x = _core.heating_state(np.asarray(u, float), tau_s, dt, data.full_current_a, initial=x0)
         states.append(x)
         x0 = float(x[-1]) if x.size else x0
     if len(_PROTOCOL_HEAT) > 512:
