@@ -105,8 +105,7 @@ def main() -> int:
         results[f"bmr Compensator.step ({inv})"] = per_call_us(c.step, list(zip(ref_l, th_l)))
     c = bmr.Compensator(h, f)
     buf = np.empty(7)
-    results["bmr Compensator.step_into (exact)"] = per_call_us(lambda r, t: c.step_into(r, t, buf),
-                                                                 list(zip(ref_l, th_l)))
+    results["bmr Compensator.step_into (exact)"] = per_call_us(c.step_into, [(r, t, buf) for r, t in zip(ref_l, th_l)])
     # The extended compensator with every stage (a 1 kHz loop's stages, as the diagnosis finds them).
     ext = bmr.Compensator(h, f, extensions=EVERY_STAGE, dt_s=0.001, full_torque_nmm=300.0)
     results["bmr Compensator.step (extended, every stage)"] = per_call_us(ext.step, list(zip(ref_l, th_l)))

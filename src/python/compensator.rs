@@ -381,14 +381,17 @@ impl PyCompensator {
                 Some(dt) => dt,
                 None if extensions.iter().all(|p| {
                     // Effects that need no sample period: friction terms, the sensor, model-file entries.
-                    !matches!(p.spec.name, "coil_lag" | "time_delay" | "thermal_drift")
+                    !matches!(
+                        p.spec.name,
+                        "coil_lag" | "time_delay" | "thermal_drift" | "friction_current"
+                    )
                 }) =>
                 {
                     1.0
                 }
                 None => {
                     return Err(BmrError::new_err(
-                        "extensions with coil_lag, time_delay or thermal_drift need dt_s (the control period, s)",
+                        "extensions with coil_lag, time_delay, thermal_drift or friction_current need dt_s (the control period, s)",
                     ));
                 }
             };

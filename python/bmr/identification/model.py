@@ -234,7 +234,7 @@ class Model:
         if not on:
             return Compensator(self.hysteresis, friction, **kwargs)
         effects = [e for e in self.extensions if e["name"] in on and e["name"] != "core_tables"]
-        needs_dt = any(e["name"] in ("time_delay", "coil_lag", "thermal_drift") for e in effects)
+        needs_dt = any(e["name"] in ("time_delay", "coil_lag", "thermal_drift", "friction_current") for e in effects)
         if needs_dt and dt_s is None:
             raise BmrError(f"this model's extensions ({', '.join(on)}) need the control period: pass dt_s")
         core = self.core_hysteresis(refined="core_tables" in on)
