@@ -127,7 +127,7 @@ pub(crate) struct PyCompensatorState(StateData);
 /// A snapshot taken here, or unpickled words (checked against the tables when restored).
 #[derive(Clone)]
 pub(crate) enum StateData {
-    Live(CompensatorState<MEMORY>),
+    Live(Box<CompensatorState<MEMORY>>),
     Words(Vec<u64>),
 }
 
@@ -708,16 +708,16 @@ impl PyCompensator {
 
     /// A copy of the memory and stage states (restore it with `restore`).
     fn snapshot(slf: &Bound<'_, Self>) -> PyResult<PyCompensatorState> {
-        Ok(PyCompensatorState(StateData::Live(
+        Ok(PyCompensatorState(StateData::Live(Box::new(
             shared(slf)?.core.snapshot(),
-        )))
+        ))))
     }
 
     /// Return to a snapshot of this compensator (or of one with identical tables and stages).
     fn restore(slf: &Bound<'_, Self>, state: &PyCompensatorState) -> PyResult<()> {
         let mut me = busy(slf)?;
         let s = match &state.0 {
-            StateData::Live(s) => *s,
+            StateData::Live(s) => **s,
             StateData::Words(w) => me.core.state_from_words(w).map_err(table_err)?,
         };
         me.core.restore(&s).map_err(table_err)
