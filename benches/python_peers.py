@@ -123,7 +123,6 @@ def main() -> int:
             comp.run(big_ref, big_th, **kw)
             best = min(best, time.perf_counter() - t0)
         rates[label] = big_ref.size / best
-    run_rate = rates["Compensator.run()"]
     h2 = bmr.Hysteresis.from_curves(scale(asc), scale(desc))
     big_cur = big_ref / 240.0
     best = float("inf")

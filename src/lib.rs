@@ -29,6 +29,7 @@ pub mod model_data;
 pub mod paper_inverse;
 #[cfg(feature = "std")]
 pub mod plant;
+pub mod reversals;
 pub mod simulation;
 pub mod stages;
 #[cfg(feature = "alloc")]
@@ -44,6 +45,7 @@ pub use everett::{Family, Strip};
 pub use friction::{Friction, FrictionError};
 pub use inverse::InverseInput;
 pub use limits::LimitError;
+pub use reversals::{ReversalFinder, ReversalOrder, ReversalPoint};
 #[cfg(feature = "alloc")]
 pub use table_builder::{BuildOptions, MeasuredCurve, build_tables};
 
