@@ -91,7 +91,13 @@ def measure_performance(repeat: int) -> None:
     record("performance", "python benches/readme_figures.py measure performance", values)
 
 
-MEASURE: dict[str, Callable[[int], None]] = {"demo": measure_demo, "performance": measure_performance}
+def measure_closed_loop(repeat: int) -> None:
+    """Closed-loop tracking ratio per effect (deterministic for a seed: measured once, ``repeat`` is not used)."""
+    _timed([sys.executable, "benches/closed_loop_ratios.py", "--record"])
+
+
+MEASURE: dict[str, Callable[[int], None]] = {"demo": measure_demo, "performance": measure_performance,
+                                             "closed_loop": measure_closed_loop}
 
 
 # ------------------------------------------------------------------------------------------------ rendering
@@ -142,16 +148,46 @@ def render_performance(rec: dict[str, Any]) -> str:
                 "hysteresis": "`Hysteresis::step`"}[what]
         rows.append(f"| {name} instructions | {n} per step | `benches/callgrind.sh {what}` |")
     cmd = "`python benches/python_peers.py`"
+    cpu_us = py.get("per_call_cpu_us", {})
     for name, s in py["per_call_us"].items():
-        rows.append(f"| `{name}` from Python | {_pm(s, '{:.3g}', ' µs')} per call | {cmd} |")
+        cpu = f", CPU {_pm(cpu_us[name], '{:.3g}', ' µs')}" if name in cpu_us else ""
+        rows.append(f"| `{name}` from Python | wall {_pm(s, '{:.3g}', ' µs')}{cpu} per call | {cmd} |")
+    cpu_rate = py.get("throughput_cpu_msps", {})
     for name, s in py["throughput_msps"].items():
-        rows.append(f"| `{name}` | {_pm(s, '{:.3g}', ' M samples/s')} | {cmd} |")
+        cpu = f" ({_pm(cpu_rate[name], '{:.3g}', ' M')} per CPU-second)" if name in cpu_rate else ""
+        rows.append(f"| `{name}` | {_pm(s, '{:.3g}', ' M samples/s')}{cpu} | {cmd} |")
     for name, s in py["ratio_to_compensator_step"].items():
         rows.append(f"| peer: {name} | {_pm(s, '{:.3g}', '×')} the cost of our `Compensator.step()` | {cmd} |")
     return "\n".join(rows)
 
 
-RENDER: dict[str, Callable[[dict[str, Any]], str]] = {"demo": render_demo, "performance": render_performance}
+def render_closed_loop(rec: dict[str, Any]) -> str:
+    v = rec["values"]
+    rows = [f"Seed {v['seed']}, `{v['preset']}`, multi-peak reference ({v['duration_s']:g} s); ratio = extended / "
+            "nominal tracking RMS; the last two columns are the closed-loop check's verdicts stored in the model "
+            "file (tracking with / without the stage, the other stages in; above 1: left off).", "",
+            "| effect (medium size) | named | stages on | nominal RMS (N·mm) | extended RMS (N·mm) | ratio | "
+            "its stage, with / without | refined tables, with / without |", "|---|---|---|---|---|---|---|---|"]
+
+    def verdict(r: dict[str, Any], stage: str) -> str:
+        s = r["stages"].get(stage)
+        if s is None:
+            return "—"
+        return f"{s['ratio']:.2f}" + ("" if s["in_loop"] else " (left off)")
+
+    ratios = []
+    for r in v["rows"]:
+        params = ", ".join(f"{k}={x:g}" for k, x in r["params"].items())
+        ratios.append(r["ratio"])
+        rows.append(f"| {r['effect']} ({params}) | {', '.join(r['named'])} | {', '.join(r['stages_on']) or '—'} | "
+                    f"{r['nominal_rms_nmm']:.2f} | {r['extended_rms_nmm']:.2f} | {r['ratio']:.2f} | "
+                    f"{verdict(r, r['effect'])} | {verdict(r, 'core_tables')} |")
+    rows += ["", f"Ratios {min(ratios):.2f}-{max(ratios):.2f} over {len(ratios)} effects."]
+    return "\n".join(rows)
+
+
+RENDER: dict[str, Callable[[dict[str, Any]], str]] = {"demo": render_demo, "performance": render_performance,
+                                                      "closed_loop": render_closed_loop}
 
 
 def _footer(rec: dict[str, Any]) -> str:

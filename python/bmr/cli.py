@@ -62,6 +62,9 @@ def _parser() -> argparse.ArgumentParser:
     g.add_argument("--seed", type=int, default=0, help="seed of the bootstrap interval of the fold gains (default: 0)")
     g.add_argument("--json", dest="json_out", help="write the bmr-diagnosis/1 JSON here")
     g.add_argument("--report", help="write an HTML report here (one bundle)")
+    g.add_argument("--model-out", metavar="OUT.json", help="write the extended model file here (one bundle): the "
+                   "model with what the diagnosis found and each stage's closed-loop verdict, for "
+                   "bmr.Compensator.from_model and bmr export")
     g.add_argument("--out", help="several bundles: the Parquet table of results (default: bmr-diagnoses.parquet)")
     g.add_argument("--scheduler", help="several bundles: address of a running Dask scheduler (tcp://host:8786); "
                                        "default: a local cluster on this machine")
@@ -93,8 +96,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         elif args.command == "export":
             from bmr.identification.model import run_export_cli as run_cli
         elif len(args.bundle) > 1 or args.out or args.scheduler or args.workers is not None:
-            if args.json_out or args.report:
-                raise BmrError("--json and --report describe one bundle; for several, the table goes to --out")
+            if args.json_out or args.report or args.model_out:
+                raise BmrError("--json, --report and --model-out describe one bundle; for several, the table goes "
+                               "to --out")
             from bmr.diagnosis.many import run_cli
         else:
             args.bundle = args.bundle[0]

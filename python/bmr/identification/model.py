@@ -36,6 +36,7 @@ import numpy as np
 
 from bmr import _core
 from bmr._core import BmrError, Compensator, Hysteresis
+from bmr.files import write_text_atomic
 from bmr.identification.friction import FrictionFit
 
 __all__ = ["FORMAT", "LOOP_STAGES", "Model"]
@@ -254,12 +255,7 @@ class Model:
         digest = _digest(self.to_dict())[:16]
         title = f"bmr compensator of model {digest} (stages: {names})"
         text = _core.export_source(comp, language, title=title, prefix=prefix)
-        p = Path(path)
-        try:
-            p.write_text(text)
-        except OSError as exc:
-            raise BmrError(f"cannot write {str(p)!r}: {exc.strerror or exc}") from None
-        return p
+        return write_text_atomic(path, text, what=f"{language} source")
 
     def current_curves(self) -> tuple[list[tuple[np.ndarray, np.ndarray]], list[tuple[np.ndarray, np.ndarray]]]:
         """The paper's current curves (torque → current) from the stored torque curves."""
@@ -287,12 +283,8 @@ class Model:
         """Write the model as ``bmr-model/1`` JSON (with its sha256 digest)."""
         content = self.to_dict()
         content["sha256"] = _digest(content)
-        p = Path(path)
-        try:
-            p.write_text(_compact_number_lists(json.dumps(content, indent=1, allow_nan=False)) + "\n")
-        except OSError as exc:
-            raise BmrError(f"cannot write model file {str(p)!r}: {exc.strerror or exc}") from None
-        return p
+        text = _compact_number_lists(json.dumps(content, indent=1, allow_nan=False)) + "\n"
+        return write_text_atomic(path, text, what="model file")
 
     @classmethod
     def from_dict(cls, content: Any, *, source: str = "model") -> "Model":
