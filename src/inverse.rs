@@ -257,7 +257,7 @@ impl<S: AsRef<[f64]>, const N: usize> Hysteresis<S, N> {
             return (end_u, None);
         }
         let s = &r.strip;
-        let tri = (1.0 - s.lambda) * (1.0 - s.lambda) * s.t_j;
+        let tri = s.tri;
         if up {
             let (u, hit) = self.asc.everett_inverse_cell(s, e, self.state.hint_a);
             (u.min(end_u), hit.map(|h| (h, tri, s.r_next)))

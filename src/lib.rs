@@ -11,6 +11,10 @@ extern crate alloc;
 pub mod cbh;
 pub mod compensator;
 pub mod congruency;
+#[cfg(feature = "alloc")]
+pub mod curve_fit;
+#[cfg(feature = "alloc")]
+pub mod derived_family;
 pub mod error;
 pub mod everett;
 #[cfg(feature = "alloc")]
@@ -25,6 +29,8 @@ pub mod history;
 pub mod inverse;
 pub mod limits;
 pub mod model_data;
+#[cfg(feature = "alloc")]
+pub mod node_selection;
 #[cfg(feature = "alloc")]
 pub mod paper_inverse;
 #[cfg(feature = "std")]
@@ -47,7 +53,7 @@ pub use inverse::InverseInput;
 pub use limits::LimitError;
 pub use reversals::{ReversalFinder, ReversalOrder, ReversalPoint};
 #[cfg(feature = "alloc")]
-pub use table_builder::{BuildOptions, MeasuredCurve, build_tables};
+pub use table_builder::{BuildOptions, BuildReport, MeasuredCurve, build_tables};
 
 #[cfg(feature = "python")]
 mod python;

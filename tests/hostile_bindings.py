@@ -50,7 +50,8 @@ U = np.sin(np.linspace(0, 20, 300))
 TH = np.linspace(0, 30, 300)
 SANE: dict[str, object] = {
     "ascending": _family(1.0), "descending": _family(-1.0), "initial": None, "monotone_tolerance": 0.005,
-    "reach_tolerance": 0.01, "closure_tolerance": 0.05, "max_nodes": 1024, "u": U, "theta_rad": TH,
+    "reach_tolerance": 0.01, "closure_tolerance": 0.05, "max_nodes": 1024, "node_tolerance": 0.0, "history": None,
+    "u": U, "theta_rad": TH,
     "torque_nmm": np.sin(TH), "order": 2, "grid": np.linspace(-1, 1, 9),
     "runs": [(U, 10 * U, np.ones_like(U), 0)], "n_offsets": 1, "smoothing": 1e-4, "ridge": 1e-9, "max_iter": 500,
     "masses": np.full(36, 0.1), "offset": 0.0, "beta": -0.5, "alpha": 0.5, "subdivisions": 2, "current_a": U,

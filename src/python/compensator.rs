@@ -181,6 +181,7 @@ fn _rebuild_compensator(
     let mut c = PyCompensator::build(
         PyHysteresis {
             op: hysteresis.op.clone(),
+            report: None,
         },
         friction.f,
         inverse,
@@ -414,6 +415,7 @@ impl PyCompensator {
         let mut c = Self::build(
             PyHysteresis {
                 op: self.hysteresis.op.clone(),
+                report: None,
             },
             self.base_friction,
             self.inverse,
@@ -457,6 +459,7 @@ impl PyCompensator {
         let mut c = Self::build(
             PyHysteresis {
                 op: hysteresis.op.clone(),
+                report: None,
             },
             friction,
             inverse,
@@ -735,6 +738,7 @@ impl PyCompensator {
             py,
             PyHysteresis {
                 op: me.hysteresis.op.clone(),
+                report: None,
             },
         )?;
         let friction = Bound::new(
@@ -830,6 +834,7 @@ impl PyCompensator {
     fn hysteresis(slf: &Bound<'_, Self>) -> PyResult<PyHysteresis> {
         Ok(PyHysteresis {
             op: shared(slf)?.core.forward().clone(),
+            report: None,
         })
     }
     /// The friction model of the feedforward (with any extra harmonic and current gain of the extensions).
