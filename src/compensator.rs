@@ -19,7 +19,7 @@ use crate::vocabulary::Params;
 #[allow(clippy::large_enum_variant)]
 #[derive(Debug, Clone)]
 pub enum InverseKind<S, const N: usize> {
-    /// Exact inverse of the forward operator.
+    /// Exact inverse of the forward operator (docs/architecture.md §2.5).
     Exact,
     /// The paper's inverse CBH operator on current curves (input torque, output current). Its torque-domain
     /// memory follows the targets it is given (and the torque actually produced after a fault).

@@ -2,7 +2,8 @@
 hysteretic device identified from its measured data.
 
 Core (Rust): ``Hysteresis`` (CBH operator), ``Friction`` (angle-periodic seal friction), ``Compensator``
-(exact or paper inverse + friction feedforward, coil split, current limit), ``VirtualActuator`` (a physical
+(exact or paper inverse + friction feedforward, coil split, current limit; ``Compensator.from_model`` adds the
+stages of what a diagnosis found, ``ExtendedSimulation`` runs them forwards), ``VirtualActuator`` (a physical
 simulator of the rig; ``EFFECTS`` names its switchable effects, ``effect_parameters()`` documents them).
 Experiment protocols and bundles of them: ``bmr.experiments`` (:mod:`bmr.simulation.experiments`).
 Package layout, in data-flow order: :mod:`bmr.data` (bundles, lab readers) → :mod:`bmr.identification`
@@ -28,10 +29,14 @@ from bmr._core import (
     Command,
     Compensator,
     CompensatorState,
+    CurveFit,
+    CurveReport,
     EverettModel,
+    ExtendedSimulation,
     Friction,
     Hysteresis,
     HysteresisState,
+    TableReport,
     VirtualActuator,
     effect_parameters,
     fit_everett,
@@ -71,7 +76,10 @@ __all__ = [
     "Bundle",
     "Command",
     "Compensator",
+    "ExtendedSimulation",
     "CompensatorState",
+    "CurveFit",
+    "CurveReport",
     "Diagnosis",
     "EverettModel",
     "Friction",
@@ -84,6 +92,7 @@ __all__ = [
     "Quantities",
     "Quantity",
     "Run",
+    "TableReport",
     "VirtualActuator",
     "bundle_from_files",
     "diagnose",
