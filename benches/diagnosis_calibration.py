@@ -48,27 +48,19 @@ import numpy as np
 
 from bmr.diagnosis.effects import PHYSICAL
 from bmr.simulation.device import device_bundle
-from bmr.simulation.excitation import diagnosis_bundle
+from bmr.simulation.excitation import MEDIUM_EFFECTS, diagnosis_bundle
 
 ANGLE_EFFECTS = ("friction_current", "friction_harmonics", "torque_ripple")
 
-# Medium size of each effect (actuator: N·mm, A; piezo: µm, V) and the parameter whose relative error is reported.
+# Medium size of each effect (actuator: ``MEDIUM_EFFECTS``, N·mm, A; piezo: µm, V), the parameter whose relative
+# error is reported and the parameters scaled with the size (the reported one first).
+SCALED = {"coil_lag": ["tau_s"], "thermal_drift": ["gain_loss"], "friction_current": ["gain_per_a"],
+          "friction_harmonics": ["amplitude_nmm"], "torque_ripple": ["eps"], "sensor_drift": ["rate_nmm_per_s"],
+          "time_delay": ["delay_s"], "non_congruent": ["curvature"], "creep": ["fraction"],
+          "rate_dependence": ["tau_s"], "run_gain_offset": ["gain_sd", "offset_sd"], "leakage": ["rate_per_s"],
+          "accommodation": ["kappa"]}
 ACTUATOR_MEDIUM: dict[str, tuple[dict[str, float], str, list[str]]] = {
-    "coil_lag": ({"tau_s": 0.02}, "tau_s", ["tau_s"]),
-    "thermal_drift": ({"gain_loss": 0.1, "tau_s": 60.0}, "gain_loss", ["gain_loss"]),
-    "friction_current": ({"gain_per_a": 0.6}, "gain_per_a", ["gain_per_a"]),
-    "friction_harmonics": ({"order": 7.0, "amplitude_nmm": 5.0, "phase_rad": 0.5}, "amplitude_nmm",
-                           ["amplitude_nmm"]),
-    "torque_ripple": ({"eps": 0.05, "phase_rad": 1.0}, "eps", ["eps"]),
-    "sensor_drift": ({"rate_nmm_per_s": 0.06}, "rate_nmm_per_s", ["rate_nmm_per_s"]),
-    "time_delay": ({"delay_s": 0.02}, "delay_s", ["delay_s"]),
-    "non_congruent": ({"curvature": 2.0}, "curvature", ["curvature"]),
-    "creep": ({"fraction": 0.02, "tau_min_s": 0.1, "tau_max_s": 100.0}, "fraction", ["fraction"]),
-    "rate_dependence": ({"tau_s": 0.01}, "tau_s", ["tau_s"]),
-    "run_gain_offset": ({"gain_sd": 0.03, "offset_sd": 4.0}, "gain_sd", ["gain_sd", "offset_sd"]),
-    "leakage": ({"rate_per_s": 0.5}, "rate_per_s", ["rate_per_s"]),
-    "accommodation": ({"kappa": 0.08, "cycles": 3.0}, "kappa", ["kappa"]),
-}
+    name: (params, SCALED[name][0], SCALED[name]) for name, params in MEDIUM_EFFECTS.items()}
 PIEZO_MEDIUM: dict[str, tuple[dict[str, float], str, list[str]]] = {
     "coil_lag": ({"tau_s": 0.003}, "tau_s", ["tau_s"]),
     "thermal_drift": ({"gain_loss": 0.02, "tau_s": 20.0}, "gain_loss", ["gain_loss"]),

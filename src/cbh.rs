@@ -1,7 +1,7 @@
 //! The congruency-based hysteresis (CBH) operator: first-order curve tables + extrema memory → output.
 //!
 //! Rising from the newest minimum `m`: `y = y(m) + k·E^a(m, u)`; falling from the newest maximum `M`:
-//! `y = y(M) − k·E^d(M, u)` (paper eq 12 and 16, DESIGN section 2). `k = 1` for tables whose two families agree
+//! `y = y(M) − k·E^d(M, u)` (paper eq 12 and 16, docs/architecture.md §2.2). `k = 1` for tables whose two families agree
 //! (Preisach data); otherwise `k` scales the branch so that it closes exactly on the stored output of its target,
 //! which keeps the output continuous and monotone in the input when the measured families disagree.
 //! Inputs outside the table range saturate at its ends. `step` is `O(log nodes)`, allocation-free and
@@ -64,6 +64,9 @@ pub struct Hysteresis<S, const N: usize> {
     anchor: Reversal,
     fingerprint: u64,
     pub(crate) state: State<N>,
+    /// The exact inverse's shortcut for the branch and cell of its last committed answer (see
+    /// `inverse::FastBranch`); dropped by every other change of the state.
+    pub(crate) fast: Option<crate::inverse::FastBranch>,
 }
 
 impl<S: AsRef<[f64]>, const N: usize> Hysteresis<S, N> {
@@ -128,6 +131,7 @@ impl<S: AsRef<[f64]>, const N: usize> Hysteresis<S, N> {
             anchor,
             fingerprint,
             state,
+            fast: None,
         };
         h.reset(initial);
         Ok(h)
@@ -164,11 +168,13 @@ impl<S: AsRef<[f64]>, const N: usize> Hysteresis<S, N> {
             return Err(TableError::ForeignState);
         }
         self.state = *s;
+        self.fast = None;
         Ok(())
     }
 
     /// Forget all memory and start from `initial`. A major-branch input outside the range saturates.
     pub fn reset(&mut self, initial: Initial) {
+        self.fast = None;
         let st = &mut self.state;
         st.history = History::new(self.anchor);
         st.u = self.lo;
@@ -201,6 +207,7 @@ impl<S: AsRef<[f64]>, const N: usize> Hysteresis<S, N> {
             return f64::NAN;
         }
         let u = u.clamp(self.lo, self.hi);
+        self.fast = None;
         self.advance(u);
         let y = self.branch_output(u);
         self.state.u = u;

@@ -19,7 +19,7 @@ use crate::vocabulary::Params;
 #[allow(clippy::large_enum_variant)]
 #[derive(Debug, Clone)]
 pub enum InverseKind<S, const N: usize> {
-    /// Exact inverse of the forward operator.
+    /// Exact inverse of the forward operator (docs/architecture.md §2.5).
     Exact,
     /// The paper's inverse CBH operator on current curves (input torque, output current). Its torque-domain
     /// memory follows the targets it is given (and the torque actually produced after a fault).
@@ -319,14 +319,15 @@ impl<S: AsRef<[f64]>, const N: usize, const K: usize> Compensator<S, N, K> {
         if !target.is_finite() {
             return self.fault();
         }
-        let InverseInput { input, saturated } = self.inverse_input(target);
-        let limited = input.clamp(-self.limit_a, self.limit_a);
+        let inv = self.inverse_input(target);
+        let (input, saturated) = (inv.input, inv.saturated);
+        let limited = limit(input, self.limit_a);
         if !limited.is_finite() {
             return self.fault();
         }
         if matches!(self.inverse, InverseKind::Exact) && !saturated && limited == input {
             // The exact inverse already knows the output: commit without evaluating the branch again.
-            self.forward.commit(input, target);
+            self.forward.commit(input, target, inv.cell, inv.fast);
             return Command::from_current(input, self.gain_a_per_v, false, false);
         }
         self.forward.step(limited);
@@ -339,7 +340,7 @@ impl<S: AsRef<[f64]>, const N: usize, const K: usize> Compensator<S, N, K> {
     }
 
     /// The extended compensator (module doc), for the reference and angle of the sample the command acts on.
-    #[inline]
+    #[inline(always)]
     fn step_extended(&mut self, torque_ref_nmm: f64, theta_rad: f64) -> Command {
         let terms = self.friction.angle_terms(theta_rad);
         let current_a = self.stages.friction_current.map_or(0.0, |f| f.current_a());
@@ -368,7 +369,8 @@ impl<S: AsRef<[f64]>, const N: usize, const K: usize> Compensator<S, N, K> {
         if !target.is_finite() {
             return self.fault();
         }
-        let InverseInput { input, saturated } = self.inverse_input(target);
+        let inv = self.inverse_input(target);
+        let (input, saturated) = (inv.input, inv.saturated);
         // The field current that brings the core input there (rate dependence), then the coil command (lag).
         let field_wanted = match &self.stages.rate {
             Some(r) => r.input_for(input),
@@ -378,7 +380,7 @@ impl<S: AsRef<[f64]>, const N: usize, const K: usize> Compensator<S, N, K> {
             Some(l) => l.command_for(field_wanted),
             None => field_wanted,
         };
-        let limited = command.clamp(-self.limit_a, self.limit_a);
+        let limited = limit(command, self.limit_a);
         if !limited.is_finite() || !field_wanted.is_finite() {
             return self.fault();
         }
@@ -407,7 +409,7 @@ impl<S: AsRef<[f64]>, const N: usize, const K: usize> Compensator<S, N, K> {
             f.commit(field_a);
         }
         let core_out = if exact && matches!(self.inverse, InverseKind::Exact) {
-            self.forward.commit(core_in, target);
+            self.forward.commit(core_in, target, inv.cell, inv.fast);
             target
         } else {
             self.forward.step(core_in)
@@ -416,16 +418,13 @@ impl<S: AsRef<[f64]>, const N: usize, const K: usize> Compensator<S, N, K> {
         Command::from_current(limited, self.gain_a_per_v, !exact, false)
     }
 
-    #[inline]
+    #[inline(always)]
     fn inverse_input(&mut self, target: f64) -> InverseInput {
         match &mut self.inverse {
             InverseKind::Exact => self.forward.inverse_input(target),
             InverseKind::Paper(inv) => {
                 let (lo, hi) = inv.input_range();
-                InverseInput {
-                    input: inv.step(target),
-                    saturated: target < lo || target > hi,
-                }
+                InverseInput::new(inv.step(target), target < lo || target > hi)
             }
         }
     }
@@ -524,6 +523,88 @@ impl<S: AsRef<[f64]>, const N: usize, const K: usize> Compensator<S, N, K> {
     }
 }
 
+/// `x` limited to `±limit` (NaN stays NaN: the caller turns it into a fault).
+#[inline(always)]
+fn limit(x: f64, limit: f64) -> f64 {
+    if x > limit {
+        limit
+    } else if x < -limit {
+        -limit
+    } else {
+        x
+    }
+}
+
+/// First word of a serialised [`CompensatorState`] (format tag and version).
+const STATE_TAG: u64 = 0x626d_725f_636f_0001;
+
+#[cfg(feature = "alloc")]
+impl<const N: usize> CompensatorState<N> {
+    /// The state as plain words (pickling); [`Compensator::state_from_words`] reads it back bit for bit.
+    pub fn to_words(&self) -> alloc::vec::Vec<u64> {
+        let fwd = self.forward.to_words();
+        let mut w = alloc::vec![STATE_TAG, fwd.len() as u64];
+        w.extend(fwd);
+        match &self.paper {
+            Some(p) => {
+                let pw = p.to_words();
+                w.push(pw.len() as u64);
+                w.extend(pw);
+            }
+            None => w.push(u64::MAX),
+        }
+        self.stages.to_words(&mut w);
+        w
+    }
+}
+
+impl<S: AsRef<[f64]>, const N: usize, const K: usize> Compensator<S, N, K> {
+    /// Read a state written by [`CompensatorState::to_words`] from a compensator with the same tables and
+    /// stages; damaged or foreign words are an error, never a state that could index outside the tables.
+    pub fn state_from_words(
+        &self,
+        words: &[u64],
+    ) -> Result<CompensatorState<N>, crate::error::TableError> {
+        use crate::error::TableError;
+        let bad = |what| TableError::BadState { what };
+        let mut w = words;
+        let mut take = |n: usize| -> Result<&[u64], TableError> {
+            if n > w.len() {
+                return Err(bad("compensator state words end early"));
+            }
+            let (head, rest) = w.split_at(n);
+            w = rest;
+            Ok(head)
+        };
+        if take(1)? != [STATE_TAG] {
+            return Err(bad("not a serialised compensator state"));
+        }
+        let n = usize::try_from(take(1)?[0]).map_err(|_| bad("word count"))?;
+        let forward = self.forward.state_from_words(take(n)?)?;
+        let n = take(1)?[0];
+        let paper = match (&self.inverse, n) {
+            (InverseKind::Exact, u64::MAX) => None,
+            (InverseKind::Paper(inv), n) if n != u64::MAX => {
+                let n = usize::try_from(n).map_err(|_| bad("word count"))?;
+                Some(inv.state_from_words(take(n)?)?)
+            }
+            _ => return Err(TableError::ForeignState),
+        };
+        let stages = self
+            .stages
+            .state_from_words(&mut w)
+            .ok_or(bad("stage states do not fit this compensator's stages"))?;
+        if !w.is_empty() {
+            return Err(bad("extra words after the compensator state"));
+        }
+        Ok(CompensatorState {
+            forward,
+            paper,
+            stages,
+        })
+    }
+}
+
 /// Reference and angle `d` samples after sample `i` of a run of `n` (past the end: the last reference held, the
 /// angle continued at its last step, wrapped).
 #[inline]
@@ -534,9 +615,7 @@ pub fn ahead(refs: &[f64], thetas: &[f64], n: usize, i: usize, d: usize) -> (f64
     }
     let last = thetas[n - 1];
     let step = if n > 1 {
-        let s = last - thetas[n - 2];
-        let tau = core::f64::consts::TAU;
-        s - tau * libm::round(s / tau)
+        crate::stages::wrap_angle(last - thetas[n - 2])
     } else {
         0.0
     };

@@ -125,20 +125,20 @@ impl<S: AsRef<[f64]> + AsMut<[f64]>> DelayLine<S> {
         let i = (self.head + self.len - k) % self.len;
         self.buf.as_ref()[i]
     }
-    /// The values in the line, oldest first (what the next `samples` steps return, in order).
+    /// The stored values, oldest (the next one out) first.
     pub fn values(&self) -> impl Iterator<Item = f64> + '_ {
-        (1..=self.len).rev().map(move |k| self.ago(k))
+        let b = &self.buf.as_ref()[..self.len];
+        b[self.head..].iter().chain(&b[..self.head]).copied()
     }
 
-    /// Fill the line with `values`, oldest first (as [`DelayLine::values`] gives them); `false` (nothing changed)
-    /// unless there are exactly `samples` of them.
-    pub fn set_values(&mut self, values: &[f64]) -> bool {
-        if values.len() != self.len {
-            return false;
+    /// Replace the stored values, oldest first (as [`Self::values`] gives them; extra values are ignored).
+    pub fn set_values(&mut self, values: impl IntoIterator<Item = f64>) {
+        let n = self.len;
+        let b = &mut self.buf.as_mut()[..n];
+        for (slot, v) in b.iter_mut().zip(values) {
+            *slot = v;
         }
-        self.buf.as_mut()[..self.len].copy_from_slice(values);
         self.head = 0;
-        true
     }
 
     /// Fill the line with `value`.
@@ -220,6 +220,11 @@ mod tests {
         assert_eq!(out, [-1.0, -1.0, -1.0, 0.0, 1.0, 2.0]);
         assert_eq!(d.ago(1), 5.0);
         assert_eq!(d.ago(3), 3.0);
+        let order: [f64; 3] = core::array::from_fn(|i| d.values().nth(i).unwrap());
+        assert_eq!(order, [3.0, 4.0, 5.0]);
+        let mut e = DelayLine::new([0.0; 8], 3, 0.0).unwrap();
+        e.set_values(d.values());
+        assert_eq!([e.step(9.0), e.step(9.0), e.step(9.0)], [3.0, 4.0, 5.0]);
         let mut z = DelayLine::new([0.0; 0], 0, 0.0).unwrap();
         assert_eq!(z.step(4.0), 4.0);
         assert!(DelayLine::new([0.0; 2], 3, 0.0).is_none());

@@ -11,23 +11,27 @@ use core::fmt;
 /// Highest harmonic order supported by the fixed-size friction model.
 pub const MAX_ORDER: usize = crate::vocabulary::MAX_HARMONIC;
 
-/// Largest `|c0| + Σ |a_k| + |b_k|` accepted (N·mm): every evaluation of the series (and of its Clenshaw
-/// recurrence, whose terms stay below `(K + 1)·Σ`) is then finite. Far above any physical friction.
+/// Largest `|c0| + Σ |a_k| + |b_k|` accepted (N·mm): every evaluation of the series (and of its
+/// recurrence, whose rotated terms stay bounded by the coefficients) is then finite. Far above any physical friction.
 pub const MAX_MAGNITUDE: f64 = 1e300;
 
-/// `Σ_{k=1..n} a_k sin kθ + b_k cos kθ` from `sin θ` and `cos θ` (Clenshaw's recurrence; `n` = the shorter
-/// length). NaN in, NaN out.
-#[inline]
+/// `Σ_{k=1..n} a_k sin kθ + b_k cos kθ` from `sin θ` and `cos θ` (higher harmonics by the angle-addition
+/// recurrence; `n` = the shorter length). NaN in, NaN out.
+#[inline(always)]
 pub fn harmonic_series(a: &[f64], b: &[f64], sin1: f64, cos1: f64) -> f64 {
-    let two_c = 2.0 * cos1;
-    let (mut u1, mut u2, mut v1, mut v2) = (0.0, 0.0, 0.0, 0.0);
-    for (&ak, &bk) in a.iter().zip(b).rev() {
-        let u0 = ak + two_c * u1 - u2;
-        let v0 = bk + two_c * v1 - v2;
-        (u2, u1, v2, v1) = (u1, u0, v1, v0);
+    let n = a.len().min(b.len());
+    let (a, b) = (&a[..n], &b[..n]);
+    let (mut s, mut c) = (sin1, cos1);
+    let mut t = 0.0;
+    let mut k = 0;
+    while k < n {
+        t += a[k] * s + b[k] * c;
+        let s_next = s * cos1 + c * sin1;
+        c = c * cos1 - s * sin1;
+        s = s_next;
+        k += 1;
     }
-    // Σ a_k sin kθ = sin θ · u_1 and Σ b_k cos kθ = cos θ · v_1 − v_2.
-    sin1 * u1 + (cos1 * v1 - v2)
+    t
 }
 
 /// Why a friction model was refused.
@@ -218,7 +222,7 @@ impl<const K: usize> Friction<K> {
     }
 
     /// The angle-dependent part at `theta` (rad): one `sincos`.
-    #[inline]
+    #[inline(always)]
     pub fn angle_terms(&self, theta: f64) -> AngleTerms {
         let (sin1, cos1) = crate::trig::sincos(theta);
         let n = self.order.min(K);
@@ -261,7 +265,7 @@ mod tests {
     use super::*;
 
     #[test]
-    fn clenshaw_matches_the_direct_sum() {
+    fn the_series_matches_the_direct_sum() {
         let a = [3.0, -1.5, 0.25, 0.0, 2.0, 0.7];
         let b = [0.5, 2.5, -0.75, 1.0, 0.0, -0.3];
         for i in 0..2000 {

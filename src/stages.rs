@@ -126,14 +126,20 @@ impl Predictor {
             self.seen += 1;
             return (reference, theta);
         }
-        let d_theta = theta - t_old;
-        let tau = core::f64::consts::TAU;
-        let d_theta = d_theta - tau * libm::round(d_theta / tau);
+        let d_theta = wrap_angle(theta - t_old);
         (
             reference + self.reach * (reference - r_old),
             theta + self.reach * d_theta,
         )
     }
+}
+
+/// `x` wrapped to (−π, π] (up to the rounding of the nearest whole turn; exact for |x| < 2^51 turns).
+#[inline(always)]
+pub fn wrap_angle(x: f64) -> f64 {
+    const SHIFT: f64 = 6_755_399_441_055_744.0; // 1.5·2^52: adding and subtracting it rounds to an integer
+    let turns = (x * (1.0 / core::f64::consts::TAU) + SHIFT) - SHIFT;
+    x - turns * core::f64::consts::TAU
 }
 
 /// `thermal_drift`: the field torque is scaled by `1 − gain_loss·x`, `x` the coil heating state.
@@ -670,6 +676,85 @@ impl Stages {
             self.accommodation = s.accommodation;
         }
         ok
+    }
+}
+
+#[cfg(feature = "alloc")]
+impl StageState {
+    /// The states as plain words: a presence mask, then each present stage's values.
+    pub fn to_words(&self, out: &mut alloc::vec::Vec<u64>) {
+        let mask = u64::from(self.coil_lag.is_some())
+            | (u64::from(self.time_delay.is_some()) << 1)
+            | (u64::from(self.thermal.is_some()) << 2)
+            | (u64::from(self.friction_current.is_some()) << 3);
+        out.push(mask);
+        if let Some(l) = &self.coil_lag {
+            out.push(l.field_a().to_bits());
+        }
+        if let Some(p) = &self.time_delay {
+            out.push(p.seen as u64);
+            out.push(p.refs.samples() as u64);
+            out.extend(p.refs.values().map(f64::to_bits));
+            out.extend(p.thetas.values().map(f64::to_bits));
+        }
+        if let Some(t) = &self.thermal {
+            out.push(t.state().to_bits());
+        }
+        if let Some(f) = &self.friction_current {
+            out.push(f.current_a().to_bits());
+        }
+    }
+}
+
+impl Stages {
+    /// Read stage states written by [`StageState::to_words`] for stages configured like these, from `words`
+    /// (advanced past them); `None` if they do not fit this configuration or a value is not finite.
+    pub fn state_from_words(&self, words: &mut &[u64]) -> Option<StageState> {
+        fn take(w: &mut &[u64]) -> Option<u64> {
+            let (&first, rest) = w.split_first()?;
+            *w = rest;
+            Some(first)
+        }
+        fn float(w: &mut &[u64]) -> Option<f64> {
+            Some(f64::from_bits(take(w)?)).filter(|v| v.is_finite())
+        }
+        let mask = take(words)?;
+        let want = u64::from(self.coil_lag.is_some())
+            | (u64::from(self.time_delay.is_some()) << 1)
+            | (u64::from(self.thermal.is_some()) << 2)
+            | (u64::from(self.friction_current.is_some()) << 3);
+        if mask != want {
+            return None;
+        }
+        let mut st = self.state();
+        if let Some(l) = &mut st.coil_lag {
+            l.reset(float(words)?);
+        }
+        if let Some(p) = &mut st.time_delay {
+            let seen = usize::try_from(take(words)?).ok()?;
+            let window = usize::try_from(take(words)?).ok()?;
+            if window != p.refs.samples() || seen > window {
+                return None;
+            }
+            let mut refs = [0.0; PREDICT_WINDOW];
+            let mut thetas = [0.0; PREDICT_WINDOW];
+            for v in refs.iter_mut().take(window) {
+                *v = float(words)?;
+            }
+            for v in thetas.iter_mut().take(window) {
+                *v = float(words)?;
+            }
+            p.refs.set_values(refs);
+            p.thetas.set_values(thetas);
+            p.seen = seen;
+        }
+        if let Some(t) = &mut st.thermal {
+            t.reset(float(words)?);
+        }
+        if let Some(f) = &mut st.friction_current {
+            f.smooth.set_output(float(words)?);
+        }
+        Some(st)
     }
 }
 

@@ -2,7 +2,8 @@
 hysteretic device identified from its measured data.
 
 Core (Rust): ``Hysteresis`` (CBH operator), ``Friction`` (angle-periodic seal friction), ``Compensator``
-(exact or paper inverse + friction feedforward, coil split, current limit), ``VirtualActuator`` (a physical
+(exact or paper inverse + friction feedforward, coil split, current limit; ``Compensator.from_model`` adds the
+stages of what a diagnosis found, ``ExtendedSimulation`` runs them forwards), ``VirtualActuator`` (a physical
 simulator of the rig; ``EFFECTS`` names its switchable effects, ``effect_parameters()`` documents them),
 ``VirtualDevice`` (a hysteretic device with one input and one output and no angle: ``DEVICE_PRESETS``).
 Experiment protocols and bundles of them: ``bmr.experiments`` (:mod:`bmr.simulation.experiments`).
@@ -31,10 +32,14 @@ from bmr._core import (
     Command,
     Compensator,
     CompensatorState,
+    CurveFit,
+    CurveReport,
     EverettModel,
+    ExtendedSimulation,
     Friction,
     Hysteresis,
     HysteresisState,
+    TableReport,
     VirtualActuator,
     VirtualDevice,
     effect_parameters,
@@ -77,7 +82,10 @@ __all__ = [
     "Bundle",
     "Command",
     "Compensator",
+    "ExtendedSimulation",
     "CompensatorState",
+    "CurveFit",
+    "CurveReport",
     "Diagnosis",
     "EverettModel",
     "Friction",
@@ -90,6 +98,7 @@ __all__ = [
     "Quantities",
     "Quantity",
     "Run",
+    "TableReport",
     "VirtualActuator",
     "VirtualDevice",
     "bundle_from_files",

@@ -33,8 +33,8 @@ __all__ = [
     "CurveReport",
     "EFFECTS",
     "EverettModel",
-    "EverettRegression",
     "ExtendedSimulation",
+    "EverettRegression",
     "Friction",
     "Hysteresis",
     "HysteresisState",
@@ -64,6 +64,8 @@ __all__ = [
     "lead",
     "output_map",
     "output_map_inverse",
+    "_rebuild_compensator",
+    "_rebuild_compensator_state",
     "reversal_order",
 ]
 
@@ -256,7 +258,10 @@ class Friction:
     """Seal friction c0 + (1 + gain_per_a·|I|)·Σ a_k sin kθ + b_k cos kθ (N·mm), up to FRICTION_MAX_ORDER
     harmonics."""
     def __new__(
-        cls, c0: float = 0.0, a: Sequence[float] | None = None, b: Sequence[float] | None = None,
+        cls,
+        c0: float = 0.0,
+        a: Sequence[float] | None = None,
+        b: Sequence[float] | None = None,
         gain_per_a: float = 0.0,
     ) -> Self: ...
     @staticmethod
@@ -494,6 +499,20 @@ class CompensatorState:
     """Opaque snapshot of a Compensator's memory and stage states."""
     def __copy__(self) -> Self: ...
     def __deepcopy__(self, memo: object) -> Self: ...
+    def __reduce__(self) -> tuple[object, tuple[bytes]]: ...
+
+def _rebuild_compensator_state(state: bytes) -> CompensatorState: ...
+def _rebuild_compensator(
+    hysteresis: Hysteresis,
+    friction: Friction,
+    inverse: str,
+    converter_gain: float,
+    current_limit: float,
+    extensions: _Extensions,
+    dt_s: float | None,
+    full_torque_nmm: float,
+    state: bytes,
+) -> Compensator: ...
 
 _Extensions = Sequence[Union[dict[str, object], Tuple[str, dict[str, float]]]]
 
@@ -533,6 +552,7 @@ class Compensator:
     def restore(self, state: CompensatorState) -> None: ...
     def __copy__(self) -> Self: ...
     def __deepcopy__(self, memo: object) -> Self: ...
+    def __reduce__(self) -> tuple[object, tuple[object, ...]]: ...
     @property
     def inverse(self) -> str: ...
     @property

@@ -1,5 +1,5 @@
-//! Switchable physical effects of the virtual actuator, in the terms of the effect vocabulary
-//! ([`crate::vocabulary`]): an [`Effect`] enum carrying its parameters, parsed from `"name:key=value,…"`
+//! Switchable physical effects of the virtual actuator, in the terms of the effect vocabulary (docs/architecture.md
+//! §4, [`crate::vocabulary`]): an [`Effect`] enum carrying its parameters, parsed from `"name:key=value,…"`
 //! strings. Each effect changes the data with its documented signature and nothing else.
 
 use super::PlantError;

@@ -618,10 +618,11 @@ impl VirtualActuator {
                 "delay line length differs from this configuration's",
             ));
         }
-        let delayed = (0..self.fx.delay_samples)
-            .map(|_| r.float())
-            .collect::<Result<Vec<f64>, _>>()?;
-        next.delay_line.set_values(&delayed);
+        let mut delayed = Vec::with_capacity(self.fx.delay_samples);
+        for _ in 0..self.fx.delay_samples {
+            delayed.push(r.float()?);
+        }
+        next.delay_line.set_values(delayed);
         next.converter1.load_state(&mut r)?;
         next.converter2.load_state(&mut r)?;
         next.field1.set_output(r.float()?);

@@ -1,9 +1,6 @@
 //! `bmr.Compensator`: hysteresis + friction compensation for one control loop (optionally extended by a model's
 //! stages), its `Command`, and `bmr.ExtendedSimulation`, the forward chain the extended compensator inverts.
-use numpy::{
-    AllowTypeChange, PyArray1, PyArrayLike1, PyArrayMethods, PyReadwriteArray1,
-    PyUntypedArrayMethods,
-};
+use numpy::{PyArray1, PyArrayMethods, PyUntypedArrayMethods};
 use pyo3::exceptions::PyTypeError;
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList, PyMapping, PyTuple};
@@ -12,10 +9,10 @@ use crate::cbh::Initial;
 use crate::compensator::{Command, Compensator, CompensatorState, InverseKind};
 use crate::friction::{Friction, MAX_ORDER};
 use crate::model_data::{EffectValues, ModelData};
-use crate::python::arrays::{DETACH_LEN, to_numpy, to_vec};
+use crate::python::arrays::{DETACH_LEN, extract_f64_array, to_numpy};
 use crate::python::friction::PyFriction;
 use crate::python::hysteresis::{MEMORY, PyHysteresis, initial_or_negative};
-use crate::python::{BmrError, bmr_err};
+use crate::python::{BmrError, bmr_err, bytes_to_words, table_err, words_to_bytes};
 use crate::simulation::Simulation;
 use crate::stages::{OutputMap, Scales};
 use crate::vocabulary::{NameList, Params, SPECS, extension_spec};
@@ -121,10 +118,18 @@ impl From<Command> for PyCommand {
     }
 }
 
-/// Snapshot of a Compensator's memory and stage states (restore it into the compensator it came from, or a copy).
+/// Snapshot of a Compensator's memory and stage states (restore it into the compensator it came from, or a copy
+/// or unpickled copy of it).
 #[pyclass(name = "CompensatorState", module = "bmr", frozen)]
 #[derive(Clone)]
-pub(crate) struct PyCompensatorState(CompensatorState<MEMORY>);
+pub(crate) struct PyCompensatorState(StateData);
+
+/// A snapshot taken here, or unpickled words (checked against the tables when restored).
+#[derive(Clone)]
+pub(crate) enum StateData {
+    Live(Box<CompensatorState<MEMORY>>),
+    Words(Vec<u64>),
+}
 
 #[pymethods]
 impl PyCompensatorState {
@@ -134,6 +139,62 @@ impl PyCompensatorState {
     fn __deepcopy__(&self, _memo: &Bound<'_, PyAny>) -> Self {
         self.clone()
     }
+    fn __reduce__<'py>(
+        &self,
+        py: Python<'py>,
+    ) -> PyResult<(Bound<'py, PyAny>, (Bound<'py, pyo3::types::PyBytes>,))> {
+        let words = match &self.0 {
+            StateData::Live(s) => s.to_words(),
+            StateData::Words(w) => w.clone(),
+        };
+        let rebuild = py
+            .import("bmr._core")?
+            .getattr("_rebuild_compensator_state")?;
+        Ok((rebuild, (words_to_bytes(py, &words),)))
+    }
+}
+
+/// Unpickle a `CompensatorState` (checked against the compensator when it is restored).
+#[pyfunction]
+fn _rebuild_compensator_state(state: &[u8]) -> PyResult<PyCompensatorState> {
+    Ok(PyCompensatorState(StateData::Words(bytes_to_words(
+        state,
+        "CompensatorState",
+    )?)))
+}
+
+/// Unpickle a `Compensator`: rebuilt from its parts, then its state restored.
+#[pyfunction]
+#[allow(clippy::too_many_arguments)]
+fn _rebuild_compensator(
+    hysteresis: PyRef<'_, PyHysteresis>,
+    friction: PyRef<'_, PyFriction>,
+    inverse: &str,
+    converter_gain: f64,
+    current_limit: f64,
+    extensions: &Bound<'_, PyAny>,
+    dt_s: Option<f64>,
+    full_torque_nmm: f64,
+    state: &[u8],
+) -> PyResult<PyCompensator> {
+    let ext = parse_extensions(Some(extensions))?;
+    let mut c = PyCompensator::build(
+        PyHysteresis {
+            op: hysteresis.op.clone(),
+            report: None,
+        },
+        friction.f,
+        inverse,
+        converter_gain,
+        current_limit,
+        ext,
+        dt_s,
+        Some(full_torque_nmm),
+    )?;
+    let words = bytes_to_words(state, "Compensator")?;
+    let s = c.core.state_from_words(&words).map_err(table_err)?;
+    c.core.restore(&s).map_err(table_err)?;
+    Ok(c)
 }
 
 /// Parse `extensions`: a sequence of `{"name": str, "params": {param: value}}` (other keys are ignored, e.g. a
@@ -250,23 +311,37 @@ pub(crate) struct PyCompensator {
     full_torque_nmm: f64,
 }
 
-/// Borrow `slf` mutably, or say that it is in use (inside a `run` on another thread).
+/// Borrow `slf` (an `InUseError` while another thread is inside its `run`).
 fn busy<'py>(slf: &Bound<'py, PyCompensator>) -> PyResult<PyRefMut<'py, PyCompensator>> {
-    slf.try_borrow_mut().map_err(|_| {
-        BmrError::new_err(
-            "this Compensator is in use by another thread (inside run()); give each thread its own copy \
-             (copy.copy(compensator))",
-        )
-    })
+    crate::python::borrow_mut(slf)
 }
 
 fn shared<'py>(slf: &Bound<'py, PyCompensator>) -> PyResult<PyRef<'py, PyCompensator>> {
-    slf.try_borrow().map_err(|_| {
-        BmrError::new_err(
-            "this Compensator is in use by another thread (inside run()); give each thread its own copy \
-             (copy.copy(compensator))",
-        )
-    })
+    crate::python::borrow(slf)
+}
+
+/// A float64 argument as a slice: a contiguous float64 array is read in place, anything else is converted
+/// (`TypeError` naming the argument for non-numbers).
+enum Floats<'py> {
+    Borrowed(numpy::PyReadonlyArray1<'py, f64>),
+    Owned(Vec<f64>),
+}
+
+impl<'py> Floats<'py> {
+    fn of(obj: &Bound<'py, PyAny>, what: &str) -> PyResult<Self> {
+        if let Ok(a) = obj.cast::<PyArray1<f64>>()
+            && a.is_contiguous()
+        {
+            return Ok(Floats::Borrowed(a.readonly()));
+        }
+        Ok(Floats::Owned(extract_f64_array(obj, what)?))
+    }
+    fn slice(&self) -> &[f64] {
+        match self {
+            Floats::Borrowed(a) => a.as_slice().unwrap_or(&[]),
+            Floats::Owned(v) => v,
+        }
+    }
 }
 
 impl PyCompensator {
@@ -307,14 +382,17 @@ impl PyCompensator {
                 Some(dt) => dt,
                 None if extensions.iter().all(|p| {
                     // Effects that need no sample period: friction terms, the sensor, model-file entries.
-                    !matches!(p.spec.name, "coil_lag" | "time_delay" | "thermal_drift")
+                    !matches!(
+                        p.spec.name,
+                        "coil_lag" | "time_delay" | "thermal_drift" | "friction_current"
+                    )
                 }) =>
                 {
                     1.0
                 }
                 None => {
                     return Err(BmrError::new_err(
-                        "extensions with coil_lag, time_delay or thermal_drift need dt_s (the control period, s)",
+                        "extensions with coil_lag, time_delay, thermal_drift or friction_current need dt_s (the control period, s)",
                     ));
                 }
             };
@@ -445,18 +523,24 @@ impl PyCompensator {
         slf: &Bound<'_, Self>,
         torque_ref_nmm: f64,
         theta_rad: f64,
-        mut out: PyReadwriteArray1<'_, f64>,
+        out: &Bound<'_, PyAny>,
     ) -> PyResult<f64> {
-        let c = busy(slf)?.core.step(torque_ref_nmm, theta_rad);
-        let o = out
-            .as_slice_mut()
-            .map_err(|_| BmrError::new_err("step_into: out must be a contiguous float64 array"))?;
-        if o.len() < 7 {
-            return Err(BmrError::new_err(format!(
-                "step_into: out needs at least 7 elements, has {}",
-                o.len()
-            )));
+        let bad = || {
+            BmrError::new_err(
+                "step_into: out must be a writeable, contiguous float64 array of at least 7 elements",
+            )
+        };
+        let arr = out.cast::<PyArray1<f64>>().map_err(|_| bad())?;
+        // SAFETY: a raw read of the array's flags field.
+        let writeable =
+            unsafe { (*arr.as_array_ptr()).fields.flags } & numpy::npyffi::NPY_ARRAY_WRITEABLE != 0;
+        if !(writeable && arr.is_contiguous() && arr.len() >= 7) {
+            return Err(bad());
         }
+        let c = busy(slf)?.core.step(torque_ref_nmm, theta_rad);
+        // SAFETY: checked writeable and contiguous; the GIL is held and nothing else runs while we write (numpy's
+        // borrow tracking is skipped on purpose: it costs more than the step).
+        let o = unsafe { arr.as_slice_mut() }.map_err(|_| bad())?;
         o[..7].copy_from_slice(&[
             c.current_a,
             c.coil1_a,
@@ -477,17 +561,19 @@ impl PyCompensator {
     #[pyo3(signature = (torque_ref_nmm, theta_rad, *, columns=None, out=None))]
     fn run<'py>(
         slf: &Bound<'py, Self>,
-        torque_ref_nmm: PyArrayLike1<'py, f64, AllowTypeChange>,
-        theta_rad: PyArrayLike1<'py, f64, AllowTypeChange>,
+        torque_ref_nmm: &Bound<'py, PyAny>,
+        theta_rad: &Bound<'py, PyAny>,
         columns: Option<Vec<String>>,
         out: Option<&Bound<'py, PyDict>>,
     ) -> PyResult<Bound<'py, PyDict>> {
         let py = slf.py();
-        let n = torque_ref_nmm.len();
-        if n != theta_rad.len() {
+        let ref_in = Floats::of(torque_ref_nmm, "torque_ref_nmm")?;
+        let th_in = Floats::of(theta_rad, "theta_rad")?;
+        let n = ref_in.slice().len();
+        if n != th_in.slice().len() {
             return Err(BmrError::new_err(format!(
                 "run: torque_ref_nmm has {n} samples but theta_rad has {}",
-                theta_rad.len()
+                th_in.slice().len()
             )));
         }
         let wanted: Vec<usize> = match &columns {
@@ -573,22 +659,7 @@ impl PyCompensator {
             }
             flag_slices.push((*col, s));
         }
-        let refs_owned;
-        let refs: &[f64] = match torque_ref_nmm.as_slice() {
-            Ok(s) => s,
-            Err(_) => {
-                refs_owned = torque_ref_nmm.as_array().to_vec();
-                &refs_owned
-            }
-        };
-        let th_owned;
-        let th: &[f64] = match theta_rad.as_slice() {
-            Ok(s) => s,
-            Err(_) => {
-                th_owned = theta_rad.as_array().to_vec();
-                &th_owned
-            }
-        };
+        let (refs, th) = (ref_in.slice(), th_in.slice());
         {
             let mut me = busy(slf)?;
             let core = &mut me.core;
@@ -640,12 +711,56 @@ impl PyCompensator {
 
     /// A copy of the memory and stage states (restore it with `restore`).
     fn snapshot(slf: &Bound<'_, Self>) -> PyResult<PyCompensatorState> {
-        Ok(PyCompensatorState(shared(slf)?.core.snapshot()))
+        Ok(PyCompensatorState(StateData::Live(Box::new(
+            shared(slf)?.core.snapshot(),
+        ))))
     }
 
     /// Return to a snapshot of this compensator (or of one with identical tables and stages).
     fn restore(slf: &Bound<'_, Self>, state: &PyCompensatorState) -> PyResult<()> {
-        busy(slf)?.core.restore(&state.0).map_err(bmr_err)
+        let mut me = busy(slf)?;
+        let s = match &state.0 {
+            StateData::Live(s) => **s,
+            StateData::Words(w) => me.core.state_from_words(w).map_err(table_err)?,
+        };
+        me.core.restore(&s).map_err(table_err)
+    }
+
+    /// Pickled as its parts (tables, friction, inverse, gain, limit, extensions, control period) and its state:
+    /// an unpickled compensator continues bit for bit.
+    #[allow(clippy::type_complexity)]
+    fn __reduce__<'py>(
+        slf: &Bound<'py, Self>,
+    ) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyTuple>)> {
+        let py = slf.py();
+        let me = shared(slf)?;
+        let hysteresis = Bound::new(
+            py,
+            PyHysteresis {
+                op: me.hysteresis.op.clone(),
+                report: None,
+            },
+        )?;
+        let friction = Bound::new(
+            py,
+            PyFriction {
+                f: me.base_friction,
+            },
+        )?;
+        let args = (
+            hysteresis,
+            friction,
+            me.inverse,
+            me.core.gain_a_per_v(),
+            me.core.limit_a(),
+            extensions_to_py(py, &me.extensions)?,
+            me.dt_s,
+            me.full_torque_nmm,
+            words_to_bytes(py, &me.core.snapshot().to_words()),
+        )
+            .into_pyobject(py)?;
+        let rebuild = py.import("bmr._core")?.getattr("_rebuild_compensator")?;
+        Ok((rebuild, args))
     }
 
     /// "exact" or "paper".
@@ -792,15 +907,15 @@ impl PySimulation {
     fn run<'py>(
         &mut self,
         py: Python<'py>,
-        current_a: PyArrayLike1<'py, f64, AllowTypeChange>,
-        theta_rad: PyArrayLike1<'py, f64, AllowTypeChange>,
+        current_a: &Bound<'py, PyAny>,
+        theta_rad: &Bound<'py, PyAny>,
         initial: Option<&Bound<'_, PyAny>>,
         heating: f64,
         t0_s: f64,
     ) -> PyResult<Bound<'py, PyDict>> {
         let initial: Initial = initial_or_negative(initial)?;
-        let u = to_vec(current_a);
-        let th = to_vec(theta_rad);
+        let u = extract_f64_array(current_a, "current_a")?;
+        let th = extract_f64_array(theta_rad, "theta_rad")?;
         if u.len() != th.len() {
             return Err(BmrError::new_err(format!(
                 "run: current_a has {} samples but theta_rad has {}",
@@ -938,12 +1053,12 @@ fn output_map_of(curvature: f64, scale_nmm: f64) -> PyResult<OutputMap> {
 #[pyfunction]
 fn output_map<'py>(
     py: Python<'py>,
-    core_nmm: PyArrayLike1<'py, f64, AllowTypeChange>,
+    core_nmm: &Bound<'py, PyAny>,
     curvature: f64,
     scale_nmm: f64,
 ) -> PyResult<Bound<'py, PyArray1<f64>>> {
     let m = output_map_of(curvature, scale_nmm)?;
-    let x = to_vec(core_nmm);
+    let x = extract_f64_array(core_nmm, "core_nmm")?;
     Ok(to_numpy(py, x.iter().map(|&v| m.forward(v)).collect()))
 }
 
@@ -951,18 +1066,20 @@ fn output_map<'py>(
 #[pyfunction]
 fn output_map_inverse<'py>(
     py: Python<'py>,
-    field_nmm: PyArrayLike1<'py, f64, AllowTypeChange>,
+    field_nmm: &Bound<'py, PyAny>,
     curvature: f64,
     scale_nmm: f64,
 ) -> PyResult<Bound<'py, PyArray1<f64>>> {
     let mut m = output_map_of(curvature, scale_nmm)?;
-    let x = to_vec(field_nmm);
+    let x = extract_f64_array(field_nmm, "field_nmm")?;
     Ok(to_numpy(py, x.iter().map(|&v| m.inverse(v)).collect()))
 }
 
 pub(crate) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(check_extensions, m)?)?;
     m.add_function(wrap_pyfunction!(export_source, m)?)?;
+    m.add_function(wrap_pyfunction!(_rebuild_compensator, m)?)?;
+    m.add_function(wrap_pyfunction!(_rebuild_compensator_state, m)?)?;
     m.add_function(wrap_pyfunction!(output_map, m)?)?;
     m.add_function(wrap_pyfunction!(output_map_inverse, m)?)?;
     m.add_class::<PyCompensator>()?;

@@ -73,7 +73,7 @@ fn fit_friction_order<'py>(
 /// A Preisach model with a tabulated Everett function `E(β, α)` on an input grid (see the Rust docs of
 /// `identification::everett_regressors`). The ascending first-order curve from reversal m is
 /// `y(m) + E(m, u)`, the descending one from M is `y(M) − E(u, M)`.
-#[pyclass(name = "EverettModel", module = "bmr._core", frozen)]
+#[pyclass(name = "EverettModel", module = "bmr", frozen)]
 pub struct PyEverettModel {
     inner: EverettModel,
 }

@@ -454,3 +454,33 @@ fn inversion_error(d: &StageDraw) -> f64 {
     }
     worst
 }
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 200, ..ProptestConfig::default() })]
+
+    /// The inverse's shortcut (same branch, same table cell as the last answer) gives the bits of the full search:
+    /// a compensator restored from its own snapshot after every step (which drops the shortcut) commands the same.
+    #[test]
+    fn the_inverse_shortcut_gives_the_bits_of_the_full_search(
+        seed in 0u64..1000, extended_stages in any::<bool>(), d in stage_draw()) {
+        let make = || if extended_stages { extended(false, 1.25, &d) } else {
+            let f = Friction::from_amplitude_phase(12.0, &[25.0, 8.0, 4.0], &[0.3, 1.1, -0.7]).unwrap();
+            Comp24::new(forward(), InverseKind::Exact, f, 0.125, 1.25).unwrap()
+        };
+        let mut fast = make();
+        let mut slow = make();
+        let mut rng = common::Rng(seed);
+        let (mut r, mut v) = (0.0f64, 0.0f64);
+        for i in 0..3000 {
+            // A smooth random reference: slowly varying slopes, reversals now and then.
+            v = (v + 0.4 * (rng.uniform() - 0.5)).clamp(-3.0, 3.0);
+            r = (r + v).clamp(-320.0, 320.0);
+            let th = 0.002 * i as f64;
+            let a = fast.step(r, th).current_a;
+            let snap = slow.snapshot();
+            slow.restore(&snap).unwrap();
+            let b = slow.step(r, th).current_a;
+            prop_assert_eq!(a.to_bits(), b.to_bits(), "sample {}", i);
+        }
+    }
+}

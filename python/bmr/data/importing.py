@@ -347,18 +347,23 @@ def import_logs(
 
     runs: list[Run] = []
     report: list[ImportedRun] = []
+    off_protocol: list[BmrError] = []
     for (path, t, name, df), u in zip(built, inputs):
         rev = np.asarray(_core.find_reversals(np.ascontiguousarray(u), db), dtype=int)
         role = roles[name]
         kind = _KIND[protocol]
         curves = None
-        if role == "identification":
-            curves = _check_protocol(protocol, t.source, name, u, rev, lo, hi, tol, q_in, db)
-        elif protocol != "any":
+        if protocol != "any":
             try:
                 curves = _check_protocol(protocol, t.source, name, u, rev, lo, hi, tol, q_in, db)
-            except BmrError:
-                kind = "custom"  # a held-out run need not follow the identification protocol
+            except BmrError as exc:
+                # A held-out run need not follow the identification protocol; an identification run that does
+                # not (an instrument's first, partial measurement) is kept as a custom run and named in the
+                # notes, unless no run follows the protocol at all.
+                kind = "custom"
+                if role == "identification":
+                    off_protocol.append(exc)
+                    notes.append(f"{exc}; kept as a custom run (not used as first-order curves)")
         meta = {"source": t.source, "reversals": int(rev.size),
                 **({"first_order_curves": curves} if curves is not None else {}),
                 **_jsonable_meta(t.meta)}
@@ -369,6 +374,8 @@ def import_logs(
         tt = df["t_s"].to_numpy()
         report.append(ImportedRun(name, t.source, kind, role, len(df), int(rev.size), curves,
                                   (float(u.min()), float(u.max())), float(tt[-1] - tt[0])))
+    if off_protocol and not any(r.role == "identification" and r.kind != "custom" for r in runs):
+        raise off_protocol[0]
     rate = sample_rate([r.time for r in runs])
     meta = {"imported_from": [str(p) for p in paths], "protocol": protocol, "reversal_deadband": db}
     bundle = Bundle(device, rate.hz, runs, meta, quantities)

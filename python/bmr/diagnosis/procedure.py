@@ -40,6 +40,7 @@ from bmr.diagnosis.noise import from_residual
 from bmr.diagnosis.extended_model import ExtendedModel, extensions_from_selection, with_extensions
 from bmr.diagnosis.residuals import prepare, signal_label, structure
 from bmr.diagnosis.selection import MIN_EXCESS, NOISE_MARGIN, Fitter, forward_selection, t975
+from bmr.files import write_text_atomic
 from bmr.identification.procedure import identify
 from bmr.identification.model import LOOP_STAGES, Model
 from bmr.report.diagnosis import figures, html_page, html_section
@@ -134,20 +135,11 @@ class Diagnosis:
         return html_section(self)
 
     def write_report(self, path: str | Path) -> Path:
-        p = Path(path)
-        try:
-            p.write_text(html_page(self))
-        except OSError as exc:
-            raise BmrError(f"cannot write report {str(p)!r}: {exc.strerror or exc}") from None
-        return p
+        return write_text_atomic(path, html_page(self), what="report")
 
     def write_json(self, path: str | Path) -> Path:
-        p = Path(path)
-        try:
-            p.write_text(json.dumps(self.to_dict(), indent=1, allow_nan=False) + "\n")
-        except OSError as exc:
-            raise BmrError(f"cannot write {str(p)!r}: {exc.strerror or exc}") from None
-        return p
+        return write_text_atomic(path, json.dumps(self.to_dict(), indent=1, allow_nan=False) + "\n",
+                                 what="diagnosis")
 
     def __repr__(self) -> str:
         unit = self.quantities.output.unit
@@ -430,8 +422,8 @@ def closed_loop_gain(d: Diagnosis, plant: Callable[[], Any] | None = None, *, sa
 
 
 def run_cli(args: Any) -> int:
-    """``bmr diagnose BUNDLE [--model M] [--json OUT] [--report OUT.html]``: print the named cause and the
-    selection, write the JSON and the HTML report on request."""
+    """``bmr diagnose BUNDLE [--model M] [--json OUT] [--report OUT.html] [--model-out OUT.json]``: print the
+    named cause and the selection, write the JSON, the HTML report and the extended model file on request."""
     d = diagnose(args.bundle, args.model, folds=args.folds, seed=args.seed)
     q = d.quantities
     u = q.output.unit
@@ -472,5 +464,8 @@ def run_cli(args: Any) -> int:
     if args.report:
         d.write_report(args.report)
         print(f"  wrote {args.report}")
+    if getattr(args, "model_out", None):
+        d.extended_model.save(args.model_out)
+        print(f"  wrote {args.model_out} (bmr.Compensator.from_model, bmr export)")
     return 0
 

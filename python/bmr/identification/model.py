@@ -42,6 +42,7 @@ import numpy as np
 from bmr import _core
 from bmr._core import BmrError, Compensator, Hysteresis
 from bmr.data.quantities import ACTUATOR, Quantities
+from bmr.files import write_text_atomic
 from bmr.identification.friction import FrictionFit
 
 __all__ = ["FORMAT", "LOOP_STAGES", "Model"]
@@ -182,6 +183,25 @@ class Model:
             y = y + self.friction_torque(th)
         return y
 
+    def end_slopes(self) -> tuple[float, float]:
+        """Slopes (output per input) of the major branches where they meet the ends of the input range: the
+        descending major branch at the lowest input, the ascending one at the highest (used to extrapolate)."""
+        asc, desc = self.hysteresis.curves()
+        ua, ya = np.asarray(asc[0][0]), np.asarray(asc[0][1])
+        ud, yd = np.asarray(desc[0][0]), np.asarray(desc[0][1])
+        s_hi = float((ya[-1] - ya[-2]) / (ua[-1] - ua[-2])) if ua.size > 1 else 0.0
+        s_lo = float((yd[-1] - yd[-2]) / (ud[-1] - ud[-2])) if ud.size > 1 else 0.0
+        return s_lo, s_hi
+
+    def input_excess(self, current: Any) -> tuple[int, float]:
+        """How many samples of ``current`` lie outside the table's input range, and the largest distance beyond
+        it (input units; 0 when none)."""
+        u = np.asarray(current, dtype=float)
+        lo, hi = self.hysteresis.input_range
+        excess = np.maximum(u - hi, 0.0) + np.maximum(lo - u, 0.0)
+        excess[excess <= 1e-9 * (hi - lo)] = 0.0  # round-off at the ends is not beyond them
+        return int(np.count_nonzero(excess)), float(excess.max()) if excess.size else 0.0
+
     def extension(self, name: str) -> dict[str, Any] | None:
         """The extension entry ``name`` (None if the model has none)."""
         return next((e for e in self.extensions if e.get("name") == name), None)
@@ -202,7 +222,8 @@ class Model:
 
     @property
     def full_current_a(self) -> float:
-        """The current limit (A): the thermal model's unit heating."""
+        """The current limit (input unit; A for the actuator): the largest |input| the model was identified on,
+        the thermal model's unit heating."""
         lo, hi = self.input_limits
         return float(max(abs(lo), abs(hi)))
 
@@ -267,25 +288,6 @@ class Model:
             plan.append({"name": e["name"], "on": on, "reason": why, "tracking": tracking})
         return plan
 
-    def end_slopes(self) -> tuple[float, float]:
-        """Slopes (output per input) of the major branches where they meet the ends of the input range: the
-        descending major branch at the lowest input, the ascending one at the highest (used to extrapolate)."""
-        asc, desc = self.hysteresis.curves()
-        ua, ya = np.asarray(asc[0][0]), np.asarray(asc[0][1])
-        ud, yd = np.asarray(desc[0][0]), np.asarray(desc[0][1])
-        s_hi = float((ya[-1] - ya[-2]) / (ua[-1] - ua[-2])) if ua.size > 1 else 0.0
-        s_lo = float((yd[-1] - yd[-2]) / (ud[-1] - ud[-2])) if ud.size > 1 else 0.0
-        return s_lo, s_hi
-
-    def input_excess(self, current: Any) -> tuple[int, float]:
-        """How many samples of ``current`` lie outside the table's input range, and the largest distance beyond
-        it (input units; 0 when none)."""
-        u = np.asarray(current, dtype=float)
-        lo, hi = self.hysteresis.input_range
-        excess = np.maximum(u - hi, 0.0) + np.maximum(lo - u, 0.0)
-        excess[excess <= 1e-9 * (hi - lo)] = 0.0  # round-off at the ends is not beyond them
-        return int(np.count_nonzero(excess)), float(excess.max()) if excess.size else 0.0
-
     def compensator(self, dt_s: float | None = None, *, stages: Any = None, **kwargs: Any) -> Any:
         """The full compensator of this model, built in the core: friction and converter gain filled in, the
         extensions made into stages at control period ``dt_s`` (s; needed when the model has extensions).
@@ -310,8 +312,8 @@ class Model:
         if not on:
             return Compensator(self.hysteresis, friction, **kwargs)
         effects = [e for e in self.extensions if e["name"] in on and e["name"] != "core_tables"]
-        needs_dt = any(e["name"] in ("time_delay", "coil_lag", "thermal_drift", "creep", "rate_dependence")
-                       for e in effects)
+        needs_dt = any(e["name"] in ("time_delay", "coil_lag", "thermal_drift", "friction_current", "creep",
+                                     "rate_dependence") for e in effects)
         if needs_dt and dt_s is None:
             raise BmrError(f"this model's extensions ({', '.join(on)}) need the control period: pass dt_s")
         core = self.core_hysteresis(refined="core_tables" in on)
@@ -331,12 +333,7 @@ class Model:
         digest = _digest(self.to_dict())[:16]
         title = f"bmr compensator of model {digest} (stages: {names})"
         text = _core.export_source(comp, language, title=title, prefix=prefix)
-        p = Path(path)
-        try:
-            p.write_text(text)
-        except OSError as exc:
-            raise BmrError(f"cannot write {str(p)!r}: {exc.strerror or exc}") from None
-        return p
+        return write_text_atomic(path, text, what=f"{language} source")
 
     def current_curves(self) -> tuple[list[tuple[np.ndarray, np.ndarray]], list[tuple[np.ndarray, np.ndarray]]]:
         """The paper's current curves (torque → current) from the stored torque curves."""
@@ -368,12 +365,8 @@ class Model:
         """Write the model as ``bmr-model/2`` JSON (with its sha256 digest)."""
         content = self.to_dict()
         content["sha256"] = _digest(content)
-        p = Path(path)
-        try:
-            p.write_text(_compact_number_lists(json.dumps(content, indent=1, allow_nan=False)) + "\n")
-        except OSError as exc:
-            raise BmrError(f"cannot write model file {str(p)!r}: {exc.strerror or exc}") from None
-        return p
+        text = _compact_number_lists(json.dumps(content, indent=1, allow_nan=False)) + "\n"
+        return write_text_atomic(path, text, what="model file")
 
     @classmethod
     def from_dict(cls, content: Any, *, source: str = "model") -> "Model":

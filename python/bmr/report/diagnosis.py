@@ -140,10 +140,13 @@ def html_section(d: Any) -> str:
                                                                      f"extended RMS ({q.output.unit})"]))
     if d.closed_loop and "ratio" in d.closed_loop:
         c = d.closed_loop
-        parts.append(f"<p><b>Closed loop</b> on the {html.escape(str(c.get('plant', 'plant')))} "
-                     f"({html.escape(str(c['reference']))} reference, {c['duration_s']:g} s): tracking RMS "
-                     f"{c['nominal_rms_nmm']:.2f} {yu} (nominal compensator) → {c['extended_rms_nmm']:.2f} {yu} "
-                     f"(extended), ratio {c['ratio']:.2f}.</p>")
+        plant = "the simulator that made the bundle" if c.get("plant") == "simulator" else "the diagnosed model"
+        parts.append(f"<p><b>Closed loop</b> on {plant} ({html.escape(str(c['reference']))} reference, "
+                     f"{c['duration_s']:g} s): tracking RMS {c['nominal_rms_nmm']:.2f} {yu} (nominal compensator) "
+                     f"→ {c['extended_rms_nmm']:.2f} {yu} (extended), ratio {c['ratio']:.2f}.</p>")
+        rows = [[name, "on" if v["in_loop"] else "off (made tracking worse)", f"{v['ratio']:.2f}"]
+                for name, v in c["stages"].items()]
+        parts.append(_table(rows, ["stage", "in the compensator", "tracking with / without it"]))
     if d.unexplained:
         rows = [[signal_label(u["signal"], q), f"{u['strength']:.4g}"] for u in d.unexplained]
         parts.append("<h3>Structure no effect explains</h3>"

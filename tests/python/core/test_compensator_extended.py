@@ -149,6 +149,19 @@ def test_copies_and_pickles_continue_bit_for_bit():
     rest = [c.step(r, t).current_a for r, t in zip(ref[1500:], th[1500:])]
     assert [d.step(r, t).current_a for r, t in zip(ref[1500:], th[1500:])] == rest
     assert [e.step(r, t).current_a for r, t in zip(ref[1500:], th[1500:])] == rest
+    # Pickled (to a worker process, say): the parts and the state, every stage included.
+    c.run(ref[:1500], th[:1500])
+    p = pickle.loads(pickle.dumps(c))
+    rest = [c.step(r, t).current_a for r, t in zip(ref[1500:], th[1500:])]
+    assert [p.step(r, t).current_a for r, t in zip(ref[1500:], th[1500:])] == rest
+    assert p.stages == c.stages and p.dt_s == c.dt_s
+    # A pickled snapshot restores into the compensator (or a copy), not into one with other stages.
+    s = pickle.loads(pickle.dumps(c.snapshot()))
+    a = [c.step(r, t).current_a for r, t in zip(ref[:300], th[:300])]
+    c.restore(s)
+    assert [c.step(r, t).current_a for r, t in zip(ref[:300], th[:300])] == a
+    with pytest.raises(bmr.BmrError):
+        m.compensator(DT_S, stages=["coil_lag"]).restore(s)
     f = bmr.Friction(12.0, [25.0, 8.0], [1.0, -2.0], gain_per_a=0.3)
     assert pickle.loads(pickle.dumps(f)) == f and copy.copy(f) == f
     cmd = c.step(100.0, 0.3)

@@ -135,6 +135,28 @@ def test_analyzer_tables_become_runs_and_units_convert(tmp_path):
     assert res.rate.hz == 10000.0
 
 
+def test_a_partial_first_measurement_is_kept_as_a_custom_run(tmp_path):
+    # Analyzers often open a FORC series with a partial measurement (here 0 V → 10 V → 0 V, no reversal inside
+    # the range): it is kept, labelled custom and named in the notes; the FORC tables stay first-order curves.
+    t = np.linspace(0.0, 1.0, 201)
+    first = 10.0 * np.sin(np.pi * t)
+    tables = [({}, ["Time s", "Vplus V", "P1 uC_per_cm2"], np.column_stack([t, first, 2.0 * first]))]
+    for r in (5.0, 0.0, -5.0, -10.0):
+        v = np.r_[np.linspace(10.0, r, 100), np.linspace(r, 10.0, 101)[1:]]
+        tt = np.arange(v.size) * 5e-3
+        tables.append(({}, ["Time s", "Vplus V", "P1 uC_per_cm2"], np.column_stack([tt, v, 20 * np.tanh(v / 4)])))
+    p = write_aixacct(tmp_path / "forc.dat", tables)
+    res = import_logs([p], input="Vplus:V", output="P1:uC/cm2", protocol="forc-ascending")
+    kinds = {r.name: r.kind for r in res.runs}
+    assert kinds == {"forc-1": "custom", **{f"forc-{k}": "first_order_ascending" for k in range(2, 6)}}
+    assert any("run 'forc-1'" in n and "kept as a custom run" in n for n in res.notes)
+    assert len(res.bundle.runs) == 5  # nothing dropped
+    # Without any run that follows the protocol, the import is still an error naming the file and run.
+    with pytest.raises(bmr.BundleError, match=r"one.dat \(run 'one'\): protocol forc-ascending: no first-order curve"):
+        import_logs([write_aixacct(tmp_path / "one.dat", tables[:1])], input="Vplus:V", output="P1:uC/cm2",
+                    protocol="forc-ascending")
+
+
 # ------------------------------------------------------------------------------------------------ bad input
 def test_bad_inputs_are_named(piezo_logs, tmp_path):
     # File, column, run and protocol problems are bundle errors; units that do not convert are BmrErrors.
