@@ -13,7 +13,7 @@ use pyo3::types::{PyDict, PyTuple};
 /// ``bmr.DEVICE_PRESETS`` (``piezo``: ±90 V → ±20 µm; ``ferroelectric``: ±10 V → ±30 µC/cm²); ``effects`` as for
 /// ``bmr.VirtualActuator`` (those that need an angle are refused); ``overrides`` by the names in
 /// ``bmr.DEVICE_PARAMETERS``.
-#[pyclass(name = "VirtualDevice", module = "bmr._core")]
+#[pyclass(name = "VirtualDevice", module = "bmr")]
 pub struct PyVirtualDevice {
     inner: VirtualDevice,
     preset: String,

@@ -11,7 +11,6 @@ from pathlib import Path
 import pytest
 
 import bmr
-from bmr.diagnosis.effects import PHYSICAL
 
 ROOT = Path(__file__).resolve().parents[3]
 
@@ -28,7 +27,7 @@ def _bench():
 # day the stage helps.
 _CASES = [pytest.param(n, marks=pytest.mark.xfail(strict=True, reason="thermal_drift: the heating stage does not "
                                                   "help on rig_preisach; ratio from the refined tables alone"))
-          if n == "thermal_drift" else n for n in PHYSICAL]
+          if n == "thermal_drift" else n for n in _bench().CLOSED_LOOP_EFFECTS]
 
 
 @pytest.mark.slow
