@@ -30,6 +30,7 @@ __all__ = [
     "CurveFit",
     "CurveReport",
     "EFFECTS",
+    "EverettFit",
     "EverettModel",
     "ExtendedSimulation",
     "EverettRegression",
@@ -44,6 +45,7 @@ __all__ = [
     "fit_everett",
     "find_reversals",
     "fit_friction_order",
+    "FrictionOrderFit",
     "FRICTION_MAX_ORDER",
     "MODEL_EXTENSIONS",
     "check_extensions",
@@ -290,8 +292,32 @@ def reversal_order(
     """Reversal order (int64) of every sample: 0 after the input came within ``saturation_tol`` (default 0.2 % of
     ``hi - lo``) of ``lo`` or ``hi``, +1 at every later reversal beyond ``deadband`` (default 1 % of ``hi - lo``)."""
 
-def fit_friction_order(theta_rad: np.ndarray, torque_nmm: np.ndarray, order: int) -> dict:
-    """Friction c0 + Σ a_k sin kθ + b_k cos kθ of one order: c0, a, b, *_stderr, covariance, rss, n, order."""
+@final
+class FrictionOrderFit:
+    """Friction ``c0 + Σ a_k sin kθ + b_k cos kθ`` (N·mm) of one harmonic order with its uncertainties."""
+    @property
+    def order(self) -> int: ...
+    @property
+    def c0(self) -> float: ...
+    @property
+    def a(self) -> np.ndarray: ...
+    @property
+    def b(self) -> np.ndarray: ...
+    @property
+    def c0_stderr(self) -> float: ...
+    @property
+    def a_stderr(self) -> np.ndarray: ...
+    @property
+    def b_stderr(self) -> np.ndarray: ...
+    @property
+    def covariance(self) -> np.ndarray: ...
+    @property
+    def rss(self) -> float: ...
+    @property
+    def n(self) -> int: ...
+
+def fit_friction_order(theta_rad: _ArrayLike, torque_nmm: _ArrayLike, order: int) -> FrictionOrderFit:
+    """Least-squares friction series of one order (BmrError on bad input or rank deficiency)."""
 
 @final
 class EverettModel:
@@ -335,9 +361,27 @@ def fit_everett(
     smoothing: float = 1e-4,
     ridge: float = 1e-9,
     max_iter: int = 500,
-) -> dict:
-    """Regularised NNLS Everett table from runs ``(u, y, weight, offset_col[, history[, gain]])``: model, offsets,
-    rss, rms, n_rows, iterations, passive."""
+) -> EverettFit:
+    """Regularised NNLS Everett table from runs ``(u, y, weight, offset_col[, history[, gain]])``."""
+
+@final
+class EverettFit:
+    """Result of ``fit_everett`` / ``EverettRegression.fit``: the model (offset column 0 is its offset), every
+    offset, the data term's residual and the solver's passive set (a warm start)."""
+    @property
+    def model(self) -> EverettModel: ...
+    @property
+    def offsets(self) -> np.ndarray: ...
+    @property
+    def rss(self) -> float: ...
+    @property
+    def rms(self) -> float: ...
+    @property
+    def n_rows(self) -> int: ...
+    @property
+    def iterations(self) -> int: ...
+    @property
+    def passive(self) -> np.ndarray: ...
 
 @final
 class EverettRegression:
@@ -355,7 +399,7 @@ class EverettRegression:
     ) -> Self: ...
     @property
     def n_rows(self) -> int: ...
-    def fit(self, outputs: Sequence[_ArrayLike], warm_start: Sequence[bool] | np.ndarray | None = None) -> dict: ...
+    def fit(self, outputs: Sequence[_ArrayLike], warm_start: Sequence[bool] | np.ndarray | None = None) -> EverettFit: ...
 EFFECTS: tuple[str, ...]
 """Names of the virtual actuator's switchable effects (the diagnosis vocabulary)."""
 PRESETS: tuple[str, ...]

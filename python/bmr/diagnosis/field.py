@@ -188,9 +188,9 @@ class Reidentifier:
                 y = effect.remove(y, value, np.asarray(beta), pr)
             outputs.append(np.ascontiguousarray(output_map_inverse(y, path.curvature, path.scale_nmm)))
         res = reg.fit(outputs, self._passive)
-        self._passive = res["passive"]
+        self._passive = res.passive
         self.fits += 1
-        asc, desc = res["model"].first_order_curves()
+        asc, desc = res.model.first_order_curves()
         return ([(np.asarray(u), np.asarray(y)) for u, y in asc], [(np.asarray(u), np.asarray(y)) for u, y in desc])
 
 
