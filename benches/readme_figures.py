@@ -120,8 +120,13 @@ def render_demo(rec: dict[str, Any]) -> str:
     m = v["full"]["metrics"]
     fs = m["full_scale_nmm"]
     rows = ["| case | paper fig | RMS (N·mm) | max (N·mm) | RMS (% FS) | max (% FS) |", "|---|---|---|---|---|---|"]
-    for c in m["cases"].values():
-        fig = c["paper_figure"] if c["paper_figure"] != "baseline" else "—"
+    # The paper's order: triangle experiments (figs 18-22), then the multi-peak reference (24-25) and the baselines.
+    order = ["triangle_current_without_friction_compensation", "triangle_current_with_friction_compensation",
+             "triangle_hysteresis_compensation", "multipeak_uncompensated", "multipeak_hysteresis_compensation",
+             "multipeak_both_compensations", "multipeak_both_paper_inverse"]
+    cases = sorted(m["cases"].items(), key=lambda kv: (order.index(kv[0]) if kv[0] in order else len(order), kv[0]))
+    for _, c in cases:
+        fig = c["paper_figure"] if c["paper_figure"][:1].isdigit() else "—"
         rows.append(f"| {c['title']} | {fig} | {c['rms_nmm']:.3g} | {c['max_abs_nmm']:.4g} | "
                     f"{c['rms_pct_fs']:.2g} | {c['max_pct_fs']:.2g} |")
     t = {k: v[k] for k in ("full", "quick")}
