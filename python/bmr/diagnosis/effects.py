@@ -259,10 +259,17 @@ class ThermalDrift(Effect):
         decay = x0 * np.exp(-np.arange(states[i].size) * run.dt / tau)
         # The protocol run's start state as the evaluation runs show it (cold after rests).
         x = states[i] - (1.0 - ThermalDrift.carried_share(np.asarray(beta))) * decay
-        return y / np.maximum(1.0 + beta[1] - beta[0] * x, 1e-3)
+        # Only the heating is undone, relative to cold coils: the fitted field gain ``1 + beta[1]`` is the
+        # tables' own error (identified warm) and belongs in the re-identified tables, which are cold.
+        return y / np.maximum(1.0 - ThermalDrift._gain_loss(beta) * x, 1e-3)
+
+    @staticmethod
+    def _gain_loss(beta: Any) -> float:
+        """Fractional gain loss at unit heating from the fitted ``field × (1 + beta[1] − beta[0]·x)``."""
+        return float(beta[0] / (1.0 + beta[1]))
 
     def params(self, value, beta, path):
-        return {"gain_loss": float(beta[0] / (1.0 + beta[1])), "tau_s": float(value)}
+        return {"gain_loss": self._gain_loss(beta), "tau_s": float(value)}
 
     def detail(self, value, beta) -> dict[str, float]:
         return {"carried_share": self.carried_share(np.asarray(beta))}
