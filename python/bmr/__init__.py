@@ -4,7 +4,8 @@ hysteretic device identified from its measured data.
 Core (Rust): ``Hysteresis`` (CBH operator), ``Friction`` (angle-periodic seal friction), ``Compensator``
 (exact or paper inverse + friction feedforward, coil split, current limit; ``Compensator.from_model`` adds the
 stages of what a diagnosis found, ``ExtendedSimulation`` runs them forwards), ``VirtualActuator`` (a physical
-simulator of the rig; ``EFFECTS`` names its switchable effects, ``effect_parameters()`` documents them).
+simulator of the rig; ``EFFECTS`` names its switchable effects, ``effect_parameters()`` documents them),
+``VirtualDevice`` (a hysteretic device with one input and one output and no angle: ``DEVICE_PRESETS``).
 Experiment protocols and bundles of them: ``bmr.experiments`` (:mod:`bmr.simulation.experiments`).
 Package layout, in data-flow order: :mod:`bmr.data` (bundles, lab readers) → :mod:`bmr.identification`
 (friction, first-order curves, least-squares tables, ``Model``) → :mod:`bmr.diagnosis` → :mod:`bmr.report`;
@@ -22,6 +23,8 @@ torque in N·mm, angles in rad, time in s, converter voltages in V; other device
 """
 from bmr._core import (
     ACTUATOR_PARAMETERS,
+    DEVICE_PARAMETERS,
+    DEVICE_PRESETS,
     EFFECTS,
     PRESETS,
     BmrError,
@@ -40,6 +43,7 @@ from bmr._core import (
     HysteresisState,
     TableReport,
     VirtualActuator,
+    VirtualDevice,
     effect_parameters,
     fit_everett,
 )
@@ -71,6 +75,8 @@ from bmr.simulation import experiments
 
 __all__ = [
     "ACTUATOR_PARAMETERS",
+    "DEVICE_PARAMETERS",
+    "DEVICE_PRESETS",
     "EFFECTS",
     "PRESETS",
     "BmrError",
@@ -98,6 +104,7 @@ __all__ = [
     "Run",
     "TableReport",
     "VirtualActuator",
+    "VirtualDevice",
     "bundle_from_files",
     "diagnose",
     "diagnose_many",
