@@ -409,6 +409,7 @@ impl<S: AsRef<[f64]>, const N: usize, const K: usize> Compensator<S, N, K> {
             f.commit(field_a);
         }
         let core_out = if exact && matches!(self.inverse, InverseKind::Exact) {
+            // Exact means the core reaches `input` (= core_in): the inverse's cell applies.
             self.forward.commit(core_in, target, inv.cell, inv.fast);
             target
         } else {

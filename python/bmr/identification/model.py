@@ -183,25 +183,6 @@ class Model:
             y = y + self.friction_torque(th)
         return y
 
-    def end_slopes(self) -> tuple[float, float]:
-        """Slopes (output per input) of the major branches where they meet the ends of the input range: the
-        descending major branch at the lowest input, the ascending one at the highest (used to extrapolate)."""
-        asc, desc = self.hysteresis.curves()
-        ua, ya = np.asarray(asc[0][0]), np.asarray(asc[0][1])
-        ud, yd = np.asarray(desc[0][0]), np.asarray(desc[0][1])
-        s_hi = float((ya[-1] - ya[-2]) / (ua[-1] - ua[-2])) if ua.size > 1 else 0.0
-        s_lo = float((yd[-1] - yd[-2]) / (ud[-1] - ud[-2])) if ud.size > 1 else 0.0
-        return s_lo, s_hi
-
-    def input_excess(self, current: Any) -> tuple[int, float]:
-        """How many samples of ``current`` lie outside the table's input range, and the largest distance beyond
-        it (input units; 0 when none)."""
-        u = np.asarray(current, dtype=float)
-        lo, hi = self.hysteresis.input_range
-        excess = np.maximum(u - hi, 0.0) + np.maximum(lo - u, 0.0)
-        excess[excess <= 1e-9 * (hi - lo)] = 0.0  # round-off at the ends is not beyond them
-        return int(np.count_nonzero(excess)), float(excess.max()) if excess.size else 0.0
-
     def extension(self, name: str) -> dict[str, Any] | None:
         """The extension entry ``name`` (None if the model has none)."""
         return next((e for e in self.extensions if e.get("name") == name), None)
@@ -287,6 +268,25 @@ class Model:
                 on, why = True, f"on: {measured}" if ratio is not None else "on: " + measured
             plan.append({"name": e["name"], "on": on, "reason": why, "tracking": tracking})
         return plan
+
+    def end_slopes(self) -> tuple[float, float]:
+        """Slopes (output per input) of the major branches where they meet the ends of the input range: the
+        descending major branch at the lowest input, the ascending one at the highest (used to extrapolate)."""
+        asc, desc = self.hysteresis.curves()
+        ua, ya = np.asarray(asc[0][0]), np.asarray(asc[0][1])
+        ud, yd = np.asarray(desc[0][0]), np.asarray(desc[0][1])
+        s_hi = float((ya[-1] - ya[-2]) / (ua[-1] - ua[-2])) if ua.size > 1 else 0.0
+        s_lo = float((yd[-1] - yd[-2]) / (ud[-1] - ud[-2])) if ud.size > 1 else 0.0
+        return s_lo, s_hi
+
+    def input_excess(self, current: Any) -> tuple[int, float]:
+        """How many samples of ``current`` lie outside the table's input range, and the largest distance beyond
+        it (input units; 0 when none)."""
+        u = np.asarray(current, dtype=float)
+        lo, hi = self.hysteresis.input_range
+        excess = np.maximum(u - hi, 0.0) + np.maximum(lo - u, 0.0)
+        excess[excess <= 1e-9 * (hi - lo)] = 0.0  # round-off at the ends is not beyond them
+        return int(np.count_nonzero(excess)), float(excess.max()) if excess.size else 0.0
 
     def compensator(self, dt_s: float | None = None, *, stages: Any = None, **kwargs: Any) -> Any:
         """The full compensator of this model, built in the core: friction and converter gain filled in, the

@@ -140,7 +140,7 @@ def html_section(d: Any) -> str:
                                                                      f"extended RMS ({q.output.unit})"]))
     if d.closed_loop and "ratio" in d.closed_loop:
         c = d.closed_loop
-        plant = "the simulator that made the bundle" if c.get("plant") == "simulator" else "the diagnosed model"
+        plant = "the simulator that made the bundle" if c["plant"] == "simulator" else "the diagnosed model"
         parts.append(f"<p><b>Closed loop</b> on {plant} ({html.escape(str(c['reference']))} reference, "
                      f"{c['duration_s']:g} s): tracking RMS {c['nominal_rms_nmm']:.2f} {yu} (nominal compensator) "
                      f"→ {c['extended_rms_nmm']:.2f} {yu} (extended), ratio {c['ratio']:.2f}.</p>")
