@@ -22,9 +22,9 @@ from typing import Any
 
 import numpy as np
 
-from bmr.diagnose import diagnose
+from bmr.diagnosis.procedure import diagnose
 from bmr.diagnosis.effects import PHYSICAL
-from bmr.diagnosis.excitation import diagnosis_bundle
+from bmr.simulation.excitation import diagnosis_bundle
 
 # Medium size of each effect and the parameter whose relative error is reported.
 MEDIUM: dict[str, tuple[dict[str, float], str]] = {

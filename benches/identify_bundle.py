@@ -13,7 +13,7 @@ import time
 import numpy as np
 
 import bmr
-from bmr.experiments import simulate_bundle
+from bmr.simulation.experiments import simulate_bundle
 
 HIDDEN = {"order": 9, "amplitude_nmm": 4.0, "phase_rad": 0.5}
 # Seal friction of the presets (amplitude N·mm, phase rad per harmonic) and offset, for the comparison table.

@@ -15,7 +15,8 @@ from pathlib import Path
 import numpy as np
 
 import bmr
-from bmr import experiments as ex
+from bmr import plot
+from bmr.simulation import experiments as ex
 
 PAPER_TORQUE_NMM = 600.0
 PAPER_FRICTION_BAND_NMM = (-20.0, 50.0)
@@ -108,25 +109,25 @@ def main() -> None:
     print(f"major-loop width (triangle, 0.125 A/s): max {width.max():.0f} N·mm at {g[np.argmax(width)]:+.2f} A, "
           f"{width.max() / (t_pos - t_neg) * 100:.0f} % of the range")
 
-    import matplotlib
+    with plot.style():
+        _loops_figure(args, off, grid, friction, ia, ta, idn, tdn, bundle, corrected, ci, ct, width)
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
 
-    fig, ax = plt.subplots(2, 2, figsize=(11, 8.5))
+def _loops_figure(args, off, grid, friction, ia, ta, idn, tdn, bundle, corrected, ci, ct, width) -> None:
+    fig, ax = plot.figure("panel3", nrows=2, ncols=2, height=8.0)
     a = ax[0, 0]
     a.plot(off.theta_rad, off.torque_nmm, ",", color="0.6", label="measured (off state)")
     a.plot(grid, friction(grid), "C3", label="identified friction (eq 21)")
     a.axhspan(*PAPER_FRICTION_BAND_NMM, color="C2", alpha=0.12, label="paper: about −20…50 N·mm")
     a.set(xlabel="rotor angle θ (rad)", ylabel="torque (N·mm)", title="Off-state friction (figs 11-12)")
-    a.legend(fontsize=8, loc="upper right")
+    a.legend(loc="upper right")
     for a, (i, t, title) in zip((ax[0, 1], ax[1, 0]), ((ia, ta, "First-order ascending curves (fig 14)"),
                                                         (idn, tdn, "First-order descending curves (fig 15)"))):
         a.plot(i / 0.125, t, lw=0.6)
         a.axhline(PAPER_TORQUE_NMM, color="C2", ls="--", lw=0.8)
         a.axhline(-PAPER_TORQUE_NMM, color="C2", ls="--", lw=0.8, label="paper: about ±600 N·mm")
         a.set(xlabel="nominal current (units of 0.125 A)", ylabel="torque − friction (N·mm)", title=title)
-        a.legend(fontsize=8, loc="upper left")
+        a.legend(loc="upper left")
     a = ax[1, 1]
     mp_i, mp_t = corrected(bundle.run("multipeak"))
     a.plot(mp_i / 0.125, mp_t, lw=0.3, color="0.5", label="random multi-peak (0.05-2.5 A/s)")
@@ -135,10 +136,9 @@ def main() -> None:
     a.axhline(-PAPER_TORQUE_NMM, color="C2", ls="--", lw=0.8)
     a.set(xlabel="nominal current (units of 0.125 A)", ylabel="torque − friction (N·mm)",
           title=f"Loops (max width {width.max():.0f} N·mm)")
-    a.legend(fontsize=8, loc="upper left")
+    a.legend(loc="upper left")
     fig.suptitle(f"bmr2013 virtual actuator, seed {args.seed} (coil lag 8 ms, sensor noise 1.5 N·mm)")
-    fig.tight_layout()
-    fig.savefig(args.png, dpi=120)
+    plot.save(fig, args.png)
     print(f"wrote {args.png}")
 
 

@@ -1,7 +1,7 @@
 //! The fixed workload of the step benches: tables measured from a 200-threshold Preisach plant (21 curves per
 //! family, ±1.25 A, ±300 N·mm) and a random multi-peak torque reference.
 #![allow(dead_code)]
-#[path = "../tests/common/mod.rs"]
+#[path = "../tests/rust/common/mod.rs"]
 mod common;
 
 use bmr::{BuildOptions, Friction, Hysteresis, Initial};

@@ -13,9 +13,7 @@ impl<const N: usize> Hysteresis<Vec<f64>, N> {
     /// Build the paper's inverse operator from this operator's first-order curves (axes swapped; flat stretches
     /// of a torque curve keep their first sample, curves that start at an already used torque are dropped).
     pub fn paper_inverse(&self) -> Result<Hysteresis<Vec<f64>, N>, TableError> {
-        let (asc, desc) = self.curves();
-        let asc = swap_family(asc, 1.0);
-        let desc = swap_family(desc, -1.0);
+        let (asc, desc) = self.current_curves();
         // Inverted curves end where the torque curves end; allow the table's closure slack.
         let opts = BuildOptions {
             reach_tolerance: 0.05,
@@ -23,6 +21,13 @@ impl<const N: usize> Hysteresis<Vec<f64>, N> {
             ..BuildOptions::default()
         };
         Hysteresis::from_curve_data(&asc, &desc, &opts, Initial::Negative)
+    }
+
+    /// The paper's current curves `I^a(T_min, T)`, `I^d(T_max, T)` (eq 17-20): this operator's first-order curves
+    /// with inputs and outputs swapped, in traversal order, torque strictly monotone along each curve.
+    pub fn current_curves(&self) -> (Vec<CurveData>, Vec<CurveData>) {
+        let (asc, desc) = self.curves();
+        (swap_family(asc, 1.0), swap_family(desc, -1.0))
     }
 }
 

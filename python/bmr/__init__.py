@@ -3,7 +3,10 @@
 Core (Rust): ``Hysteresis`` (CBH operator), ``Friction`` (angle-periodic seal friction), ``Compensator``
 (exact or paper inverse + friction feedforward, coil split, current limit), ``VirtualActuator`` (a physical
 simulator of the rig; ``EFFECTS`` names its switchable effects, ``effect_parameters()`` documents them).
-Experiment protocols and bundles of them: ``bmr.experiments``.
+Experiment protocols and bundles of them: ``bmr.experiments`` (:mod:`bmr.simulation.experiments`).
+Package layout, in data-flow order: :mod:`bmr.data` (bundles, lab readers) → :mod:`bmr.identification`
+(friction, first-order curves, least-squares tables, ``Model``) → :mod:`bmr.diagnosis` → :mod:`bmr.report`;
+:mod:`bmr.simulation` drives the virtual actuator; :mod:`bmr.demo` and :mod:`bmr.cli` tie them together.
 Identification: ``identify`` (friction + CBH tables from a bundle) giving a ``Model`` (``bmr-model/1`` files),
 ``fit_friction``, ``extract_first_order_curves``, ``fit_tables_lstsq`` / ``EverettModel`` (least-squares
 Preisach tables). Lab readers: ``read_table``, ``bundle_from_files``.
@@ -11,50 +14,77 @@ Diagnosis: ``diagnose`` (what the model gets wrong, the named cause, the extende
 ``Diagnosis`` (``bmr-diagnosis/1`` JSON, HTML report).
 Units: current in A (nominal current spans both coils: negative = coil 1, positive = coil 2), torque in N·mm,
 angles in rad, time in s, converter voltages in V.
+Errors: every problem with data is a ``BmrError`` (a ``ValueError``) or one of its kinds (``TableError``,
+``BundleError``, ``ModelFileError``, ``ExcitationError``, ``IdentificationError``, ``ResourceLimitError`` for sizes
+above the documented ``LIMITS``, ``InUseError`` for an object inside another thread's ``run``); wrong argument
+types are ``TypeError``s naming the argument.
 """
 from bmr._core import (
     ACTUATOR_PARAMETERS,
     EFFECTS,
+    LIMITS,
     PRESETS,
     BmrError,
+    BundleError,
     Command,
     Compensator,
     CompensatorState,
     EverettModel,
+    ExcitationError,
     Friction,
     Hysteresis,
     HysteresisState,
+    IdentificationError,
+    InUseError,
+    ModelFileError,
+    ResourceLimitError,
+    TableError,
     VirtualActuator,
     effect_parameters,
     fit_everett,
 )
-from bmr.bundle import Bundle, Run, read_bundle, write_bundle
-from bmr.diagnose import Diagnosis, diagnose
-from bmr.identify import FrictionFit, extract_first_order_curves, fit_friction, fit_tables_lstsq, identify
-from bmr.io import bundle_from_files, read_table
-from bmr.model import Model
+from bmr.data import Bundle, Run, bundle_from_files, read_bundle, read_table, write_bundle
+from bmr.diagnosis import Diagnosis, diagnose
+from bmr.identification import (
+    FrictionFit,
+    Model,
+    extract_first_order_curves,
+    fit_friction,
+    fit_tables_lstsq,
+    identify,
+)
+from bmr.simulation import experiments
 
 __all__ = [
     "ACTUATOR_PARAMETERS",
     "EFFECTS",
+    "LIMITS",
     "PRESETS",
     "BmrError",
     "Bundle",
+    "BundleError",
     "Command",
     "Compensator",
     "CompensatorState",
     "Diagnosis",
     "EverettModel",
+    "ExcitationError",
     "Friction",
     "FrictionFit",
     "Hysteresis",
     "HysteresisState",
+    "IdentificationError",
+    "InUseError",
     "Model",
+    "ModelFileError",
+    "ResourceLimitError",
     "Run",
+    "TableError",
     "VirtualActuator",
     "bundle_from_files",
     "diagnose",
     "effect_parameters",
+    "experiments",
     "extract_first_order_curves",
     "fit_everett",
     "fit_friction",

@@ -1,39 +1,118 @@
-"""Type stubs for the Rust extension module ``bmr._core``."""
-from typing import Sequence, Tuple, Union, overload
+"""Type stubs for the Rust extension module ``bmr._core`` (checked against the module by ``mypy.stubtest`` in CI,
+so they cannot drift)."""
+from typing import Sequence, Tuple, Union, final, overload
 
 import numpy as np
 import numpy.typing as npt
+from typing_extensions import Self
 
-ArrayLike = npt.ArrayLike
-Curve = Tuple[npt.ArrayLike, npt.ArrayLike]
-Initial = Union[str, Tuple[str, float]]
+_ArrayLike = npt.ArrayLike
+_Curve = Tuple[npt.ArrayLike, npt.ArrayLike]
+_Initial = Union[str, Tuple[str, float]]
+
+__all__ = [
+    "ACTUATOR_PARAMETERS",
+    "BmrError",
+    "BundleError",
+    "ExcitationError",
+    "IdentificationError",
+    "InUseError",
+    "LIMITS",
+    "ModelFileError",
+    "ResourceLimitError",
+    "TableError",
+    "Command",
+    "Compensator",
+    "CompensatorState",
+    "EFFECTS",
+    "EverettModel",
+    "Friction",
+    "Hysteresis",
+    "HysteresisState",
+    "PRESETS",
+    "VirtualActuator",
+    "_rebuild_hysteresis",
+    "_rebuild_hysteresis_state",
+    "_rebuild_virtual_actuator",
+    "effect_parameters",
+    "fit_everett",
+    "fit_friction_order",
+]
 
 class BmrError(ValueError):
     """Invalid bmr input, table or file."""
 
+class TableError(BmrError):
+    """Curves or tables that cannot make a hysteresis operator (the message names family, curve and sample)."""
+
+class BundleError(BmrError):
+    """A bundle folder, manifest or run file that cannot be read or written (the message names the file)."""
+
+class ModelFileError(BmrError):
+    """A model file that cannot be read or written (the message names the file and the field)."""
+
+class ExcitationError(BmrError):
+    """An excitation or experiment protocol with invalid parameters."""
+
+class IdentificationError(BmrError):
+    """Data from which friction or tables cannot be identified."""
+
+class ResourceLimitError(BmrError):
+    """A requested size above its documented limit (checked before anything is allocated)."""
+
+class InUseError(BmrError):
+    """The object is in use by another thread (inside a run() that released the interpreter lock)."""
+
+LIMITS: dict[str, float]
+"""The documented size limits, by name (curves per family, grid nodes, table values, magnitudes, ...)."""
+
+@final
 class HysteresisState:
-    """Opaque snapshot of a Hysteresis state."""
+    """Opaque snapshot of a Hysteresis state (copyable, picklable)."""
     @property
     def input(self) -> float: ...
     @property
     def output(self) -> float: ...
+    def __copy__(self) -> Self: ...
+    def __deepcopy__(self, memo: object, /) -> Self: ...
+    def __reduce__(self) -> tuple[object, tuple[bytes]]: ...
 
+def _rebuild_hysteresis_state(state: bytes) -> HysteresisState: ...
+def _rebuild_hysteresis(
+    asc: bytes,
+    asc_nodes: int,
+    asc_curves: int,
+    desc: bytes,
+    desc_nodes: int,
+    desc_curves: int,
+    y_lo: float,
+    y_hi: float,
+    state: bytes,
+) -> Hysteresis: ...
+def _rebuild_virtual_actuator(
+    preset: str, seed: int, sample_rate_hz: float, effects: object, overrides: object, state: bytes
+) -> VirtualActuator: ...
+
+@final
 class Hysteresis:
     """CBH hysteresis operator built from measured first-order reversal curves (memory of 64 reversal points)."""
     @staticmethod
     def from_curves(
-        ascending: Sequence[Curve],
-        descending: Sequence[Curve],
+        ascending: Sequence[_Curve],
+        descending: Sequence[_Curve],
         *,
-        initial: Initial | None = None,
+        initial: _Initial | None = None,
         monotone_tolerance: float = 0.005,
         reach_tolerance: float = 0.01,
         closure_tolerance: float = 0.05,
         max_nodes: int = 1024,
     ) -> "Hysteresis": ...
     def step(self, u: float) -> float: ...
-    def run(self, u: ArrayLike) -> np.ndarray: ...
-    def reset(self, initial: Initial | None = None) -> None: ...
+    def run(self, u: _ArrayLike) -> np.ndarray: ...
+    def __copy__(self) -> Hysteresis: ...
+    def __deepcopy__(self, memo: dict[int, object]) -> Hysteresis: ...
+    def __reduce__(self) -> tuple[object, tuple[object, ...]]: ...
+    def reset(self, initial: _Initial | None = None) -> None: ...
     def snapshot(self) -> HysteresisState: ...
     def restore(self, state: HysteresisState) -> None: ...
     @property
@@ -50,16 +129,19 @@ class Hysteresis:
     def output_range(self) -> tuple[float, float]: ...
     def consistency(self) -> dict[str, float]: ...
     def curves(self) -> tuple[list[tuple[np.ndarray, np.ndarray]], list[tuple[np.ndarray, np.ndarray]]]: ...
+    def current_curves(self) -> tuple[list[tuple[np.ndarray, np.ndarray]], list[tuple[np.ndarray, np.ndarray]]]:
+        """The paper's current curves (torque, current): the stored curves with their axes swapped."""
 
+@final
 class Friction:
     """Seal friction c0 + Σ a_k sin kθ + b_k cos kθ (N·mm), up to 12 harmonics."""
-    def __init__(self, c0: float = 0.0, a: Sequence[float] = ..., b: Sequence[float] = ...) -> None: ...
+    def __new__(cls, c0: float = 0.0, a: _ArrayLike | None = None, b: _ArrayLike | None = None) -> Self: ...
     @staticmethod
-    def from_amplitude_phase(c0: float, amplitude: Sequence[float], phase: Sequence[float]) -> "Friction": ...
+    def from_amplitude_phase(c0: float, amplitude: _ArrayLike, phase: _ArrayLike) -> "Friction": ...
     @overload
     def __call__(self, theta: float) -> float: ...
     @overload
-    def __call__(self, theta: ArrayLike) -> np.ndarray: ...
+    def __call__(self, theta: _ArrayLike) -> np.ndarray: ...
     @property
     def c0(self) -> float: ...
     @property
@@ -74,9 +156,10 @@ class Friction:
 def fit_friction_order(theta_rad: np.ndarray, torque_nmm: np.ndarray, order: int) -> dict:
     """Friction c0 + Σ a_k sin kθ + b_k cos kθ of one order: c0, a, b, *_stderr, covariance, rss, n, order."""
 
+@final
 class EverettModel:
     """Preisach model with a tabulated Everett function E(β, α) on an input grid (nonnegative cell masses)."""
-    def __init__(self, grid: np.ndarray, masses: np.ndarray, offset: float) -> None: ...
+    def __new__(cls, grid: np.ndarray, masses: np.ndarray, offset: float) -> Self: ...
     @property
     def grid(self) -> np.ndarray: ...
     @property
@@ -89,6 +172,11 @@ class EverettModel:
     def first_order_curves(
         self, subdivisions: int = 1
     ) -> tuple[list[tuple[np.ndarray, np.ndarray]], list[tuple[np.ndarray, np.ndarray]]]: ...
+    def hysteresis(self, subdivisions: int = 4) -> Hysteresis:
+        """The CBH operator of this table, built in Rust (no curve lists cross the boundary)."""
+    def __copy__(self) -> Self: ...
+    def __deepcopy__(self, memo: object, /) -> Self: ...
+    def __reduce__(self) -> tuple[object, tuple[np.ndarray, np.ndarray, float]]: ...
 
 def fit_everett(
     grid: np.ndarray,
@@ -110,27 +198,28 @@ ACTUATOR_PARAMETERS: tuple[str, ...]
 def effect_parameters() -> dict[str, dict[str, object]]:
     """Every effect: ``{name: {"doc": str, "params": {param: {"unit", "default", "min", "max", "doc"}}}}``."""
 
-EffectsSpec = Union[None, dict[str, Union[dict[str, float], None]], Sequence[str], str]
+_EffectsSpec = Union[None, dict[str, Union[dict[str, float], None]], Sequence[str], str]
 
+@final
 class VirtualActuator:
     """Seeded physical simulator of the BMR rig (converters, hysteretic steel per coil, MR fluid, rotors, seal
     friction, torque sensor, switchable effects). Bit-for-bit deterministic for a seed."""
-    def __init__(
-        self,
+    def __new__(
+        cls,
         preset: str = "bmr2013",
         *,
-        seed: int | None = 0,
-        sample_rate_hz: float = 1000.0,
-        effects: EffectsSpec = None,
+        seed: int | None = None,
+        sample_rate_hz: float = ...,
+        effects: _EffectsSpec = None,
         overrides: dict[str, float] | None = None,
-    ) -> None: ...
-    def run(self, current_a: ArrayLike) -> dict[str, np.ndarray]:
+    ) -> Self: ...
+    def run(self, current_a: _ArrayLike) -> dict[str, np.ndarray]:
         """Commanded nominal currents (A) → ``t_s, current_a, coil1_a, coil2_a, theta_rad, speed_rad_s,
         torque_nmm`` and the hidden ``b1_t, b2_t, field_torque_nmm, friction_nmm, torque_true_nmm``."""
     def step(self, current_a: float) -> dict[str, float | bool]:
         """One sample: the keys of ``run`` as floats, plus ``command_valid`` (NaN applies 0 A, flagged)."""
     def reset(self) -> None: ...
-    def true_friction(self, theta_rad: ArrayLike) -> np.ndarray: ...
+    def true_friction(self, theta_rad: _ArrayLike) -> np.ndarray: ...
     def theta_ahead(self, n: int) -> np.ndarray: ...
     @property
     def effects(self) -> dict[str, dict[str, float]]: ...
@@ -153,6 +242,10 @@ class VirtualActuator:
     def resolution_nmm(self) -> float: ...
     @property
     def converter_gain_a_per_v(self) -> float: ...
+    def __copy__(self) -> VirtualActuator: ...
+    def __deepcopy__(self, memo: object, /) -> VirtualActuator: ...
+    def __reduce__(self) -> tuple[object, tuple[object, ...]]: ...
+@final
 class Command:
     """One control-period command."""
     current_a: float
@@ -163,24 +256,26 @@ class Command:
     saturated: bool
     fault: bool
 
+@final
 class CompensatorState:
     """Opaque snapshot of a Compensator's memory."""
 
+@final
 class Compensator:
     """Open-loop torque compensator: I = H⁻¹[T_ref − T_f(θ)], coil split, current limit, converter voltages."""
-    def __init__(
-        self,
+    def __new__(
+        cls,
         hysteresis: Hysteresis,
         friction: Friction | None = None,
         *,
         inverse: str = "exact",
         converter_gain: float = 0.125,
         current_limit: float = 1.25,
-        initial: Initial | None = None,
-    ) -> None: ...
+        initial: _Initial | None = None,
+    ) -> Self: ...
     def step(self, torque_ref_nmm: float, theta_rad: float) -> Command: ...
-    def run(self, torque_ref_nmm: ArrayLike, theta_rad: ArrayLike) -> dict[str, np.ndarray]: ...
-    def reset(self, initial: Initial | None = None) -> None: ...
+    def run(self, torque_ref_nmm: _ArrayLike, theta_rad: _ArrayLike) -> dict[str, np.ndarray]: ...
+    def reset(self, initial: _Initial | None = None) -> None: ...
     def snapshot(self) -> CompensatorState: ...
     def restore(self, state: CompensatorState) -> None: ...
     @property

@@ -8,40 +8,55 @@ import argparse
 import sys
 from typing import Sequence
 
-from bmr._core import BmrError
+from bmr._core import PRESETS, BmrError
+
+BUNDLE_HELP = "bundle folder (manifest.json plus one CSV or Parquet file per run; see `bmr simulate`)"
 
 
 def _parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="bmr", description="Torque control of bi-directional MR actuators.")
-    sub = p.add_subparsers(dest="command", required=True)
+    from bmr import __version__
+
+    p = argparse.ArgumentParser(prog="bmr", description="Accurate control of hysteretic actuators: CBH hysteresis, "
+                                "exact inverse, friction compensation, simulation, identification and diagnosis.")
+    p.add_argument("--version", action="version", version=f"bmr {__version__}")
+    sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    presets = tuple(PRESETS)
+    preset_help = f"virtual actuator preset, one of {', '.join(presets)} (default: bmr2013)"
+    seed_help = "seed of the simulated sensor noise; the same seed gives the same bits (default: 0)"
 
     d = sub.add_parser("demo", help="run the paper's experiments on the virtual actuator and write a report")
     d.add_argument("--out", default="bmr-demo", help="output folder (default: bmr-demo)")
-    d.add_argument("--preset", default="bmr2013", help="virtual actuator preset (default: bmr2013)")
-    d.add_argument("--seed", type=int, default=0, help="seed fixing every simulated bit (default: 0)")
-    d.add_argument("--quick", action="store_true", help="shorter runs (for tests)")
+    d.add_argument("--preset", default="bmr2013", choices=presets, metavar="PRESET", help=preset_help)
+    d.add_argument("--seed", type=int, default=0, help=seed_help)
+    d.add_argument("--quick", action="store_true", help="shorter runs (about a tenth of the full programme)")
 
     s = sub.add_parser("simulate", help="write the paper's experiment set from the virtual actuator as a bundle")
-    s.add_argument("--preset", default="bmr2013")
+    s.add_argument("--preset", default="bmr2013", choices=presets, metavar="PRESET", help=preset_help)
     s.add_argument("--effect", action="append", default=[], metavar="NAME[:key=value,...]",
-                   help="switch on an effect of the virtual actuator (repeatable)")
+                   help="switch on an effect of the virtual actuator (repeatable; names and parameters in "
+                        "bmr.effect_parameters())")
     s.add_argument("--override", action="append", default=[], metavar="GROUP.PARAM=VALUE",
                    help="change a physical parameter of the preset (repeatable; names in bmr.ACTUATOR_PARAMETERS)")
-    s.add_argument("--seed", type=int, default=0)
+    s.add_argument("--seed", type=int, default=0, help=seed_help)
     s.add_argument("--quick", action="store_true", help="shorter runs")
-    s.add_argument("--format", choices=("csv", "parquet"), default="csv")
+    s.add_argument("--format", choices=("csv", "parquet"), default="csv", help="run file format (default: csv)")
     s.add_argument("-o", "--out", required=True, help="bundle folder to write")
 
     i = sub.add_parser("identify", help="identify friction and CBH tables from a bundle")
-    i.add_argument("bundle")
-    i.add_argument("--method", choices=("forc", "lstsq", "both"), default="forc")
+    i.add_argument("bundle", help=BUNDLE_HELP)
+    i.add_argument("--method", choices=("forc", "lstsq", "both"), default="forc",
+                   help="hysteresis tables from first-order reversal curves (forc, the paper's method), by least "
+                        "squares from any excitation (lstsq), or both, keeping the one with the lower held-out "
+                        "error (default: forc)")
     i.add_argument("-o", "--out", required=True, help="model file to write (bmr-model/1 JSON)")
 
     g = sub.add_parser("diagnose", help="find what the model gets wrong in a bundle and name the cause")
-    g.add_argument("bundle")
-    g.add_argument("--model", help="model file (default: identify from the bundle)")
-    g.add_argument("--folds", type=int, default=5)
-    g.add_argument("--seed", type=int, default=0)
+    g.add_argument("bundle", help=BUNDLE_HELP)
+    g.add_argument("--model", help="model file (default: identify the paper's model from the bundle)")
+    g.add_argument("--folds", type=int, default=5,
+                   help="blocked folds: each evaluation run is cut into this many time blocks, each held out in "
+                        "turn (default: 5)")
+    g.add_argument("--seed", type=int, default=0, help="seed of the bootstrap interval of the fold gains (default: 0)")
     g.add_argument("--json", dest="json_out", help="write the bmr-diagnosis/1 JSON here")
     g.add_argument("--report", help="write an HTML report here")
     return p
@@ -53,11 +68,11 @@ def main(argv: Sequence[str] | None = None) -> int:
         if args.command == "demo":
             from bmr.demo import run_cli
         elif args.command == "simulate":
-            from bmr.experiments import run_cli
+            from bmr.simulation.experiments import run_cli
         elif args.command == "identify":
-            from bmr.identify import run_cli
+            from bmr.identification.procedure import run_cli
         else:
-            from bmr.diagnose import run_cli
+            from bmr.diagnosis.procedure import run_cli
         return int(run_cli(args) or 0)
     except BmrError as exc:
         print(f"bmr {args.command}: error: {exc}", file=sys.stderr)

@@ -20,10 +20,14 @@ from typing import Any
 
 import numpy as np
 
-from bmr._core import BmrError, VirtualActuator
-from bmr.baselines import LinearCompensator
-from bmr.bundle import Bundle, Run, write_bundle
-from bmr.experiments import (
+from bmr._core import Compensator, VirtualActuator
+from bmr.data.bundle import Bundle, Run, write_bundle
+from bmr.diagnosis.procedure import diagnose
+from bmr.identification.procedure import identify
+from bmr.report.demo_report import write_report
+from bmr.report.paper_figures import paper_figures
+from bmr.simulation.baselines import LinearCompensator
+from bmr.simulation.experiments import (
     FULL_CURRENT_A,
     MULTIPEAK_SEED,
     reference_multipeak,
@@ -94,8 +98,6 @@ def run_demo(out: str | Path = "bmr-demo", *, preset: str = "bmr2013", seed: int
     """Run the whole programme and write figures, ``metrics.json`` and ``report.html`` into ``out``."""
     from tqdm import tqdm
 
-    from bmr.identify import identify
-
     t_start = time.perf_counter()
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
@@ -125,8 +127,6 @@ def run_demo(out: str | Path = "bmr-demo", *, preset: str = "bmr2013", seed: int
     bar.update(1)
 
     stage(3)
-    from bmr.paper_figures import paper_figures
-
     figures = paper_figures(out, bundle, model, cases)
     bar.update(1)
 
@@ -144,8 +144,6 @@ def run_demo(out: str | Path = "bmr-demo", *, preset: str = "bmr2013", seed: int
         metrics["timing_s"]["diagnosis"] = metrics["diagnosis"].pop("wall_time_s", None)
     metrics["timing_s"]["wall"] = round(time.perf_counter() - t_start, 3)
     (out / "metrics.json").write_text(json.dumps(metrics, indent=2) + "\n")
-    from bmr.demo_report import write_report
-
     write_report(out / "report.html", metrics, figures, diagnosis)
     bar.update(1)
     bar.close()
@@ -160,8 +158,6 @@ DIAGNOSIS_FOLDS = 3
 
 
 def _diagnose(bundle: Bundle, model: Any, seed: int) -> Any:
-    from bmr.diagnose import diagnose
-
     return diagnose(bundle.decimated(DIAGNOSIS_DECIMATION), model, folds=DIAGNOSIS_FOLDS, seed=seed, progress=False)
 
 
@@ -207,8 +203,6 @@ def _control_experiments(preset: str, seed: int, quick: bool, model: Any, fs: fl
 
 def _hyst_only(model: Any) -> Any:
     """The CBH compensator without the friction feedforward (fig 20)."""
-    from bmr import Compensator
-
     lo, hi = model.limits["current_a"]
     return Compensator(model.hysteresis, None, converter_gain=model.converter_gain_a_per_v,
                        current_limit=max(abs(lo), abs(hi)))

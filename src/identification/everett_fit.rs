@@ -12,6 +12,7 @@ use alloc::vec::Vec;
 use super::error::IdentificationError;
 use super::everett_regressors::{EverettGrid, NormalEquations, simulate_everett};
 use super::nnls::nnls_gram;
+use crate::from_curves::CurveData;
 use crate::limits::{self, MAX_CURVE_POINTS, MAX_SOLVER_ITERATIONS};
 
 /// A Preisach model: Everett table on a grid (from nonnegative cell masses) and the output at negative saturation.
@@ -22,9 +23,6 @@ pub struct EverettModel {
     node_values: Vec<f64>,
     offset: f64,
 }
-
-/// A family of first-order curves: one `(u, y)` table per reversal.
-pub type CurveFamily = Vec<(Vec<f64>, Vec<f64>)>;
 
 impl EverettModel {
     /// Build from cell masses (packed like [`EverettGrid::cell_index`], finite, nonnegative) and the output at
@@ -98,10 +96,34 @@ impl EverettModel {
         )
     }
 
+    /// The CBH operator of this Everett table (its first-order curves with `subdivisions` reversals per grid
+    /// interval, see [`Self::first_order_curves_subdivided`]), built without leaving Rust.
+    pub fn hysteresis<const N: usize>(
+        &self,
+        subdivisions: usize,
+        opts: &crate::table_builder::BuildOptions,
+        initial: crate::cbh::Initial,
+    ) -> Result<crate::cbh::Hysteresis<Vec<f64>, N>, crate::error::TableError> {
+        use crate::error::TableError;
+        let (asc, desc) =
+            self.first_order_curves_subdivided(subdivisions)
+                .map_err(|e| match e {
+                    IdentificationError::Limit(limit) => TableError::TooLarge {
+                        family: None,
+                        limit,
+                    },
+                    _ => TableError::BadParameter {
+                        name: "subdivisions",
+                        value: subdivisions as f64,
+                    },
+                })?;
+        crate::cbh::Hysteresis::from_curve_data(&asc, &desc, opts, initial)
+    }
+
     /// First-order curves at every grid node: ascending from each reversal minimum `g_i` (i < N) up to
     /// positive saturation (`y(m) + E(m, u)`), descending from each reversal maximum `g_j` (j > 0) down to
     /// negative saturation (`y(M) − E(u, M)`), in traversal order. The first of each family is the major branch.
-    pub fn first_order_curves(&self) -> (CurveFamily, CurveFamily) {
+    pub fn first_order_curves(&self) -> (Vec<CurveData>, Vec<CurveData>) {
         // At most MAX_EVERETT_INTERVALS intervals: the points stay within MAX_CURVE_POINTS.
         self.curves_with_subdivisions(1)
     }
@@ -113,7 +135,7 @@ impl EverettModel {
     pub fn first_order_curves_subdivided(
         &self,
         subdivisions: usize,
-    ) -> Result<(CurveFamily, CurveFamily), IdentificationError> {
+    ) -> Result<(Vec<CurveData>, Vec<CurveData>), IdentificationError> {
         let n = self.grid.n_intervals();
         // Each family: n·k curves of at most n + 2 points.
         let points = limits::product(
@@ -128,7 +150,7 @@ impl EverettModel {
         Ok(self.curves_with_subdivisions(subdivisions))
     }
 
-    fn curves_with_subdivisions(&self, subdivisions: usize) -> (CurveFamily, CurveFamily) {
+    fn curves_with_subdivisions(&self, subdivisions: usize) -> (Vec<CurveData>, Vec<CurveData>) {
         let k = subdivisions.max(1);
         let g = self.grid.nodes();
         let n = self.grid.n_intervals();

@@ -2,6 +2,9 @@
 use numpy::{AllowTypeChange, PyArray1, PyArrayLike1, PyArrayMethods};
 use pyo3::exceptions::PyTypeError;
 use pyo3::prelude::*;
+use pyo3::types::{PyList, PyTuple};
+
+use crate::from_curves::CurveData;
 
 /// Arrays longer than this are processed with the GIL released.
 pub(crate) const DETACH_LEN: usize = 4096;
@@ -56,4 +59,16 @@ pub(crate) fn extract_f64_array(obj: &Bound<'_, PyAny>, what: &str) -> PyResult<
         ))
     })?;
     Ok(to_vec(a))
+}
+
+/// Curves as a Python list of `(u, y)` numpy array pairs.
+pub(crate) fn curves_to_py<'py>(
+    py: Python<'py>,
+    curves: Vec<CurveData>,
+) -> PyResult<Bound<'py, PyList>> {
+    let items: Vec<_> = curves
+        .into_iter()
+        .map(|(u, y)| PyTuple::new(py, [to_numpy(py, u), to_numpy(py, y)]))
+        .collect::<PyResult<_>>()?;
+    PyList::new(py, items)
 }

@@ -7,7 +7,7 @@ use crate::cbh::{Hysteresis, Initial, State, state_words_io};
 use crate::congruency::congruency;
 use crate::error::FamilyKind;
 use crate::everett::Family;
-use crate::python::arrays::{DETACH_LEN, extract_f64_array, to_numpy};
+use crate::python::arrays::{DETACH_LEN, curves_to_py, extract_f64_array, to_numpy};
 use crate::python::{BmrError, borrow, borrow_mut, bytes_to_words, table_err, words_to_bytes};
 use crate::table_builder::BuildOptions;
 
@@ -79,17 +79,6 @@ fn parse_family(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<Vec<(Vec<f64>, V
         out.push((u, y));
     }
     Ok(out)
-}
-
-fn curves_to_py<'py>(
-    py: Python<'py>,
-    curves: Vec<(Vec<f64>, Vec<f64>)>,
-) -> PyResult<Bound<'py, PyList>> {
-    let items: Vec<_> = curves
-        .into_iter()
-        .map(|(u, y)| PyTuple::new(py, [to_numpy(py, u), to_numpy(py, y)]))
-        .collect::<PyResult<_>>()?;
-    PyList::new(py, items)
 }
 
 /// A snapshot as taken, or as read back from a pickle (checked against the operator's tables when restored).
@@ -355,6 +344,17 @@ impl PyHysteresis {
     fn curves<'py>(slf: &Bound<'py, Self>) -> PyResult<(Bound<'py, PyList>, Bound<'py, PyList>)> {
         let py = slf.py();
         let (a, d) = borrow(slf)?.op.curves();
+        Ok((curves_to_py(py, a)?, curves_to_py(py, d)?))
+    }
+
+    /// The paper's current curves (eq 17-20): the stored first-order curves with inputs and outputs swapped,
+    /// `(torque, current)` pairs with torque strictly monotone along each curve; the paper's inverse operator is
+    /// built from them.
+    fn current_curves<'py>(
+        slf: &Bound<'py, Self>,
+    ) -> PyResult<(Bound<'py, PyList>, Bound<'py, PyList>)> {
+        let py = slf.py();
+        let (a, d) = borrow(slf)?.op.current_curves();
         Ok((curves_to_py(py, a)?, curves_to_py(py, d)?))
     }
 

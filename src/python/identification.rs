@@ -1,27 +1,24 @@
 //! Python bindings of the identification least squares: `fit_friction_order`, `EverettModel`, `fit_everett`.
-use numpy::{PyArray1, PyArray2, PyArrayMethods, PyReadonlyArray1};
+use numpy::{AllowTypeChange, PyArray1, PyArray2, PyArrayLike1, PyArrayMethods};
 use pyo3::prelude::*;
-use pyo3::types::{PyDict, PyList, PyTuple};
+use pyo3::types::{PyDict, PyTuple};
 
+use crate::cbh::Initial;
 use crate::identification::{
     EverettFitOptions, EverettGrid, EverettModel, EverettRun, fit_everett as fit_everett_rs,
     fit_friction,
 };
-use crate::python::identification_err;
+use crate::python::arrays::{curves_to_py, to_vec};
+use crate::python::hysteresis::PyHysteresis;
+use crate::python::{BmrError, identification_err, table_err};
+use crate::table_builder::BuildOptions;
 
+/// A 1-D float array argument (lists and integer arrays accepted).
+type Array<'py> = PyArrayLike1<'py, f64, AllowTypeChange>;
 /// One training run as passed from Python: input, output, row weights, offset column.
-type RunArrays<'py> = (
-    PyReadonlyArray1<'py, f64>,
-    PyReadonlyArray1<'py, f64>,
-    PyReadonlyArray1<'py, f64>,
-    usize,
-);
+type RunArrays<'py> = (Array<'py>, Array<'py>, Array<'py>, usize);
 /// The same run copied out of Python (so the fit can run without the interpreter lock).
 type RunData = (Vec<f64>, Vec<f64>, Vec<f64>, usize);
-
-fn to_vec(a: &PyReadonlyArray1<'_, f64>) -> Vec<f64> {
-    a.as_array().iter().copied().collect()
-}
 
 /// Least-squares friction fit of one harmonic order: returns a dict with c0, a, b, their standard errors,
 /// covariance (p × p), rss, n and order. Raises BmrError on bad input or rank deficiency.
@@ -29,12 +26,12 @@ fn to_vec(a: &PyReadonlyArray1<'_, f64>) -> Vec<f64> {
 #[pyo3(signature = (theta_rad, torque_nmm, order))]
 fn fit_friction_order<'py>(
     py: Python<'py>,
-    theta_rad: PyReadonlyArray1<'py, f64>,
-    torque_nmm: PyReadonlyArray1<'py, f64>,
+    theta_rad: Array<'py>,
+    torque_nmm: Array<'py>,
     order: usize,
 ) -> PyResult<Bound<'py, PyDict>> {
-    let theta = to_vec(&theta_rad);
-    let torque = to_vec(&torque_nmm);
+    let theta = to_vec(theta_rad);
+    let torque = to_vec(torque_nmm);
     let fit = py
         .detach(|| fit_friction(&theta, &torque, order))
         .map_err(|e| identification_err("friction fit", e))?;
@@ -70,14 +67,10 @@ impl PyEverettModel {
     /// output `offset`.
     #[new]
     #[pyo3(signature = (grid, masses, offset))]
-    fn new(
-        grid: PyReadonlyArray1<'_, f64>,
-        masses: PyReadonlyArray1<'_, f64>,
-        offset: f64,
-    ) -> PyResult<Self> {
+    fn new(grid: Array<'_>, masses: Array<'_>, offset: f64) -> PyResult<Self> {
         let grid =
-            EverettGrid::new(to_vec(&grid)).map_err(|e| identification_err("EverettModel", e))?;
-        let inner = EverettModel::new(grid, to_vec(&masses), offset)
+            EverettGrid::new(to_vec(grid)).map_err(|e| identification_err("EverettModel", e))?;
+        let inner = EverettModel::new(grid, to_vec(masses), offset)
             .map_err(|e| identification_err("EverettModel", e))?;
         Ok(Self { inner })
     }
@@ -152,10 +145,10 @@ impl PyEverettModel {
     fn simulate<'py>(
         &self,
         py: Python<'py>,
-        u: PyReadonlyArray1<'py, f64>,
+        u: Array<'py>,
         offset: Option<f64>,
     ) -> PyResult<Bound<'py, PyArray1<f64>>> {
-        let u = to_vec(&u);
+        let u = to_vec(u);
         if let Some(i) = u.iter().position(|v| !v.is_finite()) {
             return Err(crate::python::BmrError::new_err(format!(
                 "input sample {i} is not finite ({})",
@@ -184,16 +177,21 @@ impl PyEverettModel {
             .inner
             .first_order_curves_subdivided(subdivisions)
             .map_err(|e| identification_err("first_order_curves", e))?;
-        let conv = |fam: Vec<(Vec<f64>, Vec<f64>)>| -> PyResult<Bound<'py, PyList>> {
-            let items: Vec<Bound<'py, PyTuple>> = fam
-                .into_iter()
-                .map(|(u, y)| {
-                    PyTuple::new(py, [PyArray1::from_vec(py, u), PyArray1::from_vec(py, y)])
-                })
-                .collect::<PyResult<_>>()?;
-            PyList::new(py, items)
-        };
-        PyTuple::new(py, [conv(asc)?, conv(desc)?])
+        PyTuple::new(py, [curves_to_py(py, asc)?, curves_to_py(py, desc)?])
+    }
+
+    /// The CBH operator (`bmr.Hysteresis`, memory of 64 reversals, starting after negative saturation) of this
+    /// table, built in Rust from its first-order curves with `subdivisions` reversals per grid interval.
+    #[pyo3(signature = (subdivisions=4))]
+    fn hysteresis(&self, subdivisions: usize) -> PyResult<PyHysteresis> {
+        if subdivisions == 0 {
+            return Err(BmrError::new_err("subdivisions must be at least 1"));
+        }
+        let op = self
+            .inner
+            .hysteresis(subdivisions, &BuildOptions::default(), Initial::Negative)
+            .map_err(table_err)?;
+        Ok(PyHysteresis { op })
     }
 
     fn __repr__(&self) -> String {
@@ -214,7 +212,7 @@ impl PyEverettModel {
 #[pyo3(signature = (grid, runs, n_offsets=1, *, smoothing=1e-4, ridge=1e-9, max_iter=500))]
 fn fit_everett<'py>(
     py: Python<'py>,
-    grid: PyReadonlyArray1<'py, f64>,
+    grid: Array<'py>,
     runs: Vec<RunArrays<'py>>,
     n_offsets: usize,
     smoothing: f64,
@@ -222,10 +220,10 @@ fn fit_everett<'py>(
     max_iter: usize,
 ) -> PyResult<Bound<'py, PyDict>> {
     let grid =
-        EverettGrid::new(to_vec(&grid)).map_err(|e| identification_err("Everett table fit", e))?;
+        EverettGrid::new(to_vec(grid)).map_err(|e| identification_err("Everett table fit", e))?;
     let data: Vec<RunData> = runs
-        .iter()
-        .map(|(u, y, w, o)| (to_vec(u), to_vec(y), to_vec(w), *o))
+        .into_iter()
+        .map(|(u, y, w, o)| (to_vec(u), to_vec(y), to_vec(w), o))
         .collect();
     let options = EverettFitOptions {
         smoothing,

@@ -1,12 +1,16 @@
 """Diagnosis of what the paper's model (friction + CBH) gets wrong in a bundle, the named cause and the extended
 model. One concept per module:
 
+* :mod:`~bmr.diagnosis.procedure` — ``diagnose()`` and ``bmr diagnose``: the whole procedure and its result.
 * :mod:`~bmr.diagnosis.residuals` — evaluation data from the first saturation on, nominal residual, noise floor,
   residual structure against angle, time, current level, current rate and reversal order.
 * :mod:`~bmr.diagnosis.field` — the field path of a (possibly extended) model: input lag/delay, output map,
   refined tables.
-* :mod:`~bmr.diagnosis.effects` — the effect library (DESIGN section 5 vocabulary plus ``table_resolution``).
+* :mod:`~bmr.diagnosis.effects` — the effect library (the physical effect vocabulary plus ``table_resolution``).
 * :mod:`~bmr.diagnosis.selection` — blocked folds, grouped forward selection and its acceptance rule.
 * :mod:`~bmr.diagnosis.extended_model` — the nominal model plus accepted effects: simulate, save, compensate.
-* :mod:`~bmr.diagnosis.report` — figures and the self-contained HTML report.
+Figures and the HTML report live in :mod:`bmr.report.diagnosis`.
 """
+from bmr.diagnosis.procedure import Diagnosis, diagnose
+
+__all__ = ["Diagnosis", "diagnose"]

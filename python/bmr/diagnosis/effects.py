@@ -1,4 +1,4 @@
-"""The effect library: each effect of the DESIGN section 5 vocabulary (plus ``table_resolution``) as a parametric
+"""The effect library: each effect of the physical effect vocabulary (plus ``table_resolution``) as a parametric
 extension of the nominal model.
 
 Two families:
@@ -17,14 +17,14 @@ from __future__ import annotations
 
 import math
 from abc import ABC, abstractmethod
-from typing import Any, Sequence
+from typing import Any
 
 import numpy as np
 
-from bmr.diagnosis.field import FieldPath
+from bmr.diagnosis.field import REIDENTIFY_INTERVALS, FieldPath
 from bmr.diagnosis.residuals import EvalData
 
-__all__ = ["Effect", "LIBRARY", "PHYSICAL", "by_name", "thermal_state"]
+__all__ = ["Effect", "LIBRARY", "PHYSICAL", "thermal_state"]
 
 
 class Effect(ABC):
@@ -35,6 +35,9 @@ class Effect(ABC):
     field = False
     doc = ""
     needs_reidentify = False  # the effect needs least-squares core tables (compare against those)
+    # Order in which fitted effects are removed from the protocol runs before re-identification: additive terms
+    # (rank 0) before multiplicative gains (rank 1).
+    removal_rank = 0
 
     def grid(self, data: EvalData) -> list[Any]:
         return [None]
@@ -137,8 +140,6 @@ class TableResolution(Effect):
         return path.with_(reidentify=True)
 
     def params(self, value, beta, path):
-        from bmr.diagnosis.field import REIDENTIFY_INTERVALS
-
         return {"n_intervals": float(REIDENTIFY_INTERVALS)}
 
 
@@ -183,6 +184,7 @@ def thermal_state(data: EvalData, tau_s: float) -> np.ndarray:
 class ThermalDrift(Effect):
     name = "thermal_drift"
     doc = "coil heating lowers the torque gain: field × (1 − gain_loss·x), x the heating state of time constant tau_s"
+    removal_rank = 1
 
     def grid(self, data: EvalData) -> list[Any]:
         return [float(v) for v in np.geomspace(3.0, 3000.0, 16)]
@@ -202,7 +204,7 @@ class ThermalDrift(Effect):
             key = (float(value), id(r))
             if key not in _PROTOCOL_HEAT:
                 _PROTOCOL_HEAT[key] = (r, bundle_thermal_state(data, float(value))[names.index(r.name)])
-        return path.with_correction(self.name, float(value), own_beta)
+        return path.with_correction(self, float(value), own_beta)
 
     @staticmethod
     def remove(y, value, beta, run, t0_s, model):
@@ -232,7 +234,7 @@ class FrictionCurrent(Effect):
     needs_reidentify = True
 
     def update_path(self, path, value, own_beta, data):
-        return path.with_correction(self.name, value, own_beta)
+        return path.with_correction(self, value, own_beta)
 
     @staticmethod
     def remove(y, value, beta, run, t0_s, model):
@@ -257,7 +259,7 @@ class FrictionHarmonics(Effect):
     needs_reidentify = True
 
     def update_path(self, path, value, own_beta, data):
-        return path.with_correction(self.name, value, own_beta)
+        return path.with_correction(self, value, own_beta)
 
     @staticmethod
     def remove(y, value, beta, run, t0_s, model):
@@ -272,6 +274,7 @@ class FrictionHarmonics(Effect):
 class TorqueRipple(Effect):
     name = "torque_ripple"
     doc = "eccentric gap: field × (1 + eps·cos(θ + phase_rad))"
+    removal_rank = 1
 
     def columns(self, data, value, y_field, model):
         th = data.concat(data.eval_slice("theta_rad"))
@@ -280,7 +283,7 @@ class TorqueRipple(Effect):
     needs_reidentify = True
 
     def update_path(self, path, value, own_beta, data):
-        return path.with_correction(self.name, value, own_beta)
+        return path.with_correction(self, value, own_beta)
 
     @staticmethod
     def remove(y, value, beta, run, t0_s, model):
@@ -302,7 +305,7 @@ class SensorDrift(Effect):
 
     def update_path(self, path, value, own_beta, data):
         # The drift also bent the protocol runs the tables come from: identify them again without it.
-        return path.with_correction(self.name, value, own_beta)
+        return path.with_correction(self, value, own_beta)
 
     @staticmethod
     def remove(y, value, beta, run, t0_s, model):
@@ -315,22 +318,3 @@ class SensorDrift(Effect):
 LIBRARY: tuple[Effect, ...] = (CoilLag(), ThermalDrift(), FrictionCurrent(), FrictionHarmonics(), TorqueRipple(),
                                SensorDrift(), TimeDelay(), NonCongruent(), TableResolution())
 PHYSICAL = tuple(e.name for e in LIBRARY if e.name != "table_resolution")
-
-
-def remove_from_protocol(corrections: Sequence[tuple[str, Any, tuple]], y: np.ndarray, run: Any, t0_s: float,
-                         model: Any) -> np.ndarray:
-    """Protocol-run field torque ``y`` (N·mm, friction removed) with fitted effects removed (additive effects
-    first, then multiplicative ones)."""
-    order = {"sensor_drift": 0, "friction_harmonics": 0, "friction_current": 0, "torque_ripple": 1,
-             "thermal_drift": 1}
-    for name, value, beta in sorted(corrections, key=lambda c: order.get(c[0], 2)):
-        y = by_name(name).remove(y, value, np.asarray(beta), run, t0_s, model)  # type: ignore[attr-defined]
-    return y
-
-
-def by_name(name: str) -> Effect:
-    for e in LIBRARY:
-        if e.name == name:
-            return e
-    raise KeyError(name)
-

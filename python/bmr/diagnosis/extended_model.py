@@ -24,7 +24,7 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from bmr._core import BmrError
+from bmr._core import BmrError, Compensator
 from bmr.diagnosis.field import FieldPath, delay, lead, output_map_inverse
 
 __all__ = ["ExtendedModel", "ExtendedCompensator", "extensions_from_selection"]
@@ -154,8 +154,6 @@ class ExtendedCompensator:
     signature and returns its dict (``current_a`` after the lead, limited)."""
 
     def __init__(self, ext: ExtendedModel, *, dt_s: float, inverse: str = "exact") -> None:
-        from bmr import Compensator
-
         self.ext = ext
         self.dt_s = float(dt_s)
         lo, hi = ext.model.limits["current_a"]

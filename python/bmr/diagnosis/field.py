@@ -15,7 +15,9 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from bmr._core import BmrError
+from bmr import _core
+from bmr._core import BmrError, Hysteresis
+from bmr.identification.spans import SATURATION_TOL, evaluation_start
 
 __all__ = ["FieldPath", "lag", "delay", "output_map", "output_map_inverse"]
 
@@ -98,7 +100,7 @@ class FieldPath:
     tables: Any = None
     scale_nmm: float = 600.0
     protocol: tuple = ()  # identification runs for re-identification: (bmr.Run, start time in the bundle (s))
-    # Fitted effects removed from the protocol torque before re-identification: ((name, value, beta), ...).
+    # Fitted effects removed from the protocol torque before re-identification: ((effect, value, beta), ...).
     corrections: tuple = ()
     reidentify: bool = False  # core tables by least squares on the protocol runs under this path
 
@@ -141,8 +143,6 @@ class FieldPath:
         """Core tables identified again from the protocol runs as the core sees them — current through the delay
         and lag, torque (friction removed) through ``g⁻¹`` — by least squares (``bmr.fit_tables_lstsq``: exact
         for any input history, unlike cutting first-order curves out of a lagged current)."""
-        from bmr import _core
-        from bmr.identify import SATURATION_TOL, evaluation_start
 
         lo, hi = self.model.hysteresis.input_range
         packed = []
@@ -150,10 +150,8 @@ class FieldPath:
             u = r.current
             dt = float(np.median(np.diff(r.t))) if u.size > 1 else 1.0
             y = r.torque - self.model.friction_torque(r.theta)
-            if self.corrections:
-                from bmr.diagnosis.effects import remove_from_protocol
-
-                y = remove_from_protocol(self.corrections, y, r, t0_s, self.model)
+            for effect, value, beta in sorted(self.corrections, key=lambda c: c[0].removal_rank):
+                y = effect.remove(y, value, np.asarray(beta), r, t0_s, self.model)
             y = output_map_inverse(y, self.curvature, self.scale_nmm)
             # The state is known from the *commanded* current's saturations (a lagged current never quite
             # reaches them), plus five time constants for the lag to settle.
@@ -174,8 +172,6 @@ class FieldPath:
 
     def hysteresis(self) -> Any:
         """A fresh ``bmr.Hysteresis`` of the core."""
-        from bmr import Hysteresis
-
         if self.tables is None and self.curvature == 0.0 and not self.reidentify:
             asc, desc = self.model.hysteresis.curves()
         else:
@@ -203,11 +199,12 @@ class FieldPath:
             out.append(output_map(core, self.curvature, self.scale_nmm))
         return out
 
-    def with_correction(self, name: str, value: Any, beta: Sequence[float]) -> "FieldPath":
-        """This path re-identified with effect ``name`` (nonlinear ``value``, linear ``beta``) removed from the
-        protocol runs (replacing an earlier correction of the same effect)."""
-        kept = tuple(c for c in self.corrections if c[0] != name)
-        return self.with_(corrections=kept + ((name, value, tuple(float(b) for b in beta)),), reidentify=True)
+    def with_correction(self, effect: Any, value: Any, beta: Sequence[float]) -> "FieldPath":
+        """This path re-identified with ``effect`` (an effect of the library with a ``remove`` method and a
+        ``removal_rank``; nonlinear ``value``, linear ``beta``) removed from the protocol runs (replacing an earlier
+        correction of the same effect)."""
+        kept = tuple(c for c in self.corrections if c[0] is not effect)
+        return self.with_(corrections=kept + ((effect, value, tuple(float(b) for b in beta)),), reidentify=True)
 
     def params(self) -> dict[str, float]:
         return {"lag_tau_s": self.lag_tau_s, "delay_s": self.delay_s, "curvature": self.curvature,

@@ -2,7 +2,7 @@
 
 Every evaluation run (``multi_step``, ``triangle``, ``tracking``, ``multipeak``, ``custom``) is simulated from the
 run's start (its opening excursion puts the steel in a known state) and judged from its *first saturation* on
-(:func:`bmr.identify.evaluation_start`). Each run's evaluated span is cut into ``folds`` contiguous time blocks;
+(:func:`bmr.identification.spans.evaluation_start`). Each run's evaluated span is cut into ``folds`` contiguous time blocks;
 fold ``k`` holds block ``k`` of every run (blocked by run and time, never random samples).
 
 Units: torque N·mm, current A, angle rad, time s.
@@ -16,8 +16,8 @@ from typing import Any, Sequence
 import numpy as np
 
 from bmr._core import BmrError
-from bmr.bundle import Bundle, Run
-from bmr.identify import SATURATION_TOL, evaluation_start
+from bmr.data.bundle import Bundle, Run
+from bmr.identification.spans import SATURATION_TOL, evaluation_start
 
 __all__ = ["EvalRun", "EvalData", "prepare", "noise_floor", "reversal_order", "structure", "SIGNALS"]
 

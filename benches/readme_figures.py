@@ -1,0 +1,204 @@
+"""Measure the README's figures and write them into the README, so that they cannot drift.
+
+    python benches/readme_figures.py measure [SECTION ...]   # run the measurements (all sections by default)
+    python benches/readme_figures.py render                  # rewrite the README's generated sections
+    python benches/readme_figures.py check                   # exit 1 if the README differs from the record
+
+Measurements land in ``docs/measurements.json`` (see ``benches/measurements.py``: other bench scripts record
+their own sections there too). The README holds each generated section between
+``<!-- generated: NAME -->`` and ``<!-- end: NAME -->``; ``render`` replaces it from the record, and the tests
+run ``check``. Timings are repeated (``--repeat``, default 3) and reported as the median with the spread of the
+repeats, CPU time next to wall time: the machines here are shared, so the spread says how much to trust a figure.
+Instruction counts (callgrind) do not depend on the load.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import re
+import resource
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+from typing import Any, Callable
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from measurements import ROOT, load, record  # noqa: E402
+
+README = ROOT / "README.md"
+
+
+# ------------------------------------------------------------------------------------------------ measuring
+def _timed(cmd: list[str], cwd: Path = ROOT) -> tuple[float, float, str]:
+    """Run ``cmd``; its wall time (s), CPU time of the children (user + system, s) and standard output."""
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
+    t0 = time.perf_counter()
+    proc = subprocess.run(cmd, cwd=cwd, capture_output=True, text=True)
+    wall = time.perf_counter() - t0
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    if proc.returncode != 0:
+        raise SystemExit(f"{' '.join(cmd)} failed ({proc.returncode}):\n{proc.stdout[-2000:]}\n{proc.stderr[-2000:]}")
+    cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
+    return wall, cpu, proc.stdout
+
+
+def _spread(values: list[float]) -> dict[str, float]:
+    return {"median": statistics.median(values), "min": min(values), "max": max(values), "n": len(values)}
+
+
+def measure_demo(repeat: int) -> None:
+    """The demo's error table (one full run, seed 0) and its wall/CPU time, full and --quick."""
+    runs: dict[str, Any] = {}
+    for label, extra in (("full", []), ("quick", ["--quick"])):
+        walls, cpus, metrics = [], [], None
+        for _ in range(repeat if label == "quick" else 1):
+            with tempfile.TemporaryDirectory() as tmp:
+                wall, cpu, _ = _timed(["bmr", "demo", "--out", f"{tmp}/demo", *extra])
+                metrics = json.loads(Path(f"{tmp}/demo/metrics.json").read_text())
+            walls.append(wall)
+            cpus.append(cpu)
+        runs[label] = {"wall_s": _spread(walls), "cpu_s": _spread(cpus), "metrics": metrics}
+    record("demo", "python benches/readme_figures.py measure demo  (runs `bmr demo` and `bmr demo --quick`)", runs)
+
+
+def measure_performance(repeat: int) -> None:
+    """Step latency (Rust), instructions per step (callgrind) and the Python per-call costs with peers."""
+    values: dict[str, Any] = {}
+    latency: dict[str, list[dict[str, float]]] = {}
+    for _ in range(repeat):
+        _, _, out = _timed(["cargo", "bench", "--bench", "latency"])
+        for line in out.splitlines():
+            m = re.match(r"Compensator::step \((.+?)\).*median (\d+) ns, p99 (\d+) ns, p99\.9 (\d+) ns", line)
+            if m:
+                latency.setdefault(m.group(1), []).append(
+                    {"median": float(m.group(2)), "p99": float(m.group(3)), "p999": float(m.group(4))})
+    values["latency_ns"] = {k: {q: _spread([r[q] for r in v]) for q in ("median", "p99", "p999")}
+                            for k, v in latency.items()}
+    values["instructions"] = {}
+    for what in ("compensator", "hysteresis"):
+        _, _, out = _timed(["bash", "benches/callgrind.sh", what])
+        m = re.search(r"(\d+) instructions per step", out)
+        values["instructions"][what] = int(m.group(1)) if m else None
+    peers = []
+    for _ in range(repeat):
+        _, _, out = _timed([sys.executable, "benches/python_peers.py", "--json"])
+        peers.append(json.loads(out.strip().splitlines()[-1]))
+    values["python"] = {group: {name: _spread([p[group][name] for p in peers]) for name in peers[0][group]}
+                        for group in peers[0]}
+    record("performance", "python benches/readme_figures.py measure performance", values)
+
+
+MEASURE: dict[str, Callable[[int], None]] = {"demo": measure_demo, "performance": measure_performance}
+
+
+# ------------------------------------------------------------------------------------------------ rendering
+def _pm(s: dict[str, float], fmt: str = "{:.3g}", unit: str = "") -> str:
+    """Median with the spread of the repeats: ``0.14 µs (0.13-0.16, 3 runs)``."""
+    if s["n"] == 1:
+        return fmt.format(s["median"]) + unit
+    return f"{fmt.format(s['median'])}{unit} ({fmt.format(s['min'])}-{fmt.format(s['max'])}, {s['n']} runs)"
+
+
+def render_demo(rec: dict[str, Any]) -> str:
+    v = rec["values"]
+    m = v["full"]["metrics"]
+    fs = m["full_scale_nmm"]
+    rows = ["| case | paper fig | RMS (N·mm) | max (N·mm) | RMS (% FS) | max (% FS) |", "|---|---|---|---|---|---|"]
+    for c in m["cases"].values():
+        fig = c["paper_figure"] if c["paper_figure"] != "baseline" else "—"
+        rows.append(f"| {c['title']} | {fig} | {c['rms_nmm']:.3g} | {c['max_abs_nmm']:.4g} | "
+                    f"{c['rms_pct_fs']:.2g} | {c['max_pct_fs']:.2g} |")
+    t = {k: v[k] for k in ("full", "quick")}
+    d = m.get("diagnosis") or {}
+    text = [f"Errors on `{m['preset']}`, seed {m['seed']} (full run, {m['sample_rate_hz']:g} Hz; "
+            f"FS = {fs:.4g} N·mm, the model's full-scale torque):", "", *rows, ""]
+    if d:
+        steps = " → ".join([f"{d['effects'][0]['heldout_rms_before_nmm']:.3g}" if d.get("effects") else "",
+                            *[f"{e['heldout_rms_after_nmm']:.3g}" for e in d.get("effects", [])]]).strip(" →")
+        text.append(f"The demo's diagnosis names **`{d['cause']}`**; held-out RMS {steps} N·mm "
+                    f"(noise floor {d['noise_floor_nmm']:.3g} N·mm).")
+        text.append("")
+    text.append(f"Time: full programme {_pm(t['full']['wall_s'], '{:.0f}', ' s')} wall, "
+                f"{_pm(t['full']['cpu_s'], '{:.0f}', ' s')} CPU; `--quick` {_pm(t['quick']['wall_s'], '{:.0f}', ' s')}"
+                f" wall, {_pm(t['quick']['cpu_s'], '{:.0f}', ' s')} CPU.")
+    return "\n".join(text)
+
+
+def render_performance(rec: dict[str, Any]) -> str:
+    v = rec["values"]
+    lat = v["latency_ns"]
+    py = v["python"]
+    ins = v["instructions"]
+    rows = ["| what | figure | command |", "|---|---|---|"]
+    for name, q in lat.items():
+        rows.append(f"| `Compensator::step` (Rust, {name}) | median {_pm(q['median'], '{:.0f}', ' ns')}, "
+                    f"p99 {q['p99']['median']:.0f} ns, p99.9 {q['p999']['median']:.0f} ns over 10⁶ steps | "
+                    "`cargo bench --bench latency` |")
+    for what, n in ins.items():
+        name = {"compensator": "Compensator::step", "hysteresis": "Hysteresis::step"}[what]
+        rows.append(f"| `{name}` instructions | {n} per step | `benches/callgrind.sh {what}` |")
+    cmd = "`python benches/python_peers.py`"
+    for name, s in py["per_call_us"].items():
+        rows.append(f"| `{name}` from Python | {_pm(s, '{:.3g}', ' µs')} per call | {cmd} |")
+    for name, s in py["throughput_msps"].items():
+        rows.append(f"| `{name}` | {_pm(s, '{:.3g}', ' M samples/s')} | {cmd} |")
+    for name, s in py["ratio_to_compensator_step"].items():
+        rows.append(f"| peer: {name} | {_pm(s, '{:.3g}', '×')} the cost of our `Compensator.step()` | {cmd} |")
+    return "\n".join(rows)
+
+
+RENDER: dict[str, Callable[[dict[str, Any]], str]] = {"demo": render_demo, "performance": render_performance}
+
+
+def _footer(rec: dict[str, Any]) -> str:
+    mach = rec["machine"]
+    return (f"\n\n<sub>Measured {rec['measured']} on {mach['cpus']} × {mach['cpu'] or 'CPU'} "
+            f"(Python {mach['python']}) by `{rec['command']}`.</sub>")
+
+
+def rendered(readme: str, data: dict[str, Any]) -> str:
+    """The README with every generated section replaced from the record (sections without a record stay)."""
+    def sub(m: re.Match[str]) -> str:
+        name = m.group(1)
+        rec = data.get(name)
+        if rec is None or name not in RENDER:
+            return m.group(0)
+        return f"<!-- generated: {name} -->\n{RENDER[name](rec)}{_footer(rec)}\n<!-- end: {name} -->"
+
+    return re.sub(r"<!-- generated: (\w+) -->.*?<!-- end: \1 -->", sub, readme, flags=re.S)
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    sub = ap.add_subparsers(dest="cmd", required=True)
+    m = sub.add_parser("measure")
+    m.add_argument("sections", nargs="*", help=f"any of {', '.join(MEASURE)} (default: all)")
+    m.add_argument("--repeat", type=int, default=3)
+    sub.add_parser("render")
+    sub.add_parser("check")
+    args = ap.parse_args(argv)
+    if args.cmd == "measure":
+        unknown = [s for s in args.sections if s not in MEASURE]
+        if unknown:
+            ap.error(f"unknown section(s) {', '.join(unknown)}; choose from {', '.join(MEASURE)}")
+        for name in args.sections or list(MEASURE):
+            print(f"measuring {name} ...", file=sys.stderr)
+            MEASURE[name](args.repeat)
+        args.cmd = "render"
+    text = README.read_text()
+    new = rendered(text, load())
+    if args.cmd == "check":
+        if new != text:
+            print("README.md differs from docs/measurements.json: run `python benches/readme_figures.py render` "
+                  "(or measure again)", file=sys.stderr)
+            return 1
+        return 0
+    README.write_text(new)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,304 @@
+"""The identified model of one actuator (friction + CBH tables) and its versioned file format ``bmr-model/1``.
+
+File layout (JSON)::
+
+    {"format": "bmr-model/1",
+     "friction": {"c0": ..., "a": [...], "b": [...], "order": K, "stderr": {...}} | null,
+     "hysteresis": {"ascending": [[[u...], [y...]], ...], "descending": [[[u...], [y...]], ...],
+                    "initial": "negative"},
+     "limits": {"current_a": [lo, hi], "torque_nmm": [lo, hi]},
+     "converter_gain_a_per_v": 0.125,
+     "extensions": [{"name": ..., "params": {...}}, ...],
+     "meta": {...},
+     "sha256": "..."}
+
+``sha256`` is the digest of the canonical JSON of everything else: a damaged file is reported as such.
+Loading a missing, unknown or newer format is an error that names the format found.
+"""
+from __future__ import annotations
+
+import copy
+import hashlib
+import json
+import math
+import re
+from pathlib import Path
+from typing import Any, Sequence
+
+import numpy as np
+
+from bmr._core import BmrError, Compensator, Hysteresis
+from bmr.identification.friction import FrictionFit
+
+__all__ = ["FORMAT", "Model"]
+
+FORMAT = "bmr-model/1"
+_FAMILY = "bmr-model/"
+_VERSION = 1
+
+
+def _digest(content: dict[str, Any]) -> str:
+    canonical = json.dumps(content, sort_keys=True, separators=(",", ":"), allow_nan=False)
+    return hashlib.sha256(canonical.encode()).hexdigest()
+
+
+class Model:
+    """Friction + CBH hysteresis of one actuator.
+
+    ``hysteresis``: a ``bmr.Hysteresis``; ``friction``: a ``FrictionFit`` (callable on angles, with ``c0, a, b``)
+    or None; ``limits``: ``{"current_a": [lo, hi], "torque_nmm": [lo, hi]}``; ``converter_gain_a_per_v``: the
+    voltage-to-current converter gain (paper: 0.125 A/V); ``extensions``: discovered effects
+    ``[{"name": ..., "params": {...}}]``; ``meta``: free information (identification report).
+    """
+
+    def __init__(
+        self,
+        hysteresis: Any,
+        friction: FrictionFit | None = None,
+        *,
+        limits: dict[str, Sequence[float]] | None = None,
+        converter_gain_a_per_v: float = 0.125,
+        extensions: Sequence[dict[str, Any]] | None = None,
+        meta: dict[str, Any] | None = None,
+        curves: tuple[list[tuple[np.ndarray, np.ndarray]], list[tuple[np.ndarray, np.ndarray]]] | None = None,
+    ) -> None:
+        if not (isinstance(converter_gain_a_per_v, (int, float)) and math.isfinite(converter_gain_a_per_v)
+                and converter_gain_a_per_v > 0):
+            raise BmrError(f"converter_gain_a_per_v must be positive and finite, got {converter_gain_a_per_v!r}")
+        self.hysteresis = hysteresis
+        self.friction = friction
+        # The first-order curves the hysteresis was built from (saved instead of its resampled tables: the build
+        # is deterministic, and the source curves are usually far smaller).
+        self._source_curves = curves
+        self.converter_gain_a_per_v = float(converter_gain_a_per_v)
+        self.extensions = [dict(e) for e in (extensions or [])]
+        self.meta = dict(meta or {})
+        lo, hi = hysteresis.input_range
+        ylo, yhi = hysteresis.output_range
+        self.limits = {"current_a": [float(lo), float(hi)], "torque_nmm": [float(ylo), float(yhi)]}
+        for key, value in (limits or {}).items():
+            self.limits[key] = [float(v) for v in value]
+
+    @classmethod
+    def from_curves(cls, ascending: Sequence[tuple[Any, Any]], descending: Sequence[tuple[Any, Any]],
+                    friction: FrictionFit | None = None, *, initial: str = "negative", **kwargs: Any) -> "Model":
+        """Build the ``bmr.Hysteresis`` from first-order curves (``from_curves`` form) and wrap it."""
+        asc = [(np.asarray(u, float), np.asarray(y, float)) for u, y in ascending]
+        desc = [(np.asarray(u, float), np.asarray(y, float)) for u, y in descending]
+        return cls(Hysteresis.from_curves(asc, desc, initial=initial), friction, curves=(asc, desc), **kwargs)
+
+    # ------------------------------------------------------------------------------------------- use
+    def friction_torque(self, theta_rad: Any) -> np.ndarray:
+        """Friction (N·mm) at rotor angles ``theta_rad`` (zeros without a friction model)."""
+        theta = np.asarray(theta_rad, dtype=float)
+        return self.friction(theta) if self.friction is not None else np.zeros(theta.shape)
+
+    def simulate(self, current: Any, theta: Any = None, *, initial: str = "negative") -> np.ndarray:
+        """Torque (N·mm) for nominal current ``current`` (A) and rotor angle ``theta`` (rad; None: no friction),
+        starting from the ``initial`` saturation state."""
+        i_a = np.ascontiguousarray(current, dtype=float)
+        if i_a.ndim != 1:
+            raise BmrError(f"current must be one-dimensional, got shape {i_a.shape}")
+        bad = np.flatnonzero(~np.isfinite(i_a))
+        if bad.size:
+            raise BmrError(f"current sample {int(bad[0])} is not finite ({i_a[bad[0]]!r})")
+        # A copy: simulating never changes the model (its operator may be shared with a compensator).
+        h = copy.copy(self.hysteresis)
+        h.reset(initial=initial)
+        y = np.asarray(h.run(i_a), dtype=float)
+        if theta is not None:
+            th = np.asarray(theta, dtype=float)
+            if th.shape != i_a.shape:
+                raise BmrError(f"theta has shape {th.shape} but current has {i_a.shape}")
+            y = y + self.friction_torque(th)
+        return y
+
+    def compensator(self, **kwargs: Any) -> Any:
+        """A ``bmr.Compensator`` for this model (friction and converter gain filled in; ``kwargs`` pass through,
+        e.g. ``inverse="paper"``)."""
+        friction = self.friction.to_friction() if self.friction is not None else None
+        kwargs.setdefault("converter_gain", self.converter_gain_a_per_v)
+        lo, hi = self.limits["current_a"]
+        kwargs.setdefault("current_limit", max(abs(lo), abs(hi)))
+        return Compensator(self.hysteresis, friction, **kwargs)
+
+    def current_curves(self) -> tuple[list[tuple[np.ndarray, np.ndarray]], list[tuple[np.ndarray, np.ndarray]]]:
+        """The paper's current curves (torque → current) from the stored torque curves."""
+        return self.hysteresis.current_curves()
+
+    # --------------------------------------------------------------------------------------- files
+    def to_dict(self) -> dict[str, Any]:
+        """The ``bmr-model/1`` content (without the digest)."""
+        asc, desc = self._source_curves if self._source_curves is not None else self.hysteresis.curves()
+
+        def fam(curves: Any) -> list[list[list[float]]]:
+            return [[[float(v) for v in u], [float(v) for v in y]] for u, y in curves]
+
+        return {
+            "format": FORMAT,
+            "friction": _jsonable(self.friction.to_dict()) if self.friction is not None else None,
+            "hysteresis": {"ascending": fam(asc), "descending": fam(desc), "initial": "negative"},
+            "limits": self.limits,
+            "converter_gain_a_per_v": self.converter_gain_a_per_v,
+            "extensions": self.extensions,
+            "meta": _jsonable(self.meta),
+        }
+
+    def save(self, path: str | Path) -> Path:
+        """Write the model as ``bmr-model/1`` JSON (with its sha256 digest)."""
+        content = self.to_dict()
+        content["sha256"] = _digest(content)
+        p = Path(path)
+        try:
+            p.write_text(_compact_number_lists(json.dumps(content, indent=1, allow_nan=False)) + "\n")
+        except OSError as exc:
+            raise BmrError(f"cannot write model file {str(p)!r}: {exc.strerror or exc}") from None
+        return p
+
+    @classmethod
+    def from_dict(cls, content: Any, *, source: str = "model") -> "Model":
+        """Rebuild a model from ``bmr-model/1`` content; every problem is a ``BmrError`` naming the field."""
+        if not isinstance(content, dict):
+            raise BmrError(f"{source}: expected a JSON object, got {type(content).__name__}")
+        fmt = content.get("format")
+        if fmt != FORMAT:
+            if isinstance(fmt, str) and fmt.startswith(_FAMILY):
+                try:
+                    version = int(fmt[len(_FAMILY):])
+                except ValueError:
+                    version = None
+                if version is not None and version > _VERSION:
+                    raise BmrError(f"{source}: format {fmt!r} is newer than this bmr reads ({FORMAT!r}); "
+                                   "upgrade bmr")
+            raise BmrError(f"{source}: missing or unknown 'format' {fmt!r}; expected {FORMAT!r}")
+        if "sha256" in content:
+            body = {k: v for k, v in content.items() if k != "sha256"}
+            try:
+                ok = _digest(body) == content["sha256"]
+            except ValueError:
+                ok = False
+            if not ok:
+                raise BmrError(f"{source}: content does not match its sha256 digest (the file is corrupted or "
+                               "was edited; delete the 'sha256' field to load an edited file)")
+        hyst = content.get("hysteresis")
+        if not isinstance(hyst, dict) or "ascending" not in hyst or "descending" not in hyst:
+            raise BmrError(f"{source}: 'hysteresis' must hold 'ascending' and 'descending' curve lists")
+        asc = _curves(hyst["ascending"], f"{source}: hysteresis.ascending")
+        desc = _curves(hyst["descending"], f"{source}: hysteresis.descending")
+        friction = _friction(content.get("friction"), source)
+        gain = content.get("converter_gain_a_per_v", 0.125)
+        limits = content.get("limits") or {}
+        if not isinstance(limits, dict):
+            raise BmrError(f"{source}: 'limits' must be an object")
+        for key, val in limits.items():
+            if (not isinstance(val, list) or len(val) != 2
+                    or not all(isinstance(v, (int, float)) and math.isfinite(v) for v in val)):
+                raise BmrError(f"{source}: limits.{key} must be [low, high] finite numbers, got {val!r}")
+        ext = content.get("extensions", [])
+        if not isinstance(ext, list) or not all(isinstance(e, dict) and "name" in e for e in ext):
+            raise BmrError(f"{source}: 'extensions' must be a list of objects with a 'name'")
+        try:
+            h = Hysteresis.from_curves(asc, desc, initial=str(hyst.get("initial", "negative")))
+        except BmrError as exc:
+            raise BmrError(f"{source}: hysteresis tables rejected: {exc}") from None
+        return cls(h, friction, limits=limits, converter_gain_a_per_v=gain, extensions=ext,
+                   meta=content.get("meta") or {}, curves=(asc, desc))
+
+    @classmethod
+    def load(cls, path: str | Path) -> "Model":
+        """Read a ``bmr-model/1`` file."""
+        p = Path(path)
+        if not p.is_file():
+            raise BmrError(f"model file {str(p)!r} does not exist")
+        try:
+            content = json.loads(p.read_text())
+        except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+            raise BmrError(f"{p}: not a valid model file (JSON error: {exc})") from None
+        return cls.from_dict(content, source=str(p))
+
+    def __repr__(self) -> str:
+        lo, hi = self.limits["current_a"]
+        fr = f"friction order {self.friction.order}" if self.friction is not None else "no friction"
+        return f"Model(current {lo:.4g}..{hi:.4g} A, {fr}, extensions={[e['name'] for e in self.extensions]})"
+
+
+def _curves(value: Any, where: str) -> list[tuple[np.ndarray, np.ndarray]]:
+    if not isinstance(value, list) or not value:
+        raise BmrError(f"{where} must be a non-empty list of [[u...], [y...]] curves")
+    out = []
+    for k, c in enumerate(value):
+        if not (isinstance(c, list) and len(c) == 2 and isinstance(c[0], list) and isinstance(c[1], list)):
+            raise BmrError(f"{where}[{k}] must be [[u...], [y...]]")
+        try:
+            u = np.asarray(c[0], dtype=float)
+            y = np.asarray(c[1], dtype=float)
+        except (TypeError, ValueError):
+            raise BmrError(f"{where}[{k}] holds non-numeric values") from None
+        if u.shape != y.shape or u.ndim != 1 or u.size < 2:
+            raise BmrError(f"{where}[{k}]: u and y need the same length ≥ 2 (got {u.size} and {y.size})")
+        bad = np.flatnonzero(~(np.isfinite(u) & np.isfinite(y)))
+        if bad.size:
+            raise BmrError(f"{where}[{k}] sample {int(bad[0])} is not finite")
+        out.append((u, y))
+    return out
+
+
+def _friction(value: Any, source: str) -> FrictionFit | None:
+    if value is None:
+        return None
+    if not isinstance(value, dict) or not all(k in value for k in ("c0", "a", "b")):
+        raise BmrError(f"{source}: 'friction' must be null or hold 'c0', 'a' and 'b'")
+    try:
+        fit = FrictionFit.from_coefficients(float(value["c0"]), value["a"], value["b"])
+    except (TypeError, ValueError):
+        raise BmrError(f"{source}: friction coefficients must be numbers") from None
+    se = value.get("stderr")
+    if isinstance(se, dict):
+        try:
+            # Unknown uncertainties are stored as null.
+            fit.c0_stderr = _num(se.get("c0"))
+            fit.a_stderr = np.array([_num(v) for v in se.get("a", fit.a_stderr)], dtype=float)
+            fit.b_stderr = np.array([_num(v) for v in se.get("b", fit.b_stderr)], dtype=float)
+        except (TypeError, ValueError):
+            raise BmrError(f"{source}: friction.stderr must hold numbers") from None
+        if fit.a_stderr.shape != fit.a.shape or fit.b_stderr.shape != fit.b.shape:
+            raise BmrError(f"{source}: friction.stderr must have one entry per coefficient")
+    if "residual_rms_nmm" in value:
+        fit.residual_rms_nmm = _num(value["residual_rms_nmm"])
+    if isinstance(value.get("n"), int):
+        fit.n = value["n"]
+    if isinstance(value.get("criterion"), str):
+        fit.criterion = value["criterion"]
+    if isinstance(value.get("scores"), dict):
+        fit.scores = {int(k): float(v) for k, v in value["scores"].items()}
+    return fit
+
+
+# A list of numbers as indented by json.dumps: opening bracket, then a newline (JSON strings cannot hold raw
+# newlines, so only structural lists match), numbers and commas, closing bracket on its own line.
+_NUMBER_LIST = re.compile(r"\[\n\s*([-+0-9.eE,\s]+?)\n\s*\]")
+
+
+def _compact_number_lists(text: str) -> str:
+    """Put every list of plain numbers on one line (curve tables would otherwise take a line per value)."""
+    return _NUMBER_LIST.sub(lambda m: "[" + ", ".join(v.strip() for v in m.group(1).split(",")) + "]", text)
+
+
+def _num(v: Any) -> float:
+    return float("nan") if v is None else float(v)
+
+
+def _jsonable(x: Any) -> Any:
+    """Meta made JSON-safe: numpy scalars/arrays to lists, non-finite floats to None."""
+    if isinstance(x, dict):
+        return {str(k): _jsonable(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_jsonable(v) for v in x]
+    if isinstance(x, np.ndarray):
+        return _jsonable(x.tolist())
+    if isinstance(x, (np.floating, float)):
+        v = float(x)
+        return v if math.isfinite(v) else None
+    if isinstance(x, np.integer):
+        return int(x)
+    return x

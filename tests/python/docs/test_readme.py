@@ -1,0 +1,28 @@
+"""The README says what was measured: its generated sections equal the record in docs/measurements.json (written
+by the bench scripts), and every figure section names the command that measures it."""
+from __future__ import annotations
+
+import importlib.util
+import re
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[3]
+
+
+def _script():
+    spec = importlib.util.spec_from_file_location("readme_figures", ROOT / "benches" / "readme_figures.py")
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+def test_generated_sections_match_the_measurements():
+    assert _script().main(["check"]) == 0
+
+
+def test_generated_sections_are_closed_and_known():
+    text = (ROOT / "README.md").read_text()
+    opened = re.findall(r"<!-- generated: (\w+) -->", text)
+    closed = re.findall(r"<!-- end: (\w+) -->", text)
+    assert opened == closed
+    assert set(opened) <= set(_script().RENDER)
