@@ -105,9 +105,10 @@ impl<S: AsRef<[f64]>, const N: usize> Hysteresis<S, N> {
         let anchor = Reversal {
             u: lo,
             y: y_lo,
-            k,
+            k: k.unwrap_or(1.0),
             strip,
             via: None,
+            linear: k.is_none(),
         };
         let fingerprint = fingerprint(&asc, &desc, y_lo, y_hi);
         let state = State {
@@ -265,30 +266,53 @@ impl<S: AsRef<[f64]>, const N: usize> Hysteresis<S, N> {
         let st = &mut self.state;
         let rising = st.history.rising();
         let top = st.history.top();
-        if rising {
-            if u >= self.hi && st.history.len() == 1 {
-                return self.y_hi; // positive saturation is exact, like the negative one
+        if rising && u >= self.hi && st.history.len() == 1 {
+            return self.y_hi; // positive saturation is exact, like the negative one
+        }
+        // Closure target of the newest entry (positive saturation for the anchor).
+        let end = || {
+            st.history
+                .target()
+                .map_or((self.hi, self.y_hi), |t| (t.u, t.y))
+        };
+        match top.via {
+            Some(v) if (rising && u > v.u) || (!rising && u < v.u) => {
+                if v.linear {
+                    let (tu, ty) = end();
+                    return line(v.u, v.y, tu, ty, u);
+                }
+                let e = if rising {
+                    self.asc.everett(&top.strip, u, &mut st.hint_a)
+                } else {
+                    self.desc.everett(&top.strip, -u, &mut st.hint_d)
+                };
+                if rising {
+                    v.y + v.k * (e - v.e)
+                } else {
+                    v.y - v.k * (e - v.e)
+                }
             }
-            let e = self.asc.everett(&top.strip, u, &mut st.hint_a);
-            match top.via {
-                Some(v) if u > v.u => v.y + v.k * (e - v.e),
-                _ => top.y + top.k * e,
-            }
-        } else {
-            let e = self.desc.everett(&top.strip, -u, &mut st.hint_d);
-            match top.via {
-                Some(v) if u < v.u => v.y - v.k * (e - v.e),
-                _ => top.y - top.k * e,
+            via => {
+                if top.linear {
+                    let (tu, ty) = via.map_or_else(end, |v| (v.u, v.y));
+                    return line(top.u, top.y, tu, ty, u);
+                }
+                if rising {
+                    top.y + top.k * self.asc.everett(&top.strip, u, &mut st.hint_a)
+                } else {
+                    top.y - top.k * self.desc.everett(&top.strip, -u, &mut st.hint_d)
+                }
             }
         }
     }
 }
 
 /// First word of a serialised [`State`] (format tag and version).
-const STATE_TAG: u64 = 0x626d_725f_7374_0001;
+const STATE_TAG: u64 = 0x626d_725f_7374_0002;
 /// Words before the memory entries: tag, fingerprint, length, input, output, two hints.
 const STATE_HEADER: usize = 7;
-/// Words per memory entry: input, output, scale, second-piece flag and its four values.
+/// Words per memory entry: input, output, scale, flags (second piece present, branch linear, second piece linear)
+/// and the second piece's four values.
 const ENTRY_WORDS: usize = 8;
 
 #[cfg(feature = "alloc")]
@@ -373,25 +397,30 @@ impl<S: AsRef<[f64]>, const N: usize> Hysteresis<S, N> {
             if !(in_range(ru) && ry.is_finite() && rk.is_finite()) {
                 return bad("memory entry outside the table range or not finite");
             }
-            let via = match e[3] {
+            let flags = e[3];
+            if flags > 7 || (flags & 1 == 0 && flags & 4 != 0) {
+                return bad("memory entry flags");
+            }
+            let via = match flags & 1 {
                 0 => None,
-                1 => {
+                _ => {
                     let v = Via {
                         u: f(e[4]),
                         y: f(e[5]),
                         e: f(e[6]),
                         k: f(e[7]),
+                        linear: flags & 4 != 0,
                     };
                     if !(in_range(v.u) && v.y.is_finite() && v.e.is_finite() && v.k.is_finite()) {
                         return bad("second branch piece outside the table range or not finite");
                     }
                     Some(v)
                 }
-                _ => return bad("second branch piece flag"),
             };
+            let linear = flags & 2 != 0;
             if i == 0 {
                 let a = self.anchor;
-                if (ru, ry, rk) != (a.u, a.y, a.k) || via.is_some() {
+                if (ru, ry, rk, linear) != (a.u, a.y, a.k, a.linear) || via.is_some() {
                     return bad("first memory entry is not the saturation anchor");
                 }
                 continue;
@@ -408,6 +437,7 @@ impl<S: AsRef<[f64]>, const N: usize> Hysteresis<S, N> {
                 k: rk,
                 strip,
                 via,
+                linear,
             });
         }
         Ok(State {
@@ -436,35 +466,55 @@ pub(crate) fn push_reversal<S: AsRef<[f64]>, const N: usize>(
     let r = if st.history.rising() {
         let strip = desc.strip(-u);
         let e = desc.everett(&strip, -below.u, &mut st.hint_d);
-        Reversal {
-            u,
-            y,
-            k: branch_scale(y - below.y, e),
-            strip,
-            via: None,
-        }
+        Reversal::scaled(u, y, strip, branch_scale(y - below.y, e))
     } else {
         let strip = asc.strip(u);
         let e = asc.everett(&strip, below.u, &mut st.hint_a);
-        Reversal {
-            u,
-            y,
-            k: branch_scale(below.y - y, e),
-            strip,
-            via: None,
-        }
+        Reversal::scaled(u, y, strip, branch_scale(below.y - y, e))
     };
     st.history.push(r);
 }
 
-/// Branch scale that makes an increment `e` produce the output change `dy`; 1 when undefined.
+/// Branch scale that makes an increment `e` produce the output change `dy`, or `None` when no scale can: the
+/// tables give no increment (`e = 0`) while the output must still rise, or the scale overflows. Such a branch is a
+/// straight line in the input to its target (see [`Reversal::linear`]).
 #[inline]
-pub(crate) fn branch_scale(dy: f64, e: f64) -> f64 {
+pub(crate) fn branch_scale(dy: f64, e: f64) -> Option<f64> {
     if e > 0.0 {
         let k = dy / e;
-        if k.is_finite() { k.max(0.0) } else { 1.0 }
+        if k.is_finite() {
+            Some(k.max(0.0))
+        } else {
+            None
+        }
+    } else if dy > 0.0 {
+        None
     } else {
-        1.0
+        Some(1.0)
+    }
+}
+
+/// The straight line from `(u0, y0)` to `(u1, y1)` at `u` (the far end when the two inputs coincide).
+#[inline]
+pub(crate) fn line(u0: f64, y0: f64, u1: f64, y1: f64, u: f64) -> f64 {
+    if u1 == u0 {
+        return y1;
+    }
+    y0 + (y1 - y0) * ((u - u0) / (u1 - u0)).clamp(0.0, 1.0)
+}
+
+impl Reversal {
+    /// A reversal whose branch follows the tables with scale `k`, or a straight line when `k` is `None`.
+    #[inline]
+    pub(crate) fn scaled(u: f64, y: f64, strip: crate::everett::Strip, k: Option<f64>) -> Reversal {
+        Reversal {
+            u,
+            y,
+            k: k.unwrap_or(1.0),
+            strip,
+            via: None,
+            linear: k.is_none(),
+        }
     }
 }
 
@@ -491,11 +541,13 @@ fn second_piece<S: AsRef<[f64]>>(
             old.y - new.y,
         )
     };
+    let k = branch_scale(dy, e_new - e_old);
     Via {
         u: old.u,
         y: old.y,
         e: e_old,
-        k: branch_scale(dy, e_new - e_old),
+        k: k.unwrap_or(1.0),
+        linear: k.is_none(),
     }
 }
 

@@ -47,7 +47,8 @@ impl<const N: usize> Hysteresis<Vec<f64>, N> {
         // Major-branch outputs where the first-order curves leave them.
         let top_strip = self.desc.strip(-self.hi);
         let k_top =
-            crate::cbh::branch_scale(self.y_hi - self.y_lo, self.desc.everett_max(&top_strip));
+            crate::cbh::branch_scale(self.y_hi - self.y_lo, self.desc.everett_max(&top_strip))
+                .unwrap_or(1.0);
         let mut asc = Vec::with_capacity(self.asc.curves());
         for (j, &m) in self.asc.reversals().iter().enumerate() {
             let y0 = if j == 0 {

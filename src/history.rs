@@ -18,6 +18,8 @@ pub struct Via {
     pub e: f64,
     /// Scale of the second piece, so that it closes on the new target.
     pub k: f64,
+    /// The tables give no increment towards the new target: the piece is a straight line in the input to it.
+    pub linear: bool,
 }
 
 /// One remembered reversal point and the branch that leaves it.
@@ -34,6 +36,10 @@ pub struct Reversal {
     pub strip: Strip,
     /// Second branch piece after a merge.
     pub via: Option<Via>,
+    /// The tables give no increment towards the closure target (a flat Everett function where the outputs still
+    /// differ, as in measured families that disagree): the branch is a straight line in the input to the target
+    /// instead, so that the output stays continuous and monotone.
+    pub linear: bool,
 }
 
 impl Reversal {
@@ -43,6 +49,7 @@ impl Reversal {
         k: 1.0,
         strip: Strip::ZERO,
         via: None,
+        linear: false,
     };
 }
 

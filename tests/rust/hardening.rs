@@ -292,3 +292,49 @@ fn angle_preview_is_bounded() {
     assert!(a.theta_ahead(MAX_GENERATED_SAMPLES + 1).is_err());
     assert_eq!(a.theta_ahead(10).unwrap().len(), 10);
 }
+
+#[test]
+fn a_branch_over_flat_tables_stays_continuous_and_invertible() {
+    // Ascending curves flat after their reversal while the descending ones fall (families that disagree, as
+    // after a running maximum clips measured dips): no scale of the flat tables can close the branch on its
+    // target. It used to stay flat and jump at the wipe-out, and the inverse returned the jump's input for
+    // targets inside it. Now the branch is a straight line to its target.
+    let a: Curves = vec![
+        (vec![-1.0, 0.0, 1.0], vec![0.0, 0.0, 2.0]),
+        (vec![0.0, 0.6, 1.0], vec![1.0, 1.0, 2.0]),
+    ];
+    let d: Curves = vec![
+        (vec![1.0, -1.0], vec![2.0, 0.0]),
+        (vec![0.0, -1.0], vec![1.0, 0.0]),
+    ];
+    let mut h = build(&a, &d).unwrap();
+    h.step(0.5);
+    let y_max = h.output();
+    let y_min = h.step(0.2);
+    assert!(y_max - y_min > 0.1, "{y_min} .. {y_max}");
+    let mut prev = y_min;
+    let steps = 300;
+    for k in 1..=steps {
+        let u = 0.2 + 0.3 * k as f64 / steps as f64;
+        let before = h.clone();
+        let y = h.step(u);
+        assert!(y >= prev, "not monotone at {u}");
+        assert!(
+            y - prev <= 4.0 * (y_max - y_min) / steps as f64,
+            "jump of {} at {u}",
+            y - prev
+        );
+        // Every output on the way is reachable by the exact inverse.
+        let mut probe = before;
+        let inv = probe.step_inverse(y);
+        assert!(
+            !inv.saturated && (inv.input - u).abs() < 1e-9,
+            "{inv:?} for {y} at {u}"
+        );
+        prev = y;
+    }
+    assert_eq!(h.output(), y_max, "return-point memory");
+    // The state words carry the straight branch.
+    let words = h.snapshot().to_words();
+    assert_eq!(h.state_from_words(&words).unwrap().to_words(), words);
+}
