@@ -54,7 +54,7 @@ impl<S: AsRef<[f64]>, const N: usize> Hysteresis<S, N> {
             && !(u_c == st.history.top().u && st.history.len() > 1)
         {
             let mut s = *st;
-            push_reversal(&self.asc, &self.desc, &mut s);
+            push_reversal(&self.asc, &self.desc, &mut s, (self.hi, self.y_hi));
             scratch = s;
             &scratch.history
         } else {

@@ -338,3 +338,53 @@ fn a_branch_over_flat_tables_stays_continuous_and_invertible() {
     let words = h.snapshot().to_words();
     assert_eq!(h.state_from_words(&words).unwrap().to_words(), words);
 }
+
+#[test]
+fn merging_a_full_memory_keeps_the_output_continuous_at_later_wipe_outs() {
+    // A full 6-point memory merges the nested pair (a2, b2) away; rising again past a3 (the reversal above the
+    // merged pair) used to continue on b1's branch, which does not pass through a3's output: the output jumped
+    // there and the exact inverse could not reach the outputs inside the jump.
+    let (a, d) = common::measure_first_order(40, 9);
+    let mut h: Hysteresis<Vec<f64>, 6> =
+        Hysteresis::from_curve_data(&a, &d, &BuildOptions::default(), Initial::Negative).unwrap();
+    let path = [0.9, -0.8, 0.6, -0.2, 0.55, 0.3]; // a1, b1, a2, b2 (small excursion a2-b2), a3, b3
+    for &u in &path {
+        let steps = 40;
+        let from = h.state().input();
+        for s in 1..=steps {
+            h.step(from + (u - from) * s as f64 / steps as f64);
+        }
+    }
+    assert_eq!(
+        h.state().history().len(),
+        6,
+        "memory full: [anchor, a1, b1, a2, b2, a3] + turning at b3"
+    );
+    let (y_lo, y_hi) = h.output_range();
+    let span = y_hi - y_lo;
+    // Rise from b3 through a3 (0.55) up to a1 (0.9): the merge happens at the turn.
+    let mut prev = (h.state().input(), h.output());
+    let n = 2000;
+    let mut steepest = 0.0f64;
+    for k in 1..=n {
+        let u = 0.3 + 0.6 * k as f64 / n as f64;
+        let before = h.clone();
+        let y = h.step(u);
+        steepest = steepest.max((y - prev.1) / (u - prev.0));
+        assert!(
+            y >= prev.1 && y - prev.1 <= 0.01 * span,
+            "step of {} at {u} (from {} at {})",
+            y - prev.1,
+            prev.1,
+            prev.0
+        );
+        let mut probe = before;
+        let inv = probe.step_inverse(y);
+        assert!(
+            !inv.saturated && (probe.output() - y).abs() <= 1e-9 * span,
+            "inverse of {y} at {u}: {inv:?}"
+        );
+        prev = (u, y);
+    }
+    assert!(steepest.is_finite());
+}
