@@ -377,10 +377,14 @@ impl<S: AsRef<[f64]>, const N: usize> Hysteresis<S, N> {
             return bad("word count does not match the memory length");
         }
         let f = f64::from_bits;
-        let point_ok =
-            |u: f64, y: f64| u >= self.lo && u <= self.hi && y >= self.y_lo && y <= self.y_hi;
-        // `x` lies between `a` and `b` (either order), ends included.
+        // Outputs may pass the major-loop ends by round-off.
+        let slack = 1e-9 * (self.y_hi - self.y_lo);
+        let point_ok = |u: f64, y: f64| {
+            u >= self.lo && u <= self.hi && y >= self.y_lo - slack && y <= self.y_hi + slack
+        };
+        // `x` lies between `a` and `b` (either order), ends included; outputs with the round-off slack.
         let between = |x: f64, a: f64, b: f64| x >= a.min(b) && x <= a.max(b);
+        let between_y = |y: f64, a: f64, b: f64| y >= a.min(b) - slack && y <= a.max(b) + slack;
         let saturation = (self.hi, self.y_hi);
         let mut history = History::new(self.anchor);
         for i in 0..len {
@@ -412,7 +416,7 @@ impl<S: AsRef<[f64]>, const N: usize> Hysteresis<S, N> {
                 } else {
                     saturation
                 };
-                if !(between(u, below.0, outer.0) && between(y, below.1, outer.1)) {
+                if !(between(u, below.0, outer.0) && between_y(y, below.1, outer.1)) {
                     return bad("memory entries are not nested reversals");
                 }
             }
@@ -426,7 +430,7 @@ impl<S: AsRef<[f64]>, const N: usize> Hysteresis<S, N> {
             let mut r = Reversal::scaled(u, y, strip, None);
             let first_to = match via_point {
                 Some((vu, vy)) => {
-                    if !(point_ok(vu, vy) && between(vu, u, below.0) && between(vy, y, below.1)) {
+                    if !(point_ok(vu, vy) && between(vu, u, below.0) && between_y(vy, y, below.1)) {
                         return bad("second branch piece outside its branch");
                     }
                     r.via = Some(second_piece(&self.asc, &self.desc, &r, (vu, vy), below));
@@ -479,7 +483,7 @@ impl<S: AsRef<[f64]>, const N: usize> Hysteresis<S, N> {
             state: st,
         };
         let on_branch = probe.branch_output(st.u);
-        if !((on_branch - st.y).abs() <= 1e-9 * (self.y_hi - self.y_lo)) {
+        if !((on_branch - st.y).abs() <= slack) {
             return bad("current output is not on the newest branch");
         }
         Ok(st)

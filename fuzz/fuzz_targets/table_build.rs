@@ -76,9 +76,9 @@ fuzz_target!(|data: &[u8]| {
         first,
         "replay from a snapshot differs"
     );
-    // A model file stores the operator's curves: they must build the operator again.
+    // A model file may store the operator's curves: with the options it was built with, they build it again.
     let (a, d) = h.curves();
-    if let Err(e) = Op::from_curve_data(&a, &d, &BuildOptions::default(), Initial::Negative) {
+    if let Err(e) = Op::from_curve_data(&a, &d, &opts, Initial::Negative) {
         panic!("the operator's own curves do not rebuild it: {e}");
     }
 });
