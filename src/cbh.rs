@@ -483,10 +483,8 @@ impl<S: AsRef<[f64]>, const N: usize> Hysteresis<S, N> {
             state: st,
         };
         let on_branch = probe.branch_output(st.u);
-        // NaN never compares: a non-finite branch output is refused too.
-        if (on_branch - st.y).abs().partial_cmp(&slack) != Some(core::cmp::Ordering::Less)
-            && (on_branch - st.y).abs() != slack
-        {
+        let off = (on_branch - st.y).abs();
+        if off.is_nan() || off > slack {
             return bad("current output is not on the newest branch");
         }
         Ok(st)
