@@ -105,6 +105,14 @@ pub enum IdentificationError {
     NotConverged { iterations: usize },
     /// Internal dimension mismatch of the nonnegative least-squares solver.
     SolverDimensions { q: usize, c: usize, mask: usize },
+    /// The identified table's first-order curves were rejected by the CBH table builder.
+    Table(crate::error::TableError),
+}
+
+impl From<crate::error::TableError> for IdentificationError {
+    fn from(e: crate::error::TableError) -> Self {
+        IdentificationError::Table(e)
+    }
 }
 
 impl From<LimitError> for IdentificationError {
@@ -130,6 +138,7 @@ impl fmt::Display for IdentificationError {
         use IdentificationError as E;
         match *self {
             E::Limit(l) => write!(f, "{l}"),
+            E::Table(ref t) => write!(f, "{t}"),
             E::LengthMismatch {
                 first,
                 first_len,

@@ -103,21 +103,11 @@ impl EverettModel {
         subdivisions: usize,
         opts: &crate::table_builder::BuildOptions,
         initial: crate::cbh::Initial,
-    ) -> Result<crate::cbh::Hysteresis<Vec<f64>, N>, crate::error::TableError> {
-        use crate::error::TableError;
-        let (asc, desc) =
-            self.first_order_curves_subdivided(subdivisions)
-                .map_err(|e| match e {
-                    IdentificationError::Limit(limit) => TableError::TooLarge {
-                        family: None,
-                        limit,
-                    },
-                    _ => TableError::BadParameter {
-                        name: "subdivisions",
-                        value: subdivisions as f64,
-                    },
-                })?;
-        crate::cbh::Hysteresis::from_curve_data(&asc, &desc, opts, initial)
+    ) -> Result<crate::cbh::Hysteresis<Vec<f64>, N>, IdentificationError> {
+        let (asc, desc) = self.first_order_curves_subdivided(subdivisions)?;
+        Ok(crate::cbh::Hysteresis::from_curve_data(
+            &asc, &desc, opts, initial,
+        )?)
     }
 
     /// First-order curves at every grid node: ascending from each reversal minimum `g_i` (i < N) up to

@@ -352,8 +352,8 @@ impl PyHysteresis {
     /// built from them.
     fn current_curves<'py>(
         slf: &Bound<'py, Self>,
+        py: Python<'py>,
     ) -> PyResult<(Bound<'py, PyList>, Bound<'py, PyList>)> {
-        let py = slf.py();
         let (a, d) = borrow(slf)?.op.current_curves();
         Ok((curves_to_py(py, a)?, curves_to_py(py, d)?))
     }

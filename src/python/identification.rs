@@ -10,7 +10,7 @@ use crate::identification::{
 };
 use crate::python::arrays::{curves_to_py, to_vec};
 use crate::python::hysteresis::PyHysteresis;
-use crate::python::{BmrError, identification_err, table_err};
+use crate::python::{BmrError, identification_err};
 use crate::table_builder::BuildOptions;
 
 /// A 1-D float array argument (lists and integer arrays accepted).
@@ -190,7 +190,7 @@ impl PyEverettModel {
         let op = self
             .inner
             .hysteresis(subdivisions, &BuildOptions::default(), Initial::Negative)
-            .map_err(table_err)?;
+            .map_err(|e| identification_err("EverettModel.hysteresis", e))?;
         Ok(PyHysteresis { op })
     }
 

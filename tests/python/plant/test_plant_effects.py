@@ -62,12 +62,19 @@ def test_effects_are_off_by_default_except_the_preset_ones():
     (["coil_lag:tau=1"], "has no parameter"),
     (["coil_lag:tau_s=x"], "not a number"),
     (["time_delay:delay_s=5"], "outside"),
-    ({"coil_lag": {"tau_s": "slow"}}, "not a number"),
-    ({"coil_lag": 3}, "must be a dict"),
-    (42, "effects must be"),
 ])
 def test_bad_effect_specs_are_clear_errors(spec, message):
     with pytest.raises(bmr.BmrError, match=message):
+        bmr.VirtualActuator("bmr2013", effects=spec)
+
+
+@pytest.mark.parametrize("spec, message", [
+    ({"coil_lag": {"tau_s": "slow"}}, "not a number"),
+    ({"coil_lag": 3}, "dict"),
+    (42, "effects"),
+])
+def test_effect_specs_of_the_wrong_type_are_type_errors(spec, message):
+    with pytest.raises(TypeError, match=message):
         bmr.VirtualActuator("bmr2013", effects=spec)
 
 
