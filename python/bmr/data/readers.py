@@ -13,6 +13,7 @@ bundle's units with ``units``::
 from __future__ import annotations
 
 import math
+import numbers
 from pathlib import Path
 from typing import Any, Callable, Iterable, Mapping
 
@@ -91,6 +92,7 @@ def read_table(
     without an encoder). ``sample_rate_hz``: builds ``t_s`` from the sample index when the file has no time.
     Missing required columns, unknown units, unknown names and unequal lengths are ``BmrError``s.
     """
+    _check_arguments(mapping, units, defaults, sample_rate_hz)
     file = Path(path)
     if not file.is_file():
         raise BmrError(f"{str(file)!r} does not exist")
@@ -117,6 +119,8 @@ def read_table(
     for col in (*REQUIRED_COLUMNS, *OPTIONAL_COLUMNS):
         name = mapping.get(col, col)
         values = _lookup(source, name)
+        if isinstance(values, _NotNumbers):
+            raise BmrError(f"{file}: source {name!r} for column {col!r} holds {values.what}")
         if values is None:
             if col in mapping:
                 raise BmrError(f"{file}: mapped source {name!r} for column {col!r} not found "
@@ -186,14 +190,54 @@ def _read_parquet(file: Path) -> pd.DataFrame:
         raise BmrError(f"{file}: cannot be read as Parquet ({exc})") from None
 
 
-def _columns_from_frame(file: Path, df: pd.DataFrame) -> dict[str, np.ndarray]:
-    out = {}
+class _NotNumbers:
+    """A source column that holds something other than real numbers: naming it is an error saying what it holds."""
+
+    def __init__(self, what: str) -> None:
+        self.what = what
+
+
+_NOT_NUMBERS = {
+    "M": "date-times; convert them to seconds (e.g. (t - t[0]).dt.total_seconds()) before reading",
+    "m": "durations; convert them to seconds (e.g. .dt.total_seconds()) before reading",
+    "b": "booleans, not measurements",
+    "c": "complex numbers; keep the real-valued measurement",
+}
+
+
+def _columns_from_frame(file: Path, df: pd.DataFrame) -> dict[str, Any]:
+    out: dict[str, Any] = {}
     for c in df.columns:
+        what = _NOT_NUMBERS.get(df[c].dtype.kind)
+        if what is not None:
+            out[str(c).strip()] = _NotNumbers(what)
+            continue
         try:
             out[str(c).strip()] = df[c].to_numpy(dtype=float)
         except (TypeError, ValueError):
             continue  # non-numeric columns (comments, labels) cannot be mapped
     return out
+
+
+def _check_arguments(mapping: Any, units: Any, defaults: Any, sample_rate_hz: Any) -> None:
+    """Wrong argument types are TypeErrors naming the argument; values out of range are BmrErrors."""
+    for arg, value in (("mapping", mapping), ("units", units), ("defaults", defaults)):
+        if value is not None and not isinstance(value, Mapping):
+            raise TypeError(f"{arg}: expected a dict {{bundle column: ...}}, got {type(value).__name__}")
+    for arg, value in (("mapping", mapping), ("units", units)):
+        for k, v in (value or {}).items():
+            if not isinstance(k, str) or not isinstance(v, str):
+                raise TypeError(f"{arg}: expected bundle column names mapped to strings, got {k!r}: {v!r}")
+    for k, v in (defaults or {}).items():
+        if not isinstance(k, str) or isinstance(v, bool) or not isinstance(v, numbers.Real):
+            raise TypeError(f"defaults[{k!r}]: expected a number in the column's unit, got {v!r}")
+        if not math.isfinite(v):
+            raise BmrError(f"defaults[{k!r}] must be finite, got {v!r}")
+    if sample_rate_hz is not None:
+        if isinstance(sample_rate_hz, bool) or not isinstance(sample_rate_hz, numbers.Real):
+            raise TypeError(f"sample_rate_hz: expected a number of Hz, got {sample_rate_hz!r}")
+        if not (math.isfinite(sample_rate_hz) and sample_rate_hz > 0):
+            raise BmrError(f"sample_rate_hz must be positive and finite, got {sample_rate_hz!r}")
 
 
 def _columns_from_tdms(file: Path) -> dict[str, np.ndarray]:
@@ -251,7 +295,7 @@ def _columns_from_mat(file: Path) -> dict[str, np.ndarray]:
     return out
 
 
-def _lookup(source: Mapping[str, np.ndarray], name: str) -> np.ndarray | None:
+def _lookup(source: Mapping[str, Any], name: str) -> Any:
     if name in source:
         return source[name]
     lowered = {k.lower(): k for k in source}

@@ -31,6 +31,7 @@ from typing import Any
 import numpy as np
 
 from bmr._core import BmrError, VirtualActuator
+from bmr.data.files import check_output_file, write_text
 from bmr.data.bundle import Bundle, read_bundle
 from bmr.diagnosis.effects import PHYSICAL
 from bmr.diagnosis.field import FieldPath
@@ -122,20 +123,12 @@ class Diagnosis:
         return html_section(self)
 
     def write_report(self, path: str | Path) -> Path:
-        p = Path(path)
-        try:
-            p.write_text(html_page(self))
-        except OSError as exc:
-            raise BmrError(f"cannot write report {str(p)!r}: {exc.strerror or exc}") from None
-        return p
+        """Write the HTML report (atomically)."""
+        return write_text(path, html_page(self))
 
     def write_json(self, path: str | Path) -> Path:
-        p = Path(path)
-        try:
-            p.write_text(json.dumps(self.to_dict(), indent=1, allow_nan=False) + "\n")
-        except OSError as exc:
-            raise BmrError(f"cannot write {str(p)!r}: {exc.strerror or exc}") from None
-        return p
+        """Write the ``bmr-diagnosis/1`` JSON (atomically)."""
+        return write_text(path, json.dumps(self.to_dict(), indent=1, allow_nan=False) + "\n")
 
     def __repr__(self) -> str:
         return (f"Diagnosis(cause={self.cause!r}, effects={[e['name'] for e in self.effects]}, "
@@ -258,6 +251,11 @@ def closed_loop_gain(d: Diagnosis, preset: str, *, effects: Any = None, seed: in
 def run_cli(args: Any) -> int:
     """``bmr diagnose BUNDLE [--model M] [--json OUT] [--report OUT.html]``: print the named cause and the
     selection, write the JSON and the HTML report on request."""
+    # Outputs that cannot be written fail now, not after the whole diagnosis.
+    if args.json_out:
+        check_output_file(args.json_out, "diagnosis JSON")
+    if args.report:
+        check_output_file(args.report, "report")
     d = diagnose(args.bundle, args.model, folds=args.folds, seed=args.seed)
     print(f"bmr diagnose: {d.actuator}: cause {d.cause}; held-out RMS {d.nominal_heldout_rms_nmm:.3f} -> "
           f"{d.residual_rms_nmm:.3f} N·mm (noise floor {d.noise_floor_nmm:.3f}), {d.wall_time_s:.1f} s")

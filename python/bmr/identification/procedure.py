@@ -12,8 +12,9 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from bmr._core import BmrError
+from bmr._core import BmrError, ModelFileError
 from bmr.data.bundle import Bundle, Run, read_bundle
+from bmr.data.files import check_output_file
 from bmr.identification.forc import extract_first_order_curves
 from bmr.identification.friction import DEFAULT_MAX_ORDER, fit_friction
 from bmr.identification.lstsq import fit_tables_lstsq
@@ -111,6 +112,7 @@ def identify(
 
 def run_cli(args: Any) -> int:
     """``bmr identify BUNDLE --method M -o model.json``: identify, save, print a short summary."""
+    check_output_file(args.out, "model file", error=ModelFileError)
     bundle = read_bundle(args.bundle)
     model = identify(bundle, method=args.method)
     model.save(args.out)

@@ -26,6 +26,7 @@ import pandas as pd
 
 from bmr._core import BmrError, VirtualActuator
 from bmr.data.bundle import Bundle, Run, write_bundle
+from bmr.data.files import check_output_folder
 
 FULL_CURRENT_A = 1.25
 """Saturating nominal current of the protocols (±10 units of 0.125 A on the paper's rig)."""
@@ -486,6 +487,10 @@ def run_cli(args: Any) -> int:
     t0 = time.perf_counter()
     effects = list(args.effect or [])
     overrides = _parse_overrides(getattr(args, "override", None) or [])
+    # Everything that can be wrong is found before the progress bar starts: the output folder, the effects and
+    # the parameters (an actuator built once with them).
+    check_output_folder(args.out, "bundle folder")
+    VirtualActuator(args.preset, effects=effects or None, overrides=overrides or None)
     # Plan length: the set without a compensator.
     n_runs = len(_plan(bool(args.quick), None, BUNDLE_SAMPLE_RATE_HZ))
     with tqdm(total=2 * n_runs, file=sys.stderr, unit="step", desc="bmr simulate") as bar:
