@@ -31,7 +31,7 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from bmr._core import BmrError, Compensator, Hysteresis, ModelFileError
+from bmr._core import BmrError, Compensator, Hysteresis, ModelFileError, ResourceLimitError
 from bmr.data.files import read_json, write_text
 from bmr.identification.friction import FrictionFit
 
@@ -152,14 +152,17 @@ class Model:
     def save(self, path: str | Path) -> Path:
         """Write the model as ``bmr-model/1`` JSON (with its sha256 digest), atomically. A model whose file would
         not load (its tables do not rebuild from the stored curves, say) is refused before anything is written."""
-        content = self.to_dict()
-        content["sha256"] = _digest(content)
         try:
-            Model.from_dict(json.loads(json.dumps(content)), source="model to save")
+            content = self.to_dict()
+            content["sha256"] = _digest(content)
+            text = json.dumps(content, indent=1, allow_nan=False)
+        except RecursionError:
+            raise ModelFileError(f"cannot save the model to {str(path)!r}: its meta is nested too deeply") from None
+        try:
+            Model.from_dict(json.loads(text), source="model to save")
         except BmrError as exc:
             raise ModelFileError(f"cannot save the model to {str(path)!r}: it would not load back ({exc})") from None
-        return write_text(path, _compact_number_lists(json.dumps(content, indent=1, allow_nan=False)) + "\n",
-                          error=ModelFileError)
+        return write_text(path, _compact_number_lists(text) + "\n", error=ModelFileError)
 
     @classmethod
     def from_dict(cls, content: Any, *, source: str = "model") -> "Model":
@@ -168,7 +171,7 @@ class Model:
             return cls._from_dict(content, source)
         except RecursionError:
             raise ModelFileError(f"{source}: nested too deeply to be a model") from None
-        except ModelFileError:
+        except (ModelFileError, ResourceLimitError):
             raise
         except BmrError as exc:
             raise ModelFileError(f"{source}: {exc}") from None
@@ -228,6 +231,8 @@ class Model:
             raise err(f"{source}: 'meta' must be an object")
         try:
             h = Hysteresis.from_curves(asc, desc, initial=initial)
+        except ResourceLimitError as exc:
+            raise ResourceLimitError(f"{source}: hysteresis tables: {exc}") from None
         except BmrError as exc:
             raise err(f"{source}: hysteresis tables rejected: {exc}") from None
         return cls(h, friction, limits=limits, converter_gain_a_per_v=gain, extensions=ext, meta=meta,
