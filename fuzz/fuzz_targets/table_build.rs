@@ -17,7 +17,8 @@ fuzz_target!(|data: &[u8]| {
         preisach_curves(&mut r)
     };
     let mut opts = BuildOptions::default();
-    if r.byte() % 3 == 0 {
+    let custom = r.byte() % 3 == 0;
+    if custom {
         opts.monotone_tolerance = r.float();
         opts.reach_tolerance = r.float();
         opts.closure_tolerance = r.float();
@@ -76,9 +77,13 @@ fuzz_target!(|data: &[u8]| {
         first,
         "replay from a snapshot differs"
     );
-    // A model file may store the operator's curves: with the options it was built with, they build it again.
-    let (a, d) = h.curves();
-    if let Err(e) = Op::from_curve_data(&a, &d, &opts, Initial::Negative) {
-        panic!("the operator's own curves do not rebuild it: {e}");
+    // A model file may store the operator's curves and rebuilds them with the default options: an operator built
+    // with those rebuilds from its own curves. (With custom tolerances a table at a tolerance's edge may not:
+    // the stored rows are running maxima of the measured increments.)
+    if !custom {
+        let (a, d) = h.curves();
+        if let Err(e) = Op::from_curve_data(&a, &d, &opts, Initial::Negative) {
+            panic!("the operator's own curves do not rebuild it: {e}");
+        }
     }
 });
