@@ -1,5 +1,5 @@
 //! Python bindings of the identification least squares: `fit_friction_order`, `EverettModel`, `fit_everett`.
-use numpy::{AllowTypeChange, PyArray1, PyArray2, PyArrayLike1, PyArrayMethods};
+use numpy::{PyArray1, PyArray2, PyArrayMethods};
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyTuple};
 
@@ -8,13 +8,14 @@ use crate::identification::{
     EverettFitOptions, EverettGrid, EverettModel, EverettRun, fit_everett as fit_everett_rs,
     fit_friction,
 };
-use crate::python::arrays::{curves_to_py, to_vec};
+use crate::python::arrays::{curves_to_py, extract_f64_array};
 use crate::python::hysteresis::PyHysteresis;
 use crate::python::{BmrError, identification_err};
 use crate::table_builder::BuildOptions;
 
 /// A 1-D float array argument (lists and integer arrays accepted).
-type Array<'py> = PyArrayLike1<'py, f64, AllowTypeChange>;
+/// (Floats or integers, as a numpy array or a sequence; anything else is a TypeError naming the argument.)
+type Array<'py> = Bound<'py, PyAny>;
 /// One training run as passed from Python: input, output, row weights, offset column.
 type RunArrays<'py> = (Array<'py>, Array<'py>, Array<'py>, usize);
 /// The same run copied out of Python (so the fit can run without the interpreter lock).
@@ -30,8 +31,8 @@ fn fit_friction_order<'py>(
     torque_nmm: Array<'py>,
     order: usize,
 ) -> PyResult<Bound<'py, PyDict>> {
-    let theta = to_vec(theta_rad);
-    let torque = to_vec(torque_nmm);
+    let theta = extract_f64_array(&theta_rad, "theta_rad")?;
+    let torque = extract_f64_array(&torque_nmm, "torque_nmm")?;
     let fit = py
         .detach(|| fit_friction(&theta, &torque, order))
         .map_err(|e| identification_err("friction fit", e))?;
@@ -68,9 +69,9 @@ impl PyEverettModel {
     #[new]
     #[pyo3(signature = (grid, masses, offset))]
     fn new(grid: Array<'_>, masses: Array<'_>, offset: f64) -> PyResult<Self> {
-        let grid =
-            EverettGrid::new(to_vec(grid)).map_err(|e| identification_err("EverettModel", e))?;
-        let inner = EverettModel::new(grid, to_vec(masses), offset)
+        let grid = EverettGrid::new(extract_f64_array(&grid, "grid")?)
+            .map_err(|e| identification_err("EverettModel", e))?;
+        let inner = EverettModel::new(grid, extract_f64_array(&masses, "masses")?, offset)
             .map_err(|e| identification_err("EverettModel", e))?;
         Ok(Self { inner })
     }
@@ -148,7 +149,7 @@ impl PyEverettModel {
         u: Array<'py>,
         offset: Option<f64>,
     ) -> PyResult<Bound<'py, PyArray1<f64>>> {
-        let u = to_vec(u);
+        let u = extract_f64_array(&u, "u")?;
         if let Some(i) = u.iter().position(|v| !v.is_finite()) {
             return Err(crate::python::BmrError::new_err(format!(
                 "input sample {i} is not finite ({})",
@@ -219,12 +220,20 @@ fn fit_everett<'py>(
     ridge: f64,
     max_iter: usize,
 ) -> PyResult<Bound<'py, PyDict>> {
-    let grid =
-        EverettGrid::new(to_vec(grid)).map_err(|e| identification_err("Everett table fit", e))?;
+    let grid = EverettGrid::new(extract_f64_array(&grid, "grid")?)
+        .map_err(|e| identification_err("Everett table fit", e))?;
     let data: Vec<RunData> = runs
         .into_iter()
-        .map(|(u, y, w, o)| (to_vec(u), to_vec(y), to_vec(w), o))
-        .collect();
+        .enumerate()
+        .map(|(i, (u, y, w, o))| {
+            Ok((
+                extract_f64_array(&u, &format!("runs[{i}] input"))?,
+                extract_f64_array(&y, &format!("runs[{i}] output"))?,
+                extract_f64_array(&w, &format!("runs[{i}] weights"))?,
+                o,
+            ))
+        })
+        .collect::<PyResult<_>>()?;
     let options = EverettFitOptions {
         smoothing,
         ridge,
