@@ -5,7 +5,7 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 what="${1:-compensator}"
-cargo build --release --example step_count >/dev/null 2>&1
+cargo build --release -p bmr-bench --example step_count >/dev/null 2>&1
 bin=target/release/examples/step_count
 count() {
   valgrind --tool=callgrind --callgrind-out-file=/dev/null "$bin" "$1" "$what" 2>&1 \

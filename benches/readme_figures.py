@@ -69,7 +69,7 @@ def measure_performance(repeat: int) -> None:
     values: dict[str, Any] = {}
     latency: dict[str, list[dict[str, float]]] = {}
     for _ in range(repeat):
-        _, _, out = _timed(["cargo", "bench", "--bench", "latency"])
+        _, _, out = _timed(["cargo", "bench", "-p", "bmr-bench", "--bench", "latency"])
         for line in out.splitlines():
             m = re.match(r"Compensator::step \((.+?)\).*median (\d+) ns, p99 (\d+) ns, p99\.9 (\d+) ns", line)
             if m:
@@ -136,7 +136,7 @@ def render_performance(rec: dict[str, Any]) -> str:
     for name, q in lat.items():
         rows.append(f"| `Compensator::step` (Rust, {name}) | median {_pm(q['median'], '{:.0f}', ' ns')}, "
                     f"p99 {q['p99']['median']:.0f} ns, p99.9 {q['p999']['median']:.0f} ns over 10⁶ steps | "
-                    "`cargo bench --bench latency` |")
+                    "`cargo bench -p bmr-bench --bench latency` |")
     for what, n in ins.items():
         name = {"compensator": "Compensator::step", "hysteresis": "Hysteresis::step"}[what]
         rows.append(f"| `{name}` instructions | {n} per step | `benches/callgrind.sh {what}` |")

@@ -23,6 +23,7 @@ pub mod limits;
 pub mod paper_inverse;
 #[cfg(feature = "std")]
 pub mod plant;
+pub mod reversals;
 #[cfg(feature = "alloc")]
 pub mod table_builder;
 pub mod trig;
@@ -35,6 +36,7 @@ pub use everett::{Family, Strip};
 pub use friction::Friction;
 pub use inverse::InverseInput;
 pub use limits::LimitError;
+pub use reversals::{ReversalFinder, ReversalOrder, ReversalPoint};
 #[cfg(feature = "alloc")]
 pub use table_builder::{BuildOptions, MeasuredCurve, build_tables};
 

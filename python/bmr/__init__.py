@@ -11,7 +11,7 @@ Identification: ``identify`` (friction + CBH tables from a bundle) giving a ``Mo
 ``fit_friction``, ``extract_first_order_curves``, ``fit_tables_lstsq`` / ``EverettModel`` (least-squares
 Preisach tables). Lab readers: ``read_table``, ``bundle_from_files``.
 Diagnosis: ``diagnose`` (what the model gets wrong, the named cause, the extended model, the held-out gain) giving a
-``Diagnosis`` (``bmr-diagnosis/1`` JSON, HTML report).
+``Diagnosis`` (``bmr-diagnosis/1`` JSON, HTML report); ``diagnose_many`` (many bundles on Dask, one Parquet table).
 Units: current in A (nominal current spans both coils: negative = coil 1, positive = coil 2), torque in N·mm,
 angles in rad, time in s, converter voltages in V.
 Errors: every problem with data is a ``BmrError`` (a ``ValueError``) or one of its kinds (``TableError``,
@@ -44,7 +44,7 @@ from bmr._core import (
     fit_everett,
 )
 from bmr.data import Bundle, Run, bundle_from_files, read_bundle, read_table, write_bundle
-from bmr.diagnosis import Diagnosis, diagnose
+from bmr.diagnosis import Diagnosis, diagnose, diagnose_many
 from bmr.identification import (
     FrictionFit,
     Model,
@@ -83,6 +83,7 @@ __all__ = [
     "VirtualActuator",
     "bundle_from_files",
     "diagnose",
+    "diagnose_many",
     "effect_parameters",
     "experiments",
     "extract_first_order_curves",

@@ -29,6 +29,7 @@ __all__ = [
     "CompensatorState",
     "EFFECTS",
     "EverettModel",
+    "EverettRegression",
     "Friction",
     "Hysteresis",
     "HysteresisState",
@@ -36,7 +37,9 @@ __all__ = [
     "VirtualActuator",
     "effect_parameters",
     "fit_everett",
+    "find_reversals",
     "fit_friction_order",
+    "reversal_order",
 ]
 
 class BmrError(ValueError):
@@ -144,6 +147,17 @@ class Friction:
     def amplitude_phase(self) -> tuple[np.ndarray, np.ndarray]: ...
 
 # --- identification (least squares, faer) ---
+# --- reversal points (dead-band extrema), streaming in Rust ---
+def find_reversals(u: _ArrayLike, deadband: float) -> np.ndarray:
+    """Indices (int64) of the reversal extrema of ``u``: a maximum (minimum) is confirmed once the input has come
+    back from it by more than ``deadband`` (input units, > 0); the run's start is no reversal."""
+
+def reversal_order(
+    u: _ArrayLike, lo: float, hi: float, deadband: float | None = None, *, saturation_tol: float | None = None
+) -> np.ndarray:
+    """Reversal order (int64) of every sample: 0 after the input came within ``saturation_tol`` (default 0.2 % of
+    ``hi - lo``) of ``lo`` or ``hi``, +1 at every later reversal beyond ``deadband`` (default 1 % of ``hi - lo``)."""
+
 def fit_friction_order(theta_rad: np.ndarray, torque_nmm: np.ndarray, order: int) -> dict:
     """Friction c0 + Σ a_k sin kθ + b_k cos kθ of one order: c0, a, b, *_stderr, covariance, rss, n, order."""
 
@@ -177,7 +191,25 @@ def fit_everett(
     ridge: float = 1e-9,
     max_iter: int = 500,
 ) -> dict:
-    """Regularised NNLS Everett table: model, offsets, rss, rms, n_rows, iterations."""
+    """Regularised NNLS Everett table: model, offsets, rss, rms, n_rows, iterations, passive."""
+
+@final
+class EverettRegression:
+    """The ``fit_everett`` least squares prepared for one input history (regressors and normal matrix built
+    once); ``fit`` identifies the table for any outputs of the same runs, optionally warm-started."""
+    def __new__(
+        cls,
+        grid: _ArrayLike,
+        inputs: Sequence[tuple[_ArrayLike, _ArrayLike, int]],
+        n_offsets: int = 1,
+        *,
+        smoothing: float = 1e-4,
+        ridge: float = 1e-9,
+        max_iter: int = 500,
+    ) -> Self: ...
+    @property
+    def n_rows(self) -> int: ...
+    def fit(self, outputs: Sequence[_ArrayLike], warm_start: Sequence[bool] | np.ndarray | None = None) -> dict: ...
 EFFECTS: tuple[str, ...]
 """Names of the virtual actuator's switchable effects (the diagnosis vocabulary)."""
 PRESETS: tuple[str, ...]

@@ -50,15 +50,23 @@ def _parser() -> argparse.ArgumentParser:
                         "error (default: forc)")
     i.add_argument("-o", "--out", required=True, help="model file to write (bmr-model/1 JSON)")
 
-    g = sub.add_parser("diagnose", help="find what the model gets wrong in a bundle and name the cause")
-    g.add_argument("bundle", help=BUNDLE_HELP)
+    g = sub.add_parser("diagnose", help="find what the model gets wrong in a bundle and name the cause",
+                       description="Diagnose one bundle (report on the terminal, --json, --report), or many at "
+                                   "once on Dask (one row per bundle in a Parquet table, --out).")
+    g.add_argument("bundle", nargs="+", help=BUNDLE_HELP + "; several bundles are diagnosed in parallel on Dask "
+                   "(pip install 'bmr[dask]')")
     g.add_argument("--model", help="model file (default: identify the paper's model from the bundle)")
     g.add_argument("--folds", type=int, default=5,
                    help="blocked folds: each evaluation run is cut into this many time blocks, each held out in "
                         "turn (default: 5)")
     g.add_argument("--seed", type=int, default=0, help="seed of the bootstrap interval of the fold gains (default: 0)")
     g.add_argument("--json", dest="json_out", help="write the bmr-diagnosis/1 JSON here")
-    g.add_argument("--report", help="write an HTML report here")
+    g.add_argument("--report", help="write an HTML report here (one bundle)")
+    g.add_argument("--out", help="several bundles: the Parquet table of results (default: bmr-diagnoses.parquet)")
+    g.add_argument("--scheduler", help="several bundles: address of a running Dask scheduler (tcp://host:8786); "
+                                       "default: a local cluster on this machine")
+    g.add_argument("--workers", type=int, help="several bundles: worker processes of the local cluster (default: "
+                                               "one per core; 0: no Dask, one after the other here)")
     return p
 
 
@@ -73,7 +81,12 @@ def main(argv: Sequence[str] | None = None) -> int:
             from bmr.simulation.experiments import run_cli
         elif args.command == "identify":
             from bmr.identification.procedure import run_cli
+        elif len(args.bundle) > 1 or args.out or args.scheduler or args.workers is not None:
+            if args.json_out or args.report:
+                raise BmrError("--json and --report describe one bundle; for several, the table goes to --out")
+            from bmr.diagnosis.many import run_cli
         else:
+            args.bundle = args.bundle[0]
             from bmr.diagnosis.procedure import run_cli
         return int(run_cli(args) or 0)
     except BmrError as exc:

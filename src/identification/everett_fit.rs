@@ -9,9 +9,9 @@
 //! weights dimensionless.
 use alloc::vec::Vec;
 
-use super::error::IdentificationError;
+use super::error::{IdentificationError, RunError};
 use super::everett_regressors::{EverettGrid, NormalEquations, simulate_everett};
-use super::nnls::nnls_gram;
+use super::nnls::nnls_gram_warm;
 use crate::from_curves::CurveData;
 use crate::limits::{self, MAX_CURVE_POINTS, MAX_SOLVER_ITERATIONS};
 
@@ -210,7 +210,7 @@ pub struct EverettRun<'a> {
     pub offset_col: usize,
 }
 
-/// Result of [`fit_everett`].
+/// Result of [`fit_everett`] and [`EverettRegression::fit`].
 #[derive(Clone, Debug)]
 pub struct EverettFit {
     /// The identified model (its offset is offset column 0).
@@ -225,6 +225,8 @@ pub struct EverettFit {
     pub rms: f64,
     /// NNLS pivoting iterations.
     pub iterations: usize,
+    /// The NNLS passive set (variables off their bound): a warm start for a neighbouring problem.
+    pub passive: Vec<bool>,
 }
 
 /// Identify the Everett masses on `grid` and `n_offsets` free output offsets from `runs`.
@@ -234,6 +236,21 @@ pub fn fit_everett(
     n_offsets: usize,
     options: EverettFitOptions,
 ) -> Result<EverettFit, IdentificationError> {
+    check_options(n_offsets, options)?;
+    let mut ne = NormalEquations::new(grid, n_offsets)?;
+    for (k, run) in runs.iter().enumerate() {
+        ne.add_run(grid, run.u, run.y, run.weight, run.offset_col)
+            .map_err(|error| IdentificationError::Run { run: k, error })?;
+    }
+    if ne.n_rows == 0 {
+        return Err(IdentificationError::NoSamples);
+    }
+    ne.finish();
+    let q = mass_space_matrix(grid, &ne, options)?;
+    solve(grid, &DataTerm::of(&ne, &ne.rhs, ne.yy), &q, options, None)
+}
+
+fn check_options(n_offsets: usize, options: EverettFitOptions) -> Result<(), IdentificationError> {
     if n_offsets == 0 {
         return Err(IdentificationError::NoOffsets);
     }
@@ -247,49 +264,69 @@ pub fn fit_everett(
         options.max_iter,
         MAX_SOLVER_ITERATIONS,
     )?;
-    let mut ne = NormalEquations::new(grid, n_offsets)?;
-    for (k, run) in runs.iter().enumerate() {
-        ne.add_run(grid, run.u, run.y, run.weight, run.offset_col)
-            .map_err(|error| IdentificationError::Run { run: k, error })?;
+    Ok(())
+}
+
+/// The data term of the least squares: node-space Gram matrix, right-hand side, `Σ w y²` and the row counts.
+struct DataTerm<'a> {
+    gram: &'a [f64],
+    rhs: &'a [f64],
+    yy: f64,
+    n_nodes: usize,
+    n_rows: usize,
+    weight_sum: f64,
+}
+
+impl<'a> DataTerm<'a> {
+    fn of(ne: &'a NormalEquations, rhs: &'a [f64], yy: f64) -> Self {
+        Self {
+            gram: &ne.gram,
+            rhs,
+            yy,
+            n_nodes: ne.n_nodes,
+            n_rows: ne.n_rows,
+            weight_sum: ne.weight_sum,
+        }
     }
-    if ne.n_rows == 0 {
-        return Err(IdentificationError::NoSamples);
-    }
+}
+
+/// The regularised quadratic in mass space: `Q = Cᵀ G C + λ_s DᵀD + λ_r I` on the node block (`C` maps masses
+/// to node values), `Cᵀ G` on the node/offset block, `G` on the offset block. Depends on the input history and
+/// the row weights only, not on the output.
+fn mass_space_matrix(
+    grid: &EverettGrid,
+    ne: &NormalEquations,
+    options: EverettFitOptions,
+) -> Result<Vec<f64>, IdentificationError> {
     let nn = ne.n_nodes;
     let m = ne.n_cols();
-    // Cᵀ G C on the node block, Cᵀ G on the node/offset block.
+    // The Gram matrix is symmetric to the bit (`NormalEquations::finish` mirrors it), so its rows are its
+    // columns: T = G C row by row (row k = Cᵀ G[k, ..nn]), then B = Cᵀ G = Tᵀ on the node block and Q = B C.
+    let mut t = alloc::vec![0.0; m * nn];
+    adjoint_rows(grid, &ne.gram, m, nn, &mut t);
     let mut b_nodes = alloc::vec![0.0; nn * nn]; // B = Cᵀ Gnn, row-major
-    let mut col = alloc::vec![0.0; nn];
-    for k in 0..nn {
-        for (i, c) in col.iter_mut().enumerate() {
-            *c = ne.gram[i * m + k];
-        }
-        let t = grid.nodes_to_masses_adjoint(&col);
-        for (i, v) in t.into_iter().enumerate() {
-            b_nodes[i * nn + k] = v;
+    const BLOCK: usize = 32;
+    for i0 in (0..nn).step_by(BLOCK) {
+        for k0 in (0..nn).step_by(BLOCK) {
+            for k in k0..(k0 + BLOCK).min(nn) {
+                for i in i0..(i0 + BLOCK).min(nn) {
+                    b_nodes[i * nn + k] = t[k * nn + i];
+                }
+            }
         }
     }
-    let mut q = alloc::vec![0.0; m * m];
+    let mut cbc = alloc::vec![0.0; nn * nn];
+    adjoint_rows(grid, &b_nodes, nn, nn, &mut cbc);
+    drop(b_nodes);
+    let mut q: Vec<f64> = Vec::with_capacity(m * m);
     for k in 0..nn {
-        let t = grid.nodes_to_masses_adjoint(&b_nodes[k * nn..(k + 1) * nn]);
-        q[k * m..k * m + nn].copy_from_slice(&t);
+        q.extend_from_slice(&cbc[k * nn..(k + 1) * nn]);
+        q.extend((nn..m).map(|o| t[o * nn + k]));
     }
     for o in nn..m {
-        for (i, c) in col.iter_mut().enumerate() {
-            *c = ne.gram[i * m + o];
-        }
-        let t = grid.nodes_to_masses_adjoint(&col);
-        for (i, v) in t.into_iter().enumerate() {
-            q[i * m + o] = v;
-            q[o * m + i] = v;
-        }
-        for o2 in nn..m {
-            q[o * m + o2] = ne.gram[o * m + o2];
-        }
+        q.extend_from_slice(&t[o * nn..(o + 1) * nn]);
+        q.extend_from_slice(&ne.gram[o * m + nn..(o + 1) * m]);
     }
-    let mut c = grid.nodes_to_masses_adjoint(&ne.rhs[..nn]);
-    c.extend_from_slice(&ne.rhs[nn..]);
-
     // Regularisation.
     let trace_q: f64 = (0..nn)
         .map(|i| q[i * m + i])
@@ -306,8 +343,45 @@ pub fn fit_everett(
         }
         q[o * m + o] *= 1.0 + 1e-12;
     }
+    Ok(q)
+}
+
+/// `out[k] = Cᵀ a[k, ..nn]` for every row `k` of the row-major `a` (row length `stride`), into the row-major
+/// `out` (row length `nn`), four rows at a time.
+fn adjoint_rows(grid: &EverettGrid, a: &[f64], stride: usize, nn: usize, out: &mut [f64]) {
+    const L: usize = 4;
+    let mut scratch = alloc::vec![0.0; L * grid.n_intervals()];
+    let mut chunks = out.chunks_exact_mut(L * nn);
+    let mut k = 0;
+    for chunk in &mut chunks {
+        let (o0, rest) = chunk.split_at_mut(nn);
+        let (o1, rest) = rest.split_at_mut(nn);
+        let (o2, o3) = rest.split_at_mut(nn);
+        let g = core::array::from_fn(|r| &a[(k + r) * stride..(k + r) * stride + nn]);
+        grid.nodes_to_masses_adjoint_lanes::<L>(g, &mut [o0, o1, o2, o3], &mut scratch);
+        k += L;
+    }
+    for (r, o) in chunks.into_remainder().chunks_exact_mut(nn).enumerate() {
+        let row = k + r;
+        grid.nodes_to_masses_adjoint_into(&a[row * stride..row * stride + nn], o, &mut scratch);
+    }
+}
+
+/// Solve the nonnegative quadratic for the right-hand side of `data` (optionally warm-started from a passive
+/// set) and measure the data-term residual.
+fn solve(
+    grid: &EverettGrid,
+    data: &DataTerm<'_>,
+    q: &[f64],
+    options: EverettFitOptions,
+    warm_start: Option<&[bool]>,
+) -> Result<EverettFit, IdentificationError> {
+    let nn = data.n_nodes;
+    let m = data.rhs.len();
+    let mut c = grid.nodes_to_masses_adjoint(&data.rhs[..nn]);
+    c.extend_from_slice(&data.rhs[nn..]);
     let constrained: Vec<bool> = (0..m).map(|i| i < nn).collect();
-    let sol = nnls_gram(&q, &c, &constrained, options.max_iter)?;
+    let sol = nnls_gram_warm(q, &c, &constrained, options.max_iter, warm_start)?;
     let masses: Vec<f64> = sol.x[..nn].iter().map(|&v| v.max(0.0)).collect();
     let offsets = sol.x[nn..].to_vec();
     let model = EverettModel::new(grid.clone(), masses, offsets[0])?;
@@ -316,19 +390,189 @@ pub fn fit_everett(
     z.extend_from_slice(&offsets);
     let mut zgz = 0.0;
     for i in 0..m {
-        let gi = &ne.gram[i * m..(i + 1) * m];
+        let gi = &data.gram[i * m..(i + 1) * m];
         zgz += z[i] * gi.iter().zip(&z).map(|(a, b)| a * b).sum::<f64>();
     }
-    let zr: f64 = z.iter().zip(&ne.rhs).map(|(a, b)| a * b).sum();
-    let rss = (ne.yy - 2.0 * zr + zgz).max(0.0);
+    let zr: f64 = z.iter().zip(data.rhs).map(|(a, b)| a * b).sum();
+    let rss = (data.yy - 2.0 * zr + zgz).max(0.0);
     Ok(EverettFit {
-        rms: (rss / ne.weight_sum).sqrt(),
+        rms: (rss / data.weight_sum).sqrt(),
         model,
         offsets,
         rss,
-        n_rows: ne.n_rows,
+        n_rows: data.n_rows,
         iterations: sol.iterations,
+        passive: sol.passive,
     })
+}
+
+/// One run of an [`EverettRegression`]: input, per-sample row weight (0 keeps a sample out of the fit while it
+/// drives the memory) and its offset column.
+#[derive(Clone, Copy, Debug)]
+pub struct EverettInput<'a> {
+    /// Input samples.
+    pub u: &'a [f64],
+    /// Row weights.
+    pub weight: &'a [f64],
+    /// Offset column of this run (`< n_offsets`).
+    pub offset_col: usize,
+}
+
+/// The least-squares problem of [`fit_everett`] prepared for one input history: the regressors (sparse rows)
+/// and the regularised normal matrix are built once, and [`Self::fit`] then identifies the table for any
+/// output at the cost of one right-hand side and a (warm-started) nonnegative solve. Used where many outputs
+/// share one input, e.g. when the same runs are re-identified with different corrections of the measured
+/// output.
+#[derive(Clone, Debug)]
+pub struct EverettRegression {
+    grid: EverettGrid,
+    options: EverettFitOptions,
+    normal: NormalEquations,
+    q: Vec<f64>,
+    run_lengths: Vec<usize>,
+    // Sparse regressor rows: row r covers entries row_ptr[r]..row_ptr[r + 1] and reads output sample
+    // row_sample[r] (flat index over the runs) with weight row_weight[r].
+    row_ptr: Vec<usize>,
+    row_sample: Vec<usize>,
+    row_weight: Vec<f64>,
+    col: Vec<u32>,
+    val: Vec<f64>,
+}
+
+impl EverettRegression {
+    /// Regressors of `inputs` on `grid` with `n_offsets` free offsets.
+    pub fn new(
+        grid: &EverettGrid,
+        inputs: &[EverettInput<'_>],
+        n_offsets: usize,
+        options: EverettFitOptions,
+    ) -> Result<Self, IdentificationError> {
+        check_options(n_offsets, options)?;
+        let mut normal = NormalEquations::new(grid, n_offsets)?;
+        let (mut row_ptr, mut row_sample, mut row_weight) =
+            (alloc::vec![0], Vec::new(), Vec::new());
+        let (mut col, mut val) = (Vec::new(), Vec::new());
+        let mut base = 0;
+        for (k, run) in inputs.iter().enumerate() {
+            normal
+                .add_rows(grid, run.u, run.weight, run.offset_col, |i, w, row| {
+                    for &(a, va) in row {
+                        col.push(a as u32);
+                        val.push(va);
+                    }
+                    row_ptr.push(col.len());
+                    row_sample.push(base + i);
+                    row_weight.push(w);
+                    Ok(())
+                })
+                .map_err(|error| IdentificationError::Run { run: k, error })?;
+            base += run.u.len();
+        }
+        if normal.n_rows == 0 {
+            return Err(IdentificationError::NoSamples);
+        }
+        normal.finish();
+        let q = mass_space_matrix(grid, &normal, options)?;
+        Ok(Self {
+            grid: grid.clone(),
+            options,
+            normal,
+            q,
+            run_lengths: inputs.iter().map(|r| r.u.len()).collect(),
+            row_ptr,
+            row_sample,
+            row_weight,
+            col,
+            val,
+        })
+    }
+
+    /// Number of regression rows.
+    pub fn n_rows(&self) -> usize {
+        self.normal.n_rows
+    }
+
+    /// Number of unknowns (cell masses and offsets), the length of a warm start.
+    pub fn n_unknowns(&self) -> usize {
+        self.normal.n_cols()
+    }
+
+    /// Identify the table for the outputs of the runs (one slice per run, each as long as its input);
+    /// `warm_start`: a passive set from an earlier fit (e.g. [`EverettFit::passive`]) to start the nonnegative
+    /// solver from. The result does not depend on the warm start (the solution is unique), only the work does.
+    pub fn fit(
+        &self,
+        outputs: &[&[f64]],
+        warm_start: Option<&[bool]>,
+    ) -> Result<EverettFit, IdentificationError> {
+        if outputs.len() != self.run_lengths.len() {
+            return Err(IdentificationError::LengthMismatch {
+                first: "runs",
+                first_len: self.run_lengths.len(),
+                second: "outputs",
+                second_len: outputs.len(),
+            });
+        }
+        let mut flat = Vec::with_capacity(self.run_lengths.iter().sum());
+        for (k, (y, &n)) in outputs.iter().zip(&self.run_lengths).enumerate() {
+            if y.len() != n {
+                return Err(IdentificationError::Run {
+                    run: k,
+                    error: RunError::Lengths {
+                        inputs: n,
+                        outputs: y.len(),
+                        weights: n,
+                    },
+                });
+            }
+            flat.extend_from_slice(y);
+        }
+        if let Some(w) = warm_start
+            && w.len() != self.n_unknowns()
+        {
+            return Err(IdentificationError::LengthMismatch {
+                first: "unknowns",
+                first_len: self.n_unknowns(),
+                second: "warm start",
+                second_len: w.len(),
+            });
+        }
+        let mut rhs = alloc::vec![0.0; self.n_unknowns()];
+        let mut yy = 0.0;
+        for r in 0..self.row_sample.len() {
+            let i = self.row_sample[r];
+            let y = flat[i];
+            if !y.is_finite() {
+                let (run, sample) = self.locate(i);
+                return Err(IdentificationError::Run {
+                    run,
+                    error: RunError::NonFinite {
+                        what: "output",
+                        sample,
+                        value: y,
+                    },
+                });
+            }
+            let w = self.row_weight[r];
+            for e in self.row_ptr[r]..self.row_ptr[r + 1] {
+                rhs[self.col[e] as usize] += w * self.val[e] * y;
+            }
+            yy += w * y * y;
+        }
+        let data = DataTerm::of(&self.normal, &rhs, yy);
+        solve(&self.grid, &data, &self.q, self.options, warm_start)
+    }
+
+    fn locate(&self, flat: usize) -> (usize, usize) {
+        let mut i = flat;
+        for (k, &n) in self.run_lengths.iter().enumerate() {
+            if i < n {
+                return (k, i);
+            }
+            i -= n;
+        }
+        (self.run_lengths.len(), i)
+    }
 }
 
 /// Add `λ Dᵀ D` for first differences of the density between neighbouring cells.
@@ -500,6 +744,63 @@ mod tests {
             model.first_order_curves_subdivided(1 << 40).unwrap_err()
         ));
         assert!(model.first_order_curves_subdivided(3).is_ok());
+    }
+
+    #[test]
+    fn prepared_regression_matches_the_one_shot_fit_and_warm_starts() {
+        let grid = EverettGrid::uniform(-1.0, 1.0, 12).unwrap();
+        let masses: Vec<f64> = (0..grid.n_cells())
+            .map(|k| {
+                if k % 4 == 0 {
+                    0.0
+                } else {
+                    0.01 * ((k * 13) % 5) as f64
+                }
+            })
+            .collect();
+        let truth = EverettModel::new(grid.clone(), masses, 1.0).unwrap();
+        let u = triangle(61, &[1.0, 0.8, 0.35, 0.9, 0.1, 0.6]);
+        let y: Vec<f64> = truth
+            .simulate(&u, None)
+            .iter()
+            .enumerate()
+            .map(|(i, v)| v + 0.01 * (((i * 7919) % 17) as f64 - 8.0))
+            .collect();
+        let w: Vec<f64> = (0..u.len())
+            .map(|i| if i < 100 { 0.0 } else { 1.0 })
+            .collect();
+        let opts = EverettFitOptions::default();
+        let run = EverettRun {
+            u: &u,
+            y: &y,
+            weight: &w,
+            offset_col: 0,
+        };
+        let once = fit_everett(&grid, &[run], 1, opts).unwrap();
+        let input = EverettInput {
+            u: &u,
+            weight: &w,
+            offset_col: 0,
+        };
+        let reg = EverettRegression::new(&grid, &[input], 1, opts).unwrap();
+        let cold = reg.fit(&[&y], None).unwrap();
+        assert_eq!(cold.model, once.model);
+        assert_eq!((cold.rss, cold.iterations), (once.rss, once.iterations));
+        // Another output on the same input: warm-started from the first solution, same answer as cold.
+        let y2: Vec<f64> = y.iter().zip(&u).map(|(a, b)| a + 0.3 * b * b).collect();
+        let cold2 = reg.fit(&[&y2], None).unwrap();
+        let warm2 = reg.fit(&[&y2], Some(&cold.passive)).unwrap();
+        let err = cold2
+            .model
+            .masses()
+            .iter()
+            .zip(warm2.model.masses())
+            .map(|(a, b)| (a - b).abs())
+            .fold(0.0, f64::max);
+        assert!(err < 1e-12, "warm vs cold masses differ by {err}");
+        assert!(warm2.iterations <= cold2.iterations);
+        assert!(reg.fit(&[&y2[1..]], None).is_err());
+        assert!(reg.fit(&[&y2], Some(&[true; 3])).is_err());
     }
 
     #[test]

@@ -177,24 +177,66 @@ impl EverettGrid {
 
     /// Adjoint of [`Self::masses_to_nodes`]: `(Cᵀ g)(p, q) = Σ_{i ≤ p, j ≥ q + 1} g(i, j)`, O(N²).
     pub fn nodes_to_masses_adjoint(&self, g: &[f64]) -> Vec<f64> {
-        let n = self.n_intervals();
-        // suffix[i][q] = Σ_{j ≥ q+1} g(i, j) for i ≤ q; then prefix over i.
         let mut out = alloc::vec![0.0; self.n_cells()];
-        let mut colsum = alloc::vec![0.0; n]; // running Σ_{i ≤ p} suffix(i, q), indexed by q
-        for p in 0..n {
-            // Row p of g: suffix sums over j for q = p..n−1.
-            let mut suffix = 0.0;
-            let mut row_suffix = alloc::vec![0.0; n];
-            for q in (p..n).rev() {
-                suffix += g[self.node_index(p, q + 1)];
-                row_suffix[q] = suffix;
-            }
-            for q in p..n {
-                colsum[q] += row_suffix[q];
-                out[self.cell_index(p, q)] = colsum[q];
-            }
-        }
+        let mut scratch = alloc::vec![0.0; self.n_intervals()];
+        self.nodes_to_masses_adjoint_into(g, &mut out, &mut scratch);
         out
+    }
+
+    /// [`Self::nodes_to_masses_adjoint`] into `out` (`n_cells` long) with `scratch` (at least `N` long), without
+    /// allocating.
+    pub fn nodes_to_masses_adjoint_into(&self, g: &[f64], out: &mut [f64], scratch: &mut [f64]) {
+        let n = self.n_intervals();
+        // Packed row p holds cells (p, p..n) and node values E(g_p, g_{p+1..=n}) at the same positions.
+        // suffix[q] = Σ_{j ≥ q+1} g(p, j), then a running prefix over p: colsum[q] = Σ_{i ≤ p} suffix_i[q].
+        let colsum = &mut scratch[..n];
+        colsum.fill(0.0);
+        let mut start = 0;
+        for p in 0..n {
+            let len = n - p;
+            let g_row = &g[start..start + len];
+            let out_row = &mut out[start..start + len];
+            let mut suffix = 0.0;
+            for (l, &gv) in g_row.iter().enumerate().rev() {
+                suffix += gv;
+                out_row[l] = suffix;
+            }
+            for (o, c) in out_row.iter_mut().zip(&mut colsum[p..]) {
+                *c += *o;
+                *o = *c;
+            }
+            start += len;
+        }
+    }
+
+    /// [`Self::nodes_to_masses_adjoint_into`] of `L` vectors at once (`g[r]` into `out[r]`, `scratch` at least
+    /// `L · N` long): the running sums of the vectors are independent, so the processor overlaps them.
+    pub fn nodes_to_masses_adjoint_lanes<const L: usize>(
+        &self,
+        g: [&[f64]; L],
+        out: &mut [&mut [f64]; L],
+        scratch: &mut [f64],
+    ) {
+        let n = self.n_intervals();
+        let colsum = &mut scratch[..L * n]; // colsum[q * L + r]
+        colsum.fill(0.0);
+        let mut start = 0;
+        for p in 0..n {
+            let len = n - p;
+            let mut suffix = [0.0; L];
+            for l in (0..len).rev() {
+                let c = &mut colsum[(p + l) * L..(p + l + 1) * L];
+                for r in 0..L {
+                    suffix[r] += g[r][start + l];
+                }
+                for r in 0..L {
+                    // colsum[q] += suffix(q) for this row p, in the single-vector order.
+                    c[r] += suffix[r];
+                    out[r][start + l] = c[r];
+                }
+            }
+            start += len;
+        }
     }
 
     /// `E(β, α)` from packed node values (0 when β ≥ α).
@@ -348,7 +390,8 @@ impl NormalEquations {
     }
 
     /// Accumulate one run: the memory starts at negative saturation at sample 0 and follows every sample of
-    /// `u`; rows with weight `weight[i] > 0` enter the regression `y[i] ≈ offset[offset_col] + Σ ±E`.
+    /// `u`; rows with weight `weight[i] > 0` enter the regression `y[i] ≈ offset[offset_col] + Σ ±E`. Call
+    /// [`Self::finish`] after the last run.
     pub fn add_run(
         &mut self,
         grid: &EverettGrid,
@@ -361,6 +404,46 @@ impl NormalEquations {
             return Err(RunError::Lengths {
                 inputs: u.len(),
                 outputs: y.len(),
+                weights: weight.len(),
+            });
+        }
+        let mut rhs = core::mem::take(&mut self.rhs);
+        let mut yy = self.yy;
+        let result = self.add_rows(grid, u, weight, offset_col, |i, w, row| {
+            if !y[i].is_finite() {
+                return Err(RunError::NonFinite {
+                    what: "output",
+                    sample: i,
+                    value: y[i],
+                });
+            }
+            for &(a, va) in row {
+                rhs[a] += w * va * y[i];
+            }
+            yy += w * y[i] * y[i];
+            Ok(())
+        });
+        self.rhs = rhs;
+        self.yy = yy;
+        result
+    }
+
+    /// Accumulate the upper triangle of the Gram matrix of one run's regressors (memory from negative
+    /// saturation at sample 0, rows where `weight[i] > 0`) and hand every row to `visit(sample, weight, row)`
+    /// (sparse `(column, value)` pairs sorted by column, one entry per column, the offset column included); the
+    /// right-hand side is the visitor's business. Call [`Self::finish`] after the last run.
+    pub fn add_rows(
+        &mut self,
+        grid: &EverettGrid,
+        u: &[f64],
+        weight: &[f64],
+        offset_col: usize,
+        mut visit: impl FnMut(usize, f64, &[(usize, f64)]) -> Result<(), RunError>,
+    ) -> Result<(), RunError> {
+        if weight.len() != u.len() {
+            return Err(RunError::Lengths {
+                inputs: u.len(),
+                outputs: u.len(),
                 weights: weight.len(),
             });
         }
@@ -387,29 +470,60 @@ impl NormalEquations {
             if w.is_nan() || w <= 0.0 {
                 continue;
             }
-            if !y[i].is_finite() {
-                return Err(RunError::NonFinite {
-                    what: "output",
-                    sample: i,
-                    value: y[i],
-                });
-            }
             row.clear();
             memory
                 .for_each_term(|beta, alpha, sign| grid.push_everett(beta, alpha, sign, &mut row));
             row.push((off, 1.0));
-            for &(a, va) in &row {
-                self.rhs[a] += w * va * y[i];
+            merge_duplicates(&mut row);
+            visit(i, w, &row)?;
+            // Upper triangle only (the row is sorted by column); `finish` mirrors it.
+            for (e, &(a, va)) in row.iter().enumerate() {
+                let wa = w * va;
                 let ga = &mut self.gram[a * m..(a + 1) * m];
-                for &(b, vb) in &row {
-                    ga[b] += w * va * vb;
+                for &(b, vb) in &row[e..] {
+                    ga[b] += wa * vb;
                 }
             }
-            self.yy += w * y[i] * y[i];
             self.n_rows += 1;
             self.weight_sum += w;
         }
         Ok(())
+    }
+
+    /// Complete the Gram matrix: the runs accumulate its upper triangle only; this copies it onto the lower one
+    /// (symmetric to the bit). Call once after the last run.
+    pub fn finish(&mut self) {
+        let m = self.n_cols();
+        mirror_upper(&mut self.gram, m);
+    }
+}
+
+/// Sort a sparse row by column and add up entries of one column.
+fn merge_duplicates(row: &mut Vec<(usize, f64)>) {
+    row.sort_unstable_by_key(|e| e.0);
+    let mut k = 0;
+    for e in 1..row.len() {
+        if row[e].0 == row[k].0 {
+            row[k].1 += row[e].1;
+        } else {
+            k += 1;
+            row[k] = row[e];
+        }
+    }
+    row.truncate(k + 1);
+}
+
+/// Copy the upper triangle of the row-major `m × m` matrix `a` onto its lower triangle (symmetric to the bit).
+fn mirror_upper(a: &mut [f64], m: usize) {
+    const BLOCK: usize = 32;
+    for i0 in (0..m).step_by(BLOCK) {
+        for j0 in (i0..m).step_by(BLOCK) {
+            for i in i0..(i0 + BLOCK).min(m) {
+                for j in j0.max(i + 1)..(j0 + BLOCK).min(m) {
+                    a[j * m + i] = a[i * m + j];
+                }
+            }
+        }
     }
 }
 

@@ -6,7 +6,10 @@ pub mod friction_fit;
 pub mod nnls;
 
 pub use error::{IdentificationError, RunError};
-pub use everett_fit::{EverettFit, EverettFitOptions, EverettModel, EverettRun, fit_everett};
+pub use everett_fit::{
+    EverettFit, EverettFitOptions, EverettInput, EverettModel, EverettRegression, EverettRun,
+    fit_everett,
+};
 pub use everett_regressors::{EverettGrid, NormalEquations, PreisachMemory, simulate_everett};
 pub use friction_fit::{FrictionFit, fit_friction};
-pub use nnls::{NnlsSolution, nnls_gram};
+pub use nnls::{NnlsSolution, nnls_gram, nnls_gram_warm};

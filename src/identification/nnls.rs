@@ -18,6 +18,8 @@ pub struct NnlsSolution {
     pub x: Vec<f64>,
     /// Number of pivoting iterations used.
     pub iterations: usize,
+    /// The final passive set (variables off their bound; every free variable is passive).
+    pub passive: Vec<bool>,
 }
 
 /// Solve `min ½ xᵀ Q x − cᵀ x`, `x_i ≥ 0` where `constrained[i]`. `q` is `n × n` row-major symmetric positive
@@ -28,16 +30,35 @@ pub fn nnls_gram(
     constrained: &[bool],
     max_iter: usize,
 ) -> Result<NnlsSolution, IdentificationError> {
+    nnls_gram_warm(q, c, constrained, max_iter, None)
+}
+
+/// [`nnls_gram`] started from the passive set `warm_start` (e.g. the solution of a neighbouring problem)
+/// instead of all constrained variables at their bound. The minimiser is unique, so the start changes only the
+/// number of iterations: from a good guess, one or two Cholesky solves instead of ten or twenty.
+pub fn nnls_gram_warm(
+    q: &[f64],
+    c: &[f64],
+    constrained: &[bool],
+    max_iter: usize,
+    warm_start: Option<&[bool]>,
+) -> Result<NnlsSolution, IdentificationError> {
     let n = c.len();
-    if q.len() != crate::limits::product(n, n) || constrained.len() != n {
+    if q.len() != crate::limits::product(n, n)
+        || constrained.len() != n
+        || warm_start.is_some_and(|w| w.len() != n)
+    {
         return Err(IdentificationError::SolverDimensions {
             q: q.len(),
             c: n,
-            mask: constrained.len(),
+            mask: warm_start.map_or(constrained.len(), <[bool]>::len),
         });
     }
-    // Passive (free to move) set F; every other variable sits at its bound 0.
-    let mut passive: Vec<bool> = constrained.iter().map(|&c| !c).collect();
+    // Passive (free to move) set F; every other variable sits at its bound 0 (or the warm start's guess).
+    let mut passive: Vec<bool> = match warm_start {
+        Some(w) => constrained.iter().zip(w).map(|(&c, &p)| !c || p).collect(),
+        None => constrained.iter().map(|&c| !c).collect(),
+    };
     let mut x = alloc::vec![0.0; n];
     let mut grad = alloc::vec![0.0; n];
     let mut best_infeasible = usize::MAX;
@@ -68,6 +89,7 @@ pub fn nnls_gram(
             return Ok(NnlsSolution {
                 x,
                 iterations: iter + 1,
+                passive,
             });
         }
         if infeasible.len() < best_infeasible {

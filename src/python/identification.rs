@@ -1,12 +1,13 @@
-//! Python bindings of the identification least squares: `fit_friction_order`, `EverettModel`, `fit_everett`.
+//! Python bindings of the identification least squares: `fit_friction_order`, `EverettModel`, `fit_everett`,
+//! `EverettRegression`.
 use numpy::{PyArray1, PyArray2, PyArrayMethods};
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyTuple};
 
 use crate::cbh::Initial;
 use crate::identification::{
-    EverettFitOptions, EverettGrid, EverettModel, EverettRun, fit_everett as fit_everett_rs,
-    fit_friction,
+    EverettFit, EverettFitOptions, EverettGrid, EverettInput, EverettModel, EverettRegression,
+    EverettRun, fit_everett as fit_everett_rs, fit_friction,
 };
 use crate::python::arrays::{curves_to_py, extract_f64_array};
 use crate::python::hysteresis::PyHysteresis;
@@ -253,19 +254,116 @@ fn fit_everett<'py>(
             fit_everett_rs(&grid, &views, n_offsets, options)
         })
         .map_err(|e| identification_err("Everett table fit", e))?;
+    fit_dict(py, fit)
+}
+
+/// The result dict of `fit_everett` and `EverettRegression.fit`.
+fn fit_dict(py: Python<'_>, fit: EverettFit) -> PyResult<Bound<'_, PyDict>> {
     let d = PyDict::new(py);
     d.set_item("offsets", PyArray1::from_slice(py, &fit.offsets))?;
     d.set_item("rss", fit.rss)?;
     d.set_item("rms", fit.rms)?;
     d.set_item("n_rows", fit.n_rows)?;
     d.set_item("iterations", fit.iterations)?;
+    d.set_item("passive", PyArray1::from_slice(py, &fit.passive))?;
     d.set_item("model", Py::new(py, PyEverettModel { inner: fit.model })?)?;
     Ok(d)
+}
+
+/// The Everett-table least squares of `fit_everett` prepared for one input history: `inputs` is a list of
+/// `(u, weight, offset_col)`. The regressors and the regularised normal matrix are built once; `fit(outputs)`
+/// then identifies the table for any outputs of the same runs (one array per run) at the cost of a right-hand
+/// side and a nonnegative solve, optionally warm-started from an earlier result's `passive` set (same answer,
+/// fewer iterations).
+#[pyclass(name = "EverettRegression", module = "bmr._core", frozen)]
+pub struct PyEverettRegression {
+    inner: EverettRegression,
+}
+
+#[pymethods]
+impl PyEverettRegression {
+    #[new]
+    #[pyo3(signature = (grid, inputs, n_offsets=1, *, smoothing=1e-4, ridge=1e-9, max_iter=500))]
+    fn new(
+        py: Python<'_>,
+        grid: Array<'_>,
+        inputs: Vec<(Array<'_>, Array<'_>, usize)>,
+        n_offsets: usize,
+        smoothing: f64,
+        ridge: f64,
+        max_iter: usize,
+    ) -> PyResult<Self> {
+        let grid = EverettGrid::new(extract_f64_array(&grid, "grid")?)
+            .map_err(|e| identification_err("Everett table fit", e))?;
+        let data: Vec<(Vec<f64>, Vec<f64>, usize)> = inputs
+            .into_iter()
+            .enumerate()
+            .map(|(i, (u, w, o))| {
+                Ok((
+                    extract_f64_array(&u, &format!("inputs[{i}] input"))?,
+                    extract_f64_array(&w, &format!("inputs[{i}] weights"))?,
+                    o,
+                ))
+            })
+            .collect::<PyResult<_>>()?;
+        let options = EverettFitOptions {
+            smoothing,
+            ridge,
+            max_iter,
+        };
+        let inner = py
+            .detach(|| {
+                let views: Vec<EverettInput<'_>> = data
+                    .iter()
+                    .map(|(u, w, o)| EverettInput {
+                        u,
+                        weight: w,
+                        offset_col: *o,
+                    })
+                    .collect();
+                EverettRegression::new(&grid, &views, n_offsets, options)
+            })
+            .map_err(|e| identification_err("Everett table fit", e))?;
+        Ok(Self { inner })
+    }
+
+    /// Number of regression rows.
+    #[getter]
+    fn n_rows(&self) -> usize {
+        self.inner.n_rows()
+    }
+
+    /// Identify the table for `outputs` (one array per run); returns the dict of `fit_everett`.
+    #[pyo3(signature = (outputs, warm_start=None))]
+    fn fit<'py>(
+        &self,
+        py: Python<'py>,
+        outputs: Vec<Array<'py>>,
+        warm_start: Option<Vec<bool>>,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        let ys: Vec<Vec<f64>> = outputs
+            .iter()
+            .enumerate()
+            .map(|(i, y)| extract_f64_array(y, &format!("outputs[{i}]")))
+            .collect::<PyResult<_>>()?;
+        let fit = py
+            .detach(|| {
+                let views: Vec<&[f64]> = ys.iter().map(Vec::as_slice).collect();
+                self.inner.fit(&views, warm_start.as_deref())
+            })
+            .map_err(|e| identification_err("Everett table fit", e))?;
+        fit_dict(py, fit)
+    }
+
+    fn __repr__(&self) -> String {
+        format!("EverettRegression(rows={})", self.inner.n_rows())
+    }
 }
 
 pub(crate) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(fit_friction_order, m)?)?;
     m.add_function(wrap_pyfunction!(fit_everett, m)?)?;
     m.add_class::<PyEverettModel>()?;
+    m.add_class::<PyEverettRegression>()?;
     Ok(())
 }

@@ -8,6 +8,7 @@ mod compensator;
 mod friction;
 mod hysteresis;
 mod identification;
+mod reversals;
 mod virtual_actuator;
 
 /// The exception hierarchy, created here so that Rust and Python raise the same classes. `BmrError` (a
@@ -180,6 +181,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     hysteresis::register(m)?;
     friction::register(m)?;
     identification::register(m)?;
+    reversals::register(m)?;
     virtual_actuator::register(m)?;
     compensator::register(m)?;
     Ok(())

@@ -9,8 +9,10 @@ model. One concept per module:
 * :mod:`~bmr.diagnosis.effects` — the effect library (the physical effect vocabulary plus ``table_resolution``).
 * :mod:`~bmr.diagnosis.selection` — blocked folds, grouped forward selection and its acceptance rule.
 * :mod:`~bmr.diagnosis.extended_model` — the nominal model plus accepted effects: simulate, save, compensate.
+* :mod:`~bmr.diagnosis.many` — ``diagnose_many()``: many bundles on Dask, one row each in a Parquet table.
 Figures and the HTML report live in :mod:`bmr.report.diagnosis`.
 """
+from bmr.diagnosis.many import diagnose_many
 from bmr.diagnosis.procedure import Diagnosis, diagnose
 
-__all__ = ["Diagnosis", "diagnose"]
+__all__ = ["Diagnosis", "diagnose", "diagnose_many"]

@@ -12,6 +12,12 @@ Two families:
 
 Every effect has a stable ``name`` and reports its parameters with units in their names; ``params`` follow the
 virtual actuator's parametrisation (``bmr.effect_parameters()``) so a simulated truth can be compared.
+
+Linear effects that also bent the protocol runs implement ``update_path`` (the path re-identified with the
+fitted effect removed) and ``remove(y, value, beta, protocol_run)``, which takes a
+:class:`bmr.diagnosis.field.ProtocolRun` (signals, the nominal friction, the diagnosis's evaluation data). Column
+builders read the signals the diagnosis prepared once (``data.theta``, ``data.current``, ``data.t_abs``,
+``data.friction_nmm``) and keep what they derive in ``data.cache`` (bounded, owned by the diagnosis).
 """
 from __future__ import annotations
 
@@ -21,6 +27,7 @@ from typing import Any
 
 import numpy as np
 
+from bmr._core import BmrError
 from bmr.diagnosis.field import REIDENTIFY_INTERVALS, FieldPath
 from bmr.diagnosis.residuals import EvalData
 
@@ -144,41 +151,44 @@ class TableResolution(Effect):
 
 
 # ----------------------------------------------------------------------------------------------- linear effects
-_PROTOCOL_HEAT: dict[tuple[float, int], tuple[Any, np.ndarray]] = {}
+def _heating(x_in: np.ndarray, tau_s: float, dt_s: float, x0: float) -> np.ndarray:
+    from scipy.signal import lfilter
+
+    p = math.exp(-dt_s / tau_s)
+    x, _ = lfilter([1.0 - p], [1.0, -p], x_in, zi=[p * x0])
+    return x
 
 
 def bundle_thermal_state(data: EvalData, tau_s: float) -> list[np.ndarray]:
     """Coil heating state (1 = steady full current) of every run of the bundle, in bundle order:
     ``x' = ((I/I_full)² − x)/tau`` integrated over the runs in order (the actuator's state carries over)."""
-    from scipy.signal import lfilter
 
-    key = ("thermal_all", tau_s)
-    if key in data.cache:
-        return data.cache[key]
-    states = []
-    x0 = 0.0
-    for u, dt in zip(data.bundle_currents, data.bundle_dt_s):
-        heat = (np.asarray(u, float) / data.full_current_a) ** 2
-        p = math.exp(-dt / tau_s)
-        x, _ = lfilter([1.0 - p], [1.0, -p], heat, zi=[p * x0])
-        states.append(x)
-        x0 = float(x[-1]) if x.size else x0
-    if len(_PROTOCOL_HEAT) > 512:
-        _PROTOCOL_HEAT.clear()
-    data.cache[key] = states
-    return states
+    def make() -> list[np.ndarray]:
+        states = []
+        x0 = 0.0
+        for u, dt in zip(data.bundle_currents, data.bundle_dt_s):
+            x = _heating((np.asarray(u, float) / data.full_current_a) ** 2, tau_s, dt, x0)
+            states.append(x)
+            x0 = float(x[-1]) if x.size else x0
+        return states
+
+    return data.cache.get(("thermal_all", tau_s), make)
 
 
 def thermal_state(data: EvalData, tau_s: float) -> np.ndarray:
     """Coil heating state (1 = steady full current) over the evaluated spans: ``x' = ((I/I_full)² − x)/tau``
     integrated over every run of the bundle in order (the actuator's state carries over)."""
-    key = ("thermal", tau_s)
-    if key in data.cache:
-        return data.cache[key]
-    states = bundle_thermal_state(data, tau_s)
-    out = data.concat([states[r.thermal_index][r.start:] for r in data.runs])
-    data.cache[key] = out
-    return out
+
+    def make() -> np.ndarray:
+        states = bundle_thermal_state(data, tau_s)
+        return data.concat([states[r.thermal_index][r.start:] for r in data.runs])
+
+    return data.cache.get(("thermal", tau_s), make)
+
+
+def _angle_harmonic(data: EvalData, order: Any) -> tuple[np.ndarray, np.ndarray]:
+    """``sin(order·θ)``, ``cos(order·θ)`` over the evaluated spans (computed once per order)."""
+    return data.cache.get(("angle_harmonic", order), lambda: (np.sin(order * data.theta), np.cos(order * data.theta)))
 
 
 class ThermalDrift(Effect):
@@ -197,18 +207,13 @@ class ThermalDrift(Effect):
 
     def update_path(self, path, value, own_beta, data):
         # Heating also changed the gain along the protocol runs: identify the tables again without it.
-        names = list(data.run_start_s)
-        for r, _ in path.protocol:
-            # Keyed by the run object (held in the entry, so its id stays unique): run names repeat across
-            # bundles diagnosed in one process.
-            key = (float(value), id(r))
-            if key not in _PROTOCOL_HEAT:
-                _PROTOCOL_HEAT[key] = (r, bundle_thermal_state(data, float(value))[names.index(r.name)])
         return path.with_correction(self, float(value), own_beta)
 
     @staticmethod
-    def remove(y, value, beta, run, t0_s, model):
-        x = _PROTOCOL_HEAT[(float(value), id(run))][1]
+    def remove(y, value, beta, run):
+        if run.context is None or run.bundle_index is None:
+            raise BmrError(f"protocol run {run.name!r}: the heating state needs the bundle's evaluation data")
+        x = bundle_thermal_state(run.context, float(value))[run.bundle_index]
         return y / np.maximum(1.0 + beta[1] - beta[0] * x, 1e-3)
 
     def params(self, value, beta, path):
@@ -223,13 +228,11 @@ class FrictionCurrent(Effect):
     doc = "seal friction grows with current: angle-dependent friction × (1 + gain_per_a·|I|)"
 
     def columns(self, data, value, y_field, model):
-        key = "friction_current_cols"
-        if key not in data.cache:
-            th = data.concat(data.eval_slice("theta_rad"))
-            cur = data.concat(data.eval_slice("current_a"))
-            f = model.friction_torque(th) - (model.friction.c0 if model.friction is not None else 0.0)
-            data.cache[key] = (np.abs(cur) * f)[:, None]
-        return data.cache[key]
+        def make() -> np.ndarray:
+            c0 = model.friction.c0 if model.friction is not None else 0.0
+            return (np.abs(data.current) * (data.friction_nmm - c0))[:, None]
+
+        return data.cache.get("friction_current_cols", make)
 
     needs_reidentify = True
 
@@ -237,9 +240,9 @@ class FrictionCurrent(Effect):
         return path.with_correction(self, value, own_beta)
 
     @staticmethod
-    def remove(y, value, beta, run, t0_s, model):
-        f = model.friction_torque(run.theta) - (model.friction.c0 if model.friction is not None else 0.0)
-        return y - beta[0] * np.abs(run.current) * f
+    def remove(y, value, beta, run):
+        c0 = run.model.friction.c0 if run.model.friction is not None else 0.0
+        return y - beta[0] * np.abs(run.current) * (run.friction() - c0)
 
     def params(self, value, beta, path):
         return {"gain_per_a": float(beta[0])}
@@ -253,8 +256,7 @@ class FrictionHarmonics(Effect):
         return list(range(4, 13))
 
     def columns(self, data, value, y_field, model):
-        th = data.concat(data.eval_slice("theta_rad"))
-        return np.column_stack([np.sin(value * th), np.cos(value * th)])
+        return np.column_stack(_angle_harmonic(data, value))
 
     needs_reidentify = True
 
@@ -262,7 +264,7 @@ class FrictionHarmonics(Effect):
         return path.with_correction(self, value, own_beta)
 
     @staticmethod
-    def remove(y, value, beta, run, t0_s, model):
+    def remove(y, value, beta, run):
         th = run.theta
         return y - beta[0] * np.sin(value * th) - beta[1] * np.cos(value * th)
 
@@ -277,8 +279,8 @@ class TorqueRipple(Effect):
     removal_rank = 1
 
     def columns(self, data, value, y_field, model):
-        th = data.concat(data.eval_slice("theta_rad"))
-        return np.column_stack([y_field * np.cos(th), y_field * np.sin(th)])
+        s, c = _angle_harmonic(data, 1)
+        return np.column_stack([y_field * c, y_field * s])
 
     needs_reidentify = True
 
@@ -286,7 +288,7 @@ class TorqueRipple(Effect):
         return path.with_correction(self, value, own_beta)
 
     @staticmethod
-    def remove(y, value, beta, run, t0_s, model):
+    def remove(y, value, beta, run):
         th = run.theta
         return y / np.maximum(1.0 + beta[0] * np.cos(th) + beta[1] * np.sin(th), 1e-3)
 
@@ -301,15 +303,15 @@ class SensorDrift(Effect):
     needs_reidentify = True
 
     def columns(self, data, value, y_field, model):
-        return data.concat(data.eval_slice("t_abs_s"))[:, None]
+        return data.t_abs[:, None]
 
     def update_path(self, path, value, own_beta, data):
         # The drift also bent the protocol runs the tables come from: identify them again without it.
         return path.with_correction(self, value, own_beta)
 
     @staticmethod
-    def remove(y, value, beta, run, t0_s, model):
-        return y - beta[0] * (t0_s + run.t - run.t[0])
+    def remove(y, value, beta, run):
+        return y - beta[0] * (run.t0_s + run.t - run.t[0])
 
     def params(self, value, beta, path):
         return {"rate_nmm_per_s": float(beta[0])}

@@ -6,11 +6,19 @@ The nominal path is the identified model's CBH operator on the commanded current
 ``non_congruent`` puts an output map ``g(T) = S·n(1 + c|n|)/(1 + c)`` (``n = T/S``, ``S`` the full-scale
 torque) after a Preisach core whose tables are the measured curves mapped through ``g⁻¹``, and
 ``table_resolution`` replaces the tables by least-squares refined ones.
+
+Re-identified tables (``reidentify=True``) come from a :class:`Reidentifier` that belongs to one diagnosis and
+is carried by the path (``FieldPath.reidentifier``): it keeps the least-squares problem of each input history
+(lag, delay) prepared (``bmr._core.EverettRegression``: regressors and normal matrix built once) so that
+candidates that only change the output side (output map, removed corrections) cost one right-hand side and a
+warm-started nonnegative solve, and it remembers the last solution's active set to warm-start the next input
+history. Its caches are bounded; nothing is kept between diagnoses.
 """
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, replace
+from collections import OrderedDict
+from dataclasses import dataclass, field, replace
 from typing import Any, Sequence
 
 import numpy as np
@@ -19,12 +27,11 @@ from bmr import _core
 from bmr._core import BmrError, Hysteresis
 from bmr.identification.spans import SATURATION_TOL, evaluation_start
 
-__all__ = ["FieldPath", "lag", "delay", "output_map", "output_map_inverse"]
+__all__ = ["FieldPath", "Reidentifier", "ProtocolRun", "lag", "delay", "output_map", "output_map_inverse"]
 
 # Least-squares re-identification: table intervals and regression rows (speed vs resolution).
 REIDENTIFY_INTERVALS = 40
 REIDENTIFY_ROWS = 20_000
-_REIDENTIFIED: dict[tuple, Any] = {}
 
 Curves = tuple[list[tuple[np.ndarray, np.ndarray]], list[tuple[np.ndarray, np.ndarray]]]
 
@@ -88,10 +95,124 @@ def _monotone(u: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return u, np.maximum.accumulate(y) if y[-1] >= y[0] else np.minimum.accumulate(y)
 
 
+class ProtocolRun:
+    """One protocol run as re-identification reads it: signals extracted once, the nominal friction removed from
+    the torque, and what a correction's ``remove`` may need (``theta``, ``current``, ``t``, ``t0_s`` its start in
+    the bundle, ``friction()``, ``context`` the diagnosis's evaluation data, ``bundle_index`` its place in the
+    bundle)."""
+
+    def __init__(self, run: Any, t0_s: float, model: Any, context: Any = None) -> None:
+        self.run = run
+        self.name = run.name
+        self.t0_s = float(t0_s)
+        self.t = run.t
+        self.current = run.current
+        self.theta = run.theta
+        self.dt = float(np.median(np.diff(self.t))) if self.current.size > 1 else 1.0
+        self.model = model
+        self.context = context
+        names = list(getattr(context, "run_start_s", {}) or {})
+        self.bundle_index = names.index(run.name) if run.name in names else None
+        self._friction: np.ndarray | None = None
+        self.torque = run.torque - self.friction()
+
+    def friction(self) -> np.ndarray:
+        """The nominal model's friction (N·mm) along the run (computed once)."""
+        if self._friction is None:
+            self._friction = self.model.friction_torque(self.theta)
+        return self._friction
+
+
+class Reidentifier:
+    """Least-squares core tables of the protocol runs (``(bmr.Run, start time in the bundle (s))``) under any field
+    path, for one diagnosis of ``model``. ``context`` (the diagnosis's :class:`bmr.diagnosis.residuals.EvalData`)
+    is what the corrections' ``remove`` may read (e.g. the heating state of the whole bundle).
+
+    Caches (bounded): the prepared regression of the last few input histories and the tables of recent paths.
+    """
+
+    def __init__(self, model: Any, protocol: Sequence[Any], context: Any = None, *, max_inputs: int = 3,
+                 max_tables: int = 64) -> None:
+        self.model = model
+        self.protocol = tuple(protocol)
+        self.context = context
+        self.max_inputs = max_inputs
+        self.max_tables = max_tables
+        self._regressions: OrderedDict[tuple, Any] = OrderedDict()
+        self._tables: OrderedDict[tuple, Curves] = OrderedDict()
+        self._passive: np.ndarray | None = None
+        self.fits = 0  # least-squares solves done (for the benchmarks)
+        self.regressions = 0  # input histories prepared
+        lo, hi = model.hysteresis.input_range
+        self.input_range = (float(lo), float(hi))
+        self.runs = [ProtocolRun(r, t0_s, model, context) for r, t0_s in self.protocol]
+
+    def curves(self, path: "FieldPath") -> Curves:
+        key = (path.lag_tau_s, path.delay_s, path.curvature, path.corrections)
+        if key in self._tables:
+            self._tables.move_to_end(key)
+            return self._tables[key]
+        tables = self._identify(path)
+        self._tables[key] = tables
+        while len(self._tables) > self.max_tables:
+            self._tables.popitem(last=False)
+        return tables
+
+    def _regression(self, path: "FieldPath") -> Any:
+        """The prepared least squares of the protocol runs under ``path``'s input stages."""
+        key = (path.lag_tau_s, path.delay_s)
+        if key in self._regressions:
+            self._regressions.move_to_end(key)
+            return self._regressions[key]
+        lo, hi = self.input_range
+        inputs, weights = [], []
+        for pr in self.runs:
+            u = pr.current
+            # The state is known from the *commanded* current's saturations (a lagged current never quite
+            # reaches them), plus five time constants for the lag to settle.
+            s = evaluation_start(u, lo, hi, SATURATION_TOL * (hi - lo)) + int(np.ceil(5 * path.lag_tau_s / pr.dt))
+            w = np.zeros(u.size)
+            w[s:] = 1.0
+            inputs.append(np.ascontiguousarray(path.core_input(u, pr.dt)))
+            weights.append(w)
+        total = sum(int(np.count_nonzero(w)) for w in weights)
+        stride = max(1, int(np.ceil(total / REIDENTIFY_ROWS)))
+        for w in weights:
+            keep = np.zeros(w.size, dtype=bool)
+            keep[np.flatnonzero(w)[::stride]] = True
+            w[~keep] = 0.0
+        reg = _core.EverettRegression(np.linspace(lo, hi, REIDENTIFY_INTERVALS + 1),
+                                      [(u, w, 0) for u, w in zip(inputs, weights)], 1, smoothing=1e-4, ridge=1e-9)
+        self.regressions += 1
+        self._regressions[key] = reg
+        while len(self._regressions) > self.max_inputs:
+            self._regressions.popitem(last=False)
+        return reg
+
+    def _identify(self, path: "FieldPath") -> Curves:
+        """Core tables identified again from the protocol runs as the core sees them — current through the delay
+        and lag, torque (friction removed) through ``g⁻¹`` — by least squares (exact for any input history, unlike
+        cutting first-order curves out of a lagged current)."""
+        reg = self._regression(path)
+        outputs = []
+        corrections = sorted(path.corrections, key=lambda c: c[0].removal_rank)
+        for pr in self.runs:
+            y = pr.torque
+            for effect, value, beta in corrections:
+                y = effect.remove(y, value, np.asarray(beta), pr)
+            outputs.append(np.ascontiguousarray(output_map_inverse(y, path.curvature, path.scale_nmm)))
+        res = reg.fit(outputs, self._passive)
+        self._passive = res["passive"]
+        self.fits += 1
+        asc, desc = res["model"].first_order_curves()
+        return ([(np.asarray(u), np.asarray(y)) for u, y in asc], [(np.asarray(u), np.asarray(y)) for u, y in desc])
+
+
 @dataclass(frozen=True)
 class FieldPath:
     """One field path (see the module doc). ``tables`` (ascending, descending first-order curves, already in
-    the core's domain) replaces the model's tables when given."""
+    the core's domain) replaces the model's tables when given; with ``reidentify`` the tables come from
+    ``reidentifier`` (a :class:`Reidentifier` of the protocol runs; one is made on the spot when none is given)."""
 
     model: Any
     lag_tau_s: float = 0.0
@@ -103,11 +224,13 @@ class FieldPath:
     # Fitted effects removed from the protocol torque before re-identification: ((effect, value, beta), ...).
     corrections: tuple = ()
     reidentify: bool = False  # core tables by least squares on the protocol runs under this path
+    reidentifier: Any = field(default=None, compare=False, repr=False)
 
     @staticmethod
-    def nominal(model: Any, protocol: Sequence[Any] = ()) -> "FieldPath":
+    def nominal(model: Any, protocol: Sequence[Any] = (), reidentifier: Any = None) -> "FieldPath":
         lo, hi = model.hysteresis.output_range
-        return FieldPath(model, scale_nmm=float(max(abs(lo), abs(hi), 1e-9)), protocol=tuple(protocol))
+        return FieldPath(model, scale_nmm=float(max(abs(lo), abs(hi), 1e-9)), protocol=tuple(protocol),
+                         reidentifier=reidentifier)
 
     def with_(self, **kwargs: Any) -> "FieldPath":
         return replace(self, **kwargs)
@@ -121,14 +244,10 @@ class FieldPath:
         if self.tables is not None:
             return self.tables
         if self.reidentify and self.protocol:
-            key = (id(self.protocol), self.lag_tau_s, self.delay_s, self.curvature, self.corrections)
-            if key not in _REIDENTIFIED:
-                if len(_REIDENTIFIED) > 256:
-                    _REIDENTIFIED.clear()
-                # The entry holds the protocol itself, so its id cannot be reused by another bundle's runs while
-                # the entry lives (an id alone would go stale once the protocol is freed).
-                _REIDENTIFIED[key] = (self.protocol, self._reidentified())
-            return _REIDENTIFIED[key][1]
+            reid = self.reidentifier
+            if reid is None:
+                reid = Reidentifier(self.model, self.protocol)
+            return reid.curves(self)
         asc, desc = self.model.hysteresis.curves()
         if self.curvature == 0.0:
             return list(asc), list(desc)
@@ -138,37 +257,6 @@ class FieldPath:
                                                                         self.scale_nmm)) for u, y in curves]
 
         return fam(asc), fam(desc)
-
-    def _reidentified(self) -> Curves:
-        """Core tables identified again from the protocol runs as the core sees them — current through the delay
-        and lag, torque (friction removed) through ``g⁻¹`` — by least squares (``bmr.fit_tables_lstsq``: exact
-        for any input history, unlike cutting first-order curves out of a lagged current)."""
-
-        lo, hi = self.model.hysteresis.input_range
-        packed = []
-        for r, t0_s in self.protocol:
-            u = r.current
-            dt = float(np.median(np.diff(r.t))) if u.size > 1 else 1.0
-            y = r.torque - self.model.friction_torque(r.theta)
-            for effect, value, beta in sorted(self.corrections, key=lambda c: c[0].removal_rank):
-                y = effect.remove(y, value, np.asarray(beta), r, t0_s, self.model)
-            y = output_map_inverse(y, self.curvature, self.scale_nmm)
-            # The state is known from the *commanded* current's saturations (a lagged current never quite
-            # reaches them), plus five time constants for the lag to settle.
-            s = evaluation_start(u, lo, hi, SATURATION_TOL * (hi - lo)) + int(np.ceil(5 * self.lag_tau_s / dt))
-            w = np.zeros(u.size)
-            w[s:] = 1.0
-            packed.append((np.ascontiguousarray(self.core_input(u, dt)), np.ascontiguousarray(y), w, 0))
-        total = sum(int(np.count_nonzero(p[2])) for p in packed)
-        stride = max(1, int(np.ceil(total / REIDENTIFY_ROWS)))
-        for _, _, w, _ in packed:
-            keep = np.zeros(w.size, dtype=bool)
-            keep[np.flatnonzero(w)[::stride]] = True
-            w[~keep] = 0.0
-        res = _core.fit_everett(np.linspace(lo, hi, REIDENTIFY_INTERVALS + 1), packed, 1, smoothing=1e-4,
-                                ridge=1e-9)
-        asc, desc = res["model"].first_order_curves()
-        return ([(np.asarray(u), np.asarray(y)) for u, y in asc], [(np.asarray(u), np.asarray(y)) for u, y in desc])
 
     def hysteresis(self) -> Any:
         """A fresh ``bmr.Hysteresis`` of the core."""

@@ -167,13 +167,13 @@ def diagnose(bundle: Bundle | str | Path, model: Any = None, *, folds: int = 5, 
         model = Model.load(model)
     lo, hi = model.hysteresis.input_range
     data = prepare(bundle, (lo, hi), folds, friction=model.friction)
-    fitter = Fitter(data, model)
+    protocol = [(r, data.run_start_s[r.name]) for r in
+                bundle.by_kind("first_order_ascending", "first_order_descending")]
+    fitter = Fitter(data, model, protocol)
     bar = tqdm(total=0, file=sys.stderr, desc="bmr diagnose", unit="test", disable=not progress,
                leave=False)
     try:
-        sel = forward_selection(fitter, progress=bar,
-                                protocol=[(r, data.run_start_s[r.name]) for r in
-                                          bundle.by_kind("first_order_ascending", "first_order_descending")])
+        sel = forward_selection(fitter, progress=bar)
     finally:
         bar.close()
     config = sel["config"]
@@ -192,8 +192,8 @@ def diagnose(bundle: Bundle | str | Path, model: Any = None, *, folds: int = 5, 
         cause = ranked[-1]["name"]
 
     # Residuals on all data (nominal with its offset, extended) for the figures and the structure study.
-    r_nom, _ = fitter.fit(FieldPath.nominal(model), [], None)
-    r_ext, _ = fitter.fit(config.path, config.linear, None)
+    r_nom, _ = fitter.fit(FieldPath.nominal(model), [])
+    r_ext, _ = fitter.fit(config.path, config.linear)
     split = np.cumsum([r.n_eval for r in data.runs])[:-1]
     nom_runs, ext_runs = np.split(r_nom, split), np.split(r_ext, split)
     struct_nom = structure(data, nom_runs, lo, hi)

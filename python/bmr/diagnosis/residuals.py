@@ -5,24 +5,95 @@ run's start (its opening excursion puts the steel in a known state) and judged f
 (:func:`bmr.identification.spans.evaluation_start`). Each run's evaluated span is cut into ``folds`` contiguous time blocks;
 fold ``k`` holds block ``k`` of every run (blocked by run and time, never random samples).
 
+:class:`EvalData` holds everything one diagnosis reads more than once: the evaluated spans concatenated over
+runs (angle, current, torque, time, the nominal friction), the fit rows grouped by fold (all evaluated samples, or
+an even stride of them in every block of long logs: see :data:`MAX_FIT_ROWS`) and a :class:`BoundedCache` for
+what the effects derive from them. Nothing is kept between diagnoses.
+
 Units: torque N·mm, current A, angle rad, time s.
 """
 from __future__ import annotations
 
 import math
+from collections import OrderedDict
 from dataclasses import dataclass, field
-from typing import Any, Sequence
+from functools import cached_property
+from typing import Any, Callable, Sequence
 
 import numpy as np
 
+from bmr import _core
 from bmr._core import BmrError
 from bmr.data.bundle import Bundle, Run
 from bmr.identification.spans import SATURATION_TOL, evaluation_start
 
-__all__ = ["EvalRun", "EvalData", "prepare", "noise_floor", "reversal_order", "structure", "SIGNALS"]
+__all__ = ["EvalRun", "EvalData", "BoundedCache", "prepare", "noise_floor", "reversal_order", "structure",
+           "SIGNALS", "MAX_FIT_ROWS"]
 
 # Signals the residual structure is studied against.
 SIGNALS = ("angle", "time", "current_level", "current_rate", "reversal_order")
+
+MAX_FIT_ROWS = 200_000
+"""Rows used by the least-squares fits of the selection (an even stride in every fold block when the evaluated
+spans hold more): quasi-static logs are heavily oversampled for a handful of columns."""
+
+
+def _nbytes(value: Any) -> int:
+    if isinstance(value, np.ndarray):
+        return int(value.nbytes)
+    if isinstance(value, (list, tuple)):
+        return sum(_nbytes(v) for v in value)
+    if isinstance(value, dict):
+        return sum(_nbytes(v) for v in value.values())
+    return 64
+
+
+class BoundedCache:
+    """A least-recently-used cache bounded in entries and in bytes (numpy arrays counted by size), so that what
+    a diagnosis derives once and reads again stays within a fixed memory however long the log."""
+
+    def __init__(self, max_entries: int = 64, max_bytes: int = 64 << 20) -> None:
+        self.max_entries = int(max_entries)
+        self.max_bytes = int(max_bytes)
+        self._items: OrderedDict[Any, tuple[Any, int]] = OrderedDict()
+        self._bytes = 0
+
+    def __contains__(self, key: Any) -> bool:
+        return key in self._items
+
+    def __len__(self) -> int:
+        return len(self._items)
+
+    @property
+    def nbytes(self) -> int:
+        return self._bytes
+
+    def __getitem__(self, key: Any) -> Any:
+        value, _ = self._items[key]
+        self._items.move_to_end(key)
+        return value
+
+    def __setitem__(self, key: Any, value: Any) -> None:
+        if key in self._items:
+            self._bytes -= self._items.pop(key)[1]
+        size = _nbytes(value)
+        self._items[key] = (value, size)
+        self._bytes += size
+        while len(self._items) > 1 and (len(self._items) > self.max_entries or self._bytes > self.max_bytes):
+            _, (_, old) = self._items.popitem(last=False)
+            self._bytes -= old
+
+    def get(self, key: Any, make: Callable[[], Any]) -> Any:
+        """The cached value of ``key``, made (and kept) on a miss."""
+        if key in self._items:
+            return self[key]
+        value = make()
+        self[key] = value
+        return value
+
+    def clear(self) -> None:
+        self._items.clear()
+        self._bytes = 0
 
 
 @dataclass
@@ -57,7 +128,9 @@ class EvalData:
     bundle_dt_s: list[float]
     sample_rate_hz: float
     run_start_s: dict[str, float] = field(default_factory=dict)  # every run's start time in the bundle
-    cache: dict[Any, Any] = field(default_factory=dict)
+    friction_nmm: np.ndarray | None = None  # the nominal model's friction over the evaluated spans
+    cache: BoundedCache = field(default_factory=lambda: BoundedCache(max_entries=64, max_bytes=24 << 20))
+    max_fit_rows: int = MAX_FIT_ROWS
 
     def concat(self, arrays: Sequence[np.ndarray]) -> np.ndarray:
         return np.concatenate(list(arrays)) if arrays else np.zeros(0)
@@ -69,9 +142,47 @@ class EvalData:
     def test_mask(self, fold: int) -> np.ndarray:
         return self.concat([r.block == fold for r in self.runs])
 
-    @property
+    @cached_property
     def n_eval(self) -> int:
         return sum(r.n_eval for r in self.runs)
+
+    # The evaluated spans concatenated over runs (computed once).
+    @cached_property
+    def theta(self) -> np.ndarray:
+        return self.concat(self.eval_slice("theta_rad"))
+
+    @cached_property
+    def current(self) -> np.ndarray:
+        return self.concat(self.eval_slice("current_a"))
+
+    @cached_property
+    def torque(self) -> np.ndarray:
+        return self.concat(self.eval_slice("torque_nmm"))
+
+    @cached_property
+    def t_abs(self) -> np.ndarray:
+        return self.concat(self.eval_slice("t_abs_s"))
+
+    @cached_property
+    def block(self) -> np.ndarray:
+        """Fold index of every evaluated sample."""
+        return self.concat([r.block for r in self.runs]).astype(np.int64)
+
+    @cached_property
+    def fit_rows(self) -> np.ndarray:
+        """The evaluated samples the fits use, grouped by fold (fold ``k``'s rows are
+        ``fit_rows[fold_bounds[k]:fold_bounds[k + 1]]``): all of them, or an even stride in every fold block when
+        there are more than ``max_fit_rows``."""
+        stride = max(1, -(-self.n_eval // self.max_fit_rows))
+        order = np.argsort(self.block, kind="stable")
+        if stride == 1:
+            return order
+        bounds = np.searchsorted(self.block[order], np.arange(self.folds + 1))
+        return np.concatenate([order[a:b:stride] for a, b in zip(bounds[:-1], bounds[1:])])
+
+    @cached_property
+    def fold_bounds(self) -> np.ndarray:
+        return np.searchsorted(self.block[self.fit_rows], np.arange(self.folds + 1))
 
 
 def _run_dt(run: Run, fallback_s: float) -> float:
@@ -150,43 +261,17 @@ def prepare(bundle: Bundle, input_range: tuple[float, float], folds: int, fricti
         raise BmrError("the bundle has no evaluation run (multi_step, triangle, multipeak, tracking or custom) "
                        f"with at least {2 * folds} samples after its first saturation; nothing to diagnose")
     full = max(abs(lo), abs(hi))
-    return EvalData(out, int(folds), full, noise_floor(bundle, friction), currents, dts, fs, starts)
+    data = EvalData(out, int(folds), full, noise_floor(bundle, friction), currents, dts, fs, starts)
+    data.friction_nmm = friction(data.theta) if friction is not None else np.zeros(data.n_eval)
+    return data
 
 
 def reversal_order(u: np.ndarray, lo: float, hi: float, deadband_a: float | None = None) -> np.ndarray:
     """Order of the reversal curve each sample lies on: 0 on the major loop (after a saturation), 1 on a
-    first-order curve, 2 after a further reversal, … (a simple dead-band reversal counter, reset at saturation)."""
-    u = np.asarray(u, dtype=float)
-    span = hi - lo
-    db = 0.01 * span if deadband_a is None else deadband_a
-    tol = SATURATION_TOL * span
-    order = np.zeros(u.size, dtype=np.int64)
-    k = 0
-    direction = 0
-    extreme = u[0] if u.size else 0.0
-    for i in range(u.size):
-        x = u[i]
-        if x >= hi - tol or x <= lo + tol:
-            k = 0
-            direction = 1 if x >= hi - tol else -1
-            extreme = x
-        elif direction >= 0:
-            if x > extreme:
-                extreme = x
-                direction = 1
-            elif extreme - x > db:
-                k += 1 if direction != 0 else 0
-                direction = -1
-                extreme = x
-        else:
-            if x < extreme:
-                extreme = x
-            elif x - extreme > db:
-                k += 1
-                direction = 1
-                extreme = x
-        order[i] = k
-    return order
+    first-order curve, 2 after a further reversal, … (a dead-band reversal counter, reset at saturation;
+    ``bmr._core.reversal_order``)."""
+    return _core.reversal_order(np.asarray(u, dtype=float), lo, hi, deadband_a,
+                                saturation_tol=SATURATION_TOL * (hi - lo))
 
 
 def _binned_strength(x: np.ndarray, r: np.ndarray, bins: int = 20, min_count: int = 20) -> float:
@@ -209,15 +294,34 @@ def _binned_strength(x: np.ndarray, r: np.ndarray, bins: int = 20, min_count: in
     return math.sqrt(max(0.0, var - noise_var))
 
 
-def _angle_strength(theta: np.ndarray, r: np.ndarray, orders: int = 12) -> float:
-    cols = [np.ones_like(theta)]
-    for k in range(1, orders + 1):
-        cols += [np.sin(k * theta), np.cos(k * theta)]
-    x = np.column_stack(cols)
-    beta, *_ = np.linalg.lstsq(x, r, rcond=None)
-    fit = x @ beta - np.mean(r)
-    var = float(np.mean(fit ** 2))
-    noise_var = float(np.var(r)) * (x.shape[1] - 1) / r.size
+def _angle_strength(theta: np.ndarray, r: np.ndarray, orders: int = 12, chunk: int = 1 << 16) -> float:
+    """RMS (N·mm) of the residual's angle harmonics up to ``orders`` per revolution (least squares on
+    ``[1, sin kθ, cos kθ]``), less what noise alone would show. The normal equations are accumulated over chunks
+    of samples (bounded memory for long logs; the harmonics are orthogonal enough for them)."""
+    p = 1 + 2 * orders
+    gram = np.zeros((p, p))
+    xr = np.zeros(p)
+    for a in range(0, theta.size, chunk):
+        th, rr = theta[a:a + chunk], r[a:a + chunk]
+        x = np.empty((p, th.size))
+        x[0] = 1.0
+        s1, c1 = np.sin(th), np.cos(th)
+        x[1], x[2] = s1, c1
+        for k in range(2, orders + 1):
+            # sin/cos of kθ from (k−1)θ by the angle-addition rule.
+            s, c = x[2 * k - 3], x[2 * k - 2]
+            x[2 * k - 1] = s * c1 + c * s1
+            x[2 * k] = c * c1 - s * s1
+        gram += x @ x.T
+        xr += x @ rr
+    n = max(r.size, 1)
+    scale = np.sqrt(np.maximum(np.diag(gram), 1e-300))
+    beta_s, *_ = np.linalg.lstsq(gram / np.outer(scale, scale), xr / scale, rcond=1e-13)
+    beta = beta_s / scale
+    mean_r = float(np.mean(r)) if r.size else 0.0
+    # mean((Xβ − r̄)²) from the Gram matrix; its first column holds the sums of the columns.
+    var = float(beta @ gram @ beta) / n - 2.0 * mean_r * float(gram[0] @ beta) / n + mean_r ** 2
+    noise_var = float(np.var(r)) * (p - 1) / n
     return math.sqrt(max(0.0, var - noise_var))
 
 

@@ -14,6 +14,14 @@ without it is compared on the test block. An effect is **accepted** when
 
 The best accepted candidate joins the model (its parameters refitted on all evaluation data), and the round
 repeats until nothing is accepted or the held-out RMS is within :data:`NOISE_MARGIN` of the noise floor.
+
+How the fits are computed (:class:`Fitter`, one per diagnosis): the field torque of each path is simulated once
+(bounded cache); a configuration's design ``[1, effect columns…, target]`` is gathered once on the fit rows
+(grouped by fold, :attr:`bmr.diagnosis.residuals.EvalData.fit_rows`) into one small Gram matrix per fold, from
+which every fold's training fit (all blocks but one), its training and held-out sums of squares and the fit on
+all data follow (:class:`FoldFit`) without touching the samples again. The fits solve the column-scaled normal
+equations with a pseudo-inverse (eigenvalues below 1e-13 of the largest dropped), the same least-squares
+solution as a QR/SVD of the design for every design that is not rank deficient.
 """
 from __future__ import annotations
 
@@ -26,16 +34,18 @@ import numpy as np
 from bmr._core import BmrError
 
 from bmr.diagnosis.effects import LIBRARY, Effect
-from bmr.diagnosis.field import FieldPath
-from bmr.diagnosis.residuals import EvalData
+from bmr.diagnosis.field import FieldPath, Reidentifier
+from bmr.diagnosis.residuals import BoundedCache, EvalData
 
-__all__ = ["Configuration", "Fitter", "Candidate", "forward_selection", "MIN_GAIN", "NOISE_MARGIN"]
+__all__ = ["Configuration", "Fitter", "FoldFit", "Candidate", "forward_selection", "MIN_GAIN", "NOISE_MARGIN"]
 
 MIN_GAIN = 0.02
 MIN_EXCESS = 0.25
 NOISE_MARGIN = 1.03
 # Two-sided 95 % Student t quantiles by degrees of freedom.
 _T975 = {1: 12.706, 2: 4.303, 3: 3.182, 4: 2.776, 5: 2.571, 6: 2.447, 7: 2.365, 8: 2.306, 9: 2.262, 10: 2.228}
+# Relative eigenvalue below which a direction of the scaled normal equations is treated as rank deficient.
+_RCOND = 1e-13
 
 
 def t975(df: int) -> float:
@@ -51,57 +61,152 @@ class Configuration:
     beta: np.ndarray | None = None
 
 
-MAX_FIT_ROWS = 200_000
-"""Training rows used per least-squares fit (evenly strided when there are more)."""
+@dataclass
+class FoldFit:
+    """The least-squares fits of one configuration: ``beta[k]`` fitted on the training blocks of fold ``k`` and
+    ``beta[folds]`` on all fit rows; ``sse_train`` the matching training sums of squares (N·mm², the last one
+    over all rows), ``sse_test[k]`` / ``n_test[k]`` the held-out sum of squares and row count of fold ``k``;
+    ``widths`` the number of columns of each linear effect (after the constant)."""
+
+    beta: np.ndarray
+    sse_train: np.ndarray
+    sse_test: np.ndarray
+    n_test: np.ndarray
+    widths: tuple[int, ...]
+
+    @property
+    def folds(self) -> int:
+        return self.sse_test.size
+
+    def test_rms(self, fold: int) -> float:
+        return math.sqrt(self.sse_test[fold] / self.n_test[fold]) if self.n_test[fold] else float("nan")
+
+
+def _solve_normal(gram: np.ndarray, p: int) -> tuple[np.ndarray, np.ndarray]:
+    """Batched least squares from Gram matrices of ``[X | t]`` (shape ``(m, p + 1, p + 1)``): ``beta`` (m, p)
+    and the residual sums of squares (m,)."""
+    xx = gram[:, :p, :p]
+    xt = gram[:, :p, p]
+    tt = gram[:, p, p]
+    scale = np.sqrt(np.maximum(np.einsum("mii->mi", xx), 0.0))
+    scale = np.where(scale > 0, scale, 1.0)
+    a = xx / (scale[:, :, None] * scale[:, None, :])
+    b = xt / scale
+    w, v = np.linalg.eigh(a)
+    cutoff = _RCOND * np.max(w, axis=1, keepdims=True)
+    inv = np.where(w > cutoff, 1.0 / np.where(w > cutoff, w, 1.0), 0.0)
+    beta = np.einsum("mij,mj->mi", v, inv * np.einsum("mji,mj->mi", v, b)) / scale
+    sse = tt - 2.0 * np.einsum("mi,mi->m", beta, xt) + np.einsum("mi,mij,mj->m", beta, xx, beta)
+    return beta, np.maximum(sse, 0.0)
 
 
 class Fitter:
-    """Least-squares fits and residuals of configurations on the evaluated spans (field simulations cached)."""
+    """Least-squares fits and residuals of configurations on the evaluated spans, for one diagnosis: it owns the
+    field simulations (bounded cache), the fits already made (bounded cache) and the :class:`Reidentifier` of
+    the protocol runs (``protocol``: ``(bmr.Run, start time in the bundle (s))``)."""
 
-    def __init__(self, data: EvalData, model: Any) -> None:
+    def __init__(self, data: EvalData, model: Any, protocol: Sequence[Any] = (), *, max_fields: int = 3) -> None:
         self.data = data
         self.model = model
-        th = data.concat(data.eval_slice("theta_rad"))
-        self.measured = data.concat(data.eval_slice("torque_nmm")) - model.friction_torque(th)
-        self._fields: dict[tuple, np.ndarray] = {}
+        self.measured = data.torque - data.friction_nmm
+        self.reidentifier = Reidentifier(model, protocol, data)
+        self._fields = BoundedCache(max_entries=max_fields, max_bytes=max_fields * 8 * data.n_eval + 1)
+        self._fits = BoundedCache(max_entries=512, max_bytes=16 << 20)
+        self.simulations = 0  # field paths simulated (for the benchmarks)
+
+    def nominal_path(self) -> FieldPath:
+        return FieldPath.nominal(self.model, self.reidentifier.protocol, self.reidentifier)
 
     def field(self, path: FieldPath) -> np.ndarray:
+        """Field torque (N·mm) of ``path`` over the evaluated spans (NaN when the path gives no valid tables)."""
         key = path.key()
-        if key not in self._fields:
-            try:
-                ys = path.simulate(self.data.runs)
-                self._fields[key] = self.data.concat([y[r.start:] for y, r in zip(ys, self.data.runs)])
-            except BmrError:
-                # This parameter value gives no valid tables (e.g. a lag so long the protocol never saturates).
-                self._fields[key] = np.full(self.data.n_eval, np.nan)
-            if len(self._fields) > 200:
-                self._fields.pop(next(iter(self._fields)))
-        return self._fields[key]
+        if key in self._fields:
+            return self._fields[key]
+        self.simulations += 1
+        try:
+            ys = path.simulate(self.data.runs)
+            y = self.data.concat([y[r.start:] for y, r in zip(ys, self.data.runs)])
+        except BmrError:
+            # This parameter value gives no valid tables (e.g. a lag so long the protocol never saturates).
+            y = np.full(self.data.n_eval, np.nan)
+        self._fields[key] = y
+        return y
+
+    def _blocks(self, path: FieldPath, linear: Sequence[tuple[Effect, Any]], y: np.ndarray
+                ) -> tuple[list[np.ndarray], tuple[int, ...]]:
+        cols, widths = [], []
+        for eff, value in linear:
+            c = np.asarray(eff.columns(self.data, value, y, self.model), dtype=float)
+            c = c.reshape(c.shape[0], -1)
+            cols.append(c)
+            widths.append(c.shape[1])
+        return cols, tuple(widths)
 
     def design(self, path: FieldPath, linear: Sequence[tuple[Effect, Any]]) -> tuple[np.ndarray, np.ndarray]:
+        """The design matrix ``[1, effect columns…]`` over all evaluated samples and the field torque."""
         y = self.field(path)
-        cols = [np.ones((y.size, 1))]
-        for eff, value in linear:
-            cols.append(eff.columns(self.data, value, y, self.model))
-        return np.hstack(cols), y
+        cols, _ = self._blocks(path, linear, y)
+        return np.hstack([np.ones((y.size, 1))] + cols), y
 
-    def fit(self, path: FieldPath, linear: Sequence[tuple[Effect, Any]], train: np.ndarray | None
+    def solve(self, path: FieldPath, linear: Sequence[tuple[Effect, Any]]) -> FoldFit:
+        """The fits of ``path`` plus ``linear`` in every fold and on all data (see :class:`FoldFit`)."""
+        key = (path.key(), tuple((eff.name, value) for eff, value in linear))
+        if key in self._fits:
+            return self._fits[key]
+        data = self.data
+        k = data.folds
+        y = self.field(path)
+        cols, widths = self._blocks(path, linear, y)
+        p = 1 + sum(widths)
+        rows = data.fit_rows
+        z = np.empty((p + 1, rows.size))
+        z[0] = 1.0
+        j = 1
+        for c in cols:
+            z[j:j + c.shape[1]] = c[rows].T
+            j += c.shape[1]
+        np.subtract(self.measured[rows], y[rows], out=z[p])
+        if not np.all(np.isfinite(z)):
+            out = FoldFit(np.zeros((k + 1, p)), np.full(k + 1, np.inf), np.full(k, np.inf),
+                          np.diff(data.fold_bounds), widths)
+            self._fits[key] = out
+            return out
+        b = data.fold_bounds
+        blocks = np.stack([z[:, b[i]:b[i + 1]] @ z[:, b[i]:b[i + 1]].T for i in range(k)])
+        total = blocks.sum(axis=0)
+        grams = np.concatenate([total[None] - blocks, total[None]])
+        beta, sse = _solve_normal(grams, p)
+        xx, xt, tt = blocks[:, :p, :p], blocks[:, :p, p], blocks[:, p, p]
+        bk = beta[:k]
+        sse_test = tt - 2.0 * np.einsum("mi,mi->m", bk, xt) + np.einsum("mi,mij,mj->m", bk, xx, bk)
+        out = FoldFit(beta, sse, np.maximum(sse_test, 0.0), np.diff(b), widths)
+        self._fits[key] = out
+        return out
+
+    def fit(self, path: FieldPath, linear: Sequence[tuple[Effect, Any]], fold: int | None = None
             ) -> tuple[np.ndarray, np.ndarray]:
-        """Residual (measured − predicted, N·mm, all evaluated samples) and ``beta`` fitted on ``train``."""
+        """Residual (measured − predicted, N·mm, every evaluated sample) and ``beta`` fitted on the training blocks
+        of ``fold`` (None: on all data)."""
+        ff = self.solve(path, linear)
+        beta = ff.beta[self.data.folds if fold is None else fold]
         x, y = self.design(path, linear)
         if not np.all(np.isfinite(y)):
-            return np.full(y.size, np.inf), np.zeros(x.shape[1])
-        target = self.measured - y
-        rows = np.arange(y.size) if train is None else np.flatnonzero(train) if train.dtype == bool else train
-        # Quasi-static logs are heavily oversampled for a handful of columns: an evenly strided subset of the
-        # training rows gives the same fit at a fraction of the cost.
-        stride = max(1, rows.size // MAX_FIT_ROWS)
-        rows = rows[::stride]
-        xt, tt = x[rows], target[rows]
-        scale = np.maximum(np.sqrt(np.mean(xt * xt, axis=0)), 1e-300)
-        beta_s, *_ = np.linalg.lstsq(xt / scale, tt, rcond=None)
-        beta = beta_s / scale
-        return target - x @ beta, beta
+            return np.full(y.size, np.inf), beta
+        return self.measured - y - x @ beta, beta
+
+
+@dataclass
+class Heldout:
+    """Held-out sums of squares and row counts of a configuration, per fold."""
+
+    sse: np.ndarray
+    n: np.ndarray
+
+    def rms(self, fold: int | None = None) -> float:
+        if fold is None:
+            total = float(np.sum(self.n))
+            return math.sqrt(float(np.sum(self.sse)) / total) if total else float("nan")
+        return math.sqrt(float(self.sse[fold]) / float(self.n[fold])) if self.n[fold] else float("nan")
 
 
 @dataclass
@@ -152,78 +257,67 @@ class Candidate:
                 "excess_explained": self.excess_explained}
 
 
-def _rms(x: np.ndarray) -> float:
-    return float(np.sqrt(np.mean(x * x))) if x.size else float("nan")
-
-
-def _with(config: Configuration, eff: Effect, value: Any, data: EvalData, train: np.ndarray | None
+def _with(config: Configuration, eff: Effect, value: Any, data: EvalData
           ) -> tuple[FieldPath, list[tuple[Effect, Any]]]:
     if eff.field:
-        return eff.apply(config.path, value, data, train), list(config.linear)
+        return eff.apply(config.path, value, data, None), list(config.linear)
     return config.path, list(config.linear) + [(eff, value)]
 
 
-def _fit_with(fitter: Fitter, config: Configuration, eff: Effect, value: Any, train: np.ndarray | None
-              ) -> tuple[np.ndarray, np.ndarray, FieldPath, list[tuple[Effect, Any]]]:
-    """Fit ``config`` plus ``eff`` at ``value`` on ``train``; effects that also bend the identification data
-    alternate fit and re-identification twice."""
+def _fit_with(fitter: Fitter, config: Configuration, eff: Effect, value: Any, fold: int | None
+              ) -> tuple[FoldFit, np.ndarray, FieldPath, list[tuple[Effect, Any]]]:
+    """Fit ``config`` plus ``eff`` at ``value`` on the training blocks of ``fold`` (None: all data); effects that
+    also bend the identification data alternate fit and re-identification twice."""
     data = fitter.data
-    path, linear = _with(config, eff, value, data, train)
-    r, beta = fitter.fit(path, linear, train)
+    index = data.folds if fold is None else fold
+    path, linear = _with(config, eff, value, data)
+    ff = fitter.solve(path, linear)
+    beta = ff.beta[index]
     if not eff.field:
-        y = fitter.field(path)
-        start = 1 + sum(e.columns(data, v, y, fitter.model).shape[1] for e, v in config.linear)
+        start = 1 + sum(ff.widths[:-1])
         for _ in range(2):
             new = eff.update_path(path, value, beta[start:], data)
             if new is None:
                 break
             path = new
-            r, beta = fitter.fit(path, linear, train)
-    return r, beta, path, linear
+            ff = fitter.solve(path, linear)
+            beta = ff.beta[index]
+    return ff, beta, path, linear
 
 
-def evaluate(fitter: Fitter, config: Configuration, eff: Effect, before: list[np.ndarray]) -> Candidate:
+def evaluate(fitter: Fitter, config: Configuration, eff: Effect, before: Heldout) -> Candidate:
     """Held-out gain of adding ``eff`` to ``config`` in every fold (``before``: the configuration's held-out
-    residual per fold)."""
+    sums of squares per fold)."""
     data = fitter.data
     if eff.needs_reidentify and not config.path.reidentify:
         # Compare at equal table method: the gain is the effect's, not the least-squares tables'.
-        before = heldout_residuals(fitter, Configuration(config.path.with_(reidentify=True), config.linear))
-    gains, after_all, before_all, values = [], [], [], []
+        before = heldout(fitter, Configuration(config.path.with_(reidentify=True), config.linear))
     grid = eff.grid(data)
+    fits = [fitter.solve(*_with(config, eff, v, data)) for v in grid]
+    train_sse = np.array([f.sse_train[:data.folds] for f in fits])
+    train_sse = np.where(np.isnan(train_sse), np.inf, train_sse)
+    reidentifies = type(eff).update_path is not Effect.update_path
+    gains, sse_after, sse_before, n_test, values = [], [], [], [], []
     for k in range(data.folds):
-        test = data.test_mask(k)
-        train = ~test
-        best = None
-        for v in grid:
-            path, linear = _with(config, eff, v, data, train)
-            r, _ = fitter.fit(path, linear, train)
-            sse = float(np.sum(r[train] ** 2))
-            if best is None or sse < best[0]:
-                best = (sse, r, v)
-        assert best is not None
-        if type(eff).update_path is not Effect.update_path:
-            r, _, _, _ = _fit_with(fitter, config, eff, best[2], train)
-            best = (best[0], r, best[2])
-        rb = before[k]
-        ra = best[1][test]
-        b, a = _rms(rb), _rms(ra)
+        i = int(np.argmin(train_sse[:, k]))
+        ff = fits[i]
+        if reidentifies:
+            ff = _fit_with(fitter, config, eff, grid[i], k)[0]
+        b, a = before.rms(k), ff.test_rms(k)
         gains.append((b - a) / b if b > 0 else 0.0)
-        after_all.append(ra)
-        before_all.append(rb)
-        values.append(best[2])
-    return Candidate(eff, np.asarray(gains), _rms(np.concatenate(before_all)), _rms(np.concatenate(after_all)),
-                     values, data.noise_floor_nmm)
+        sse_after.append(ff.sse_test[k])
+        sse_before.append(before.sse[k])
+        n_test.append(before.n[k])
+        values.append(grid[i])
+    n = float(np.sum(n_test))
+    return Candidate(eff, np.asarray(gains), math.sqrt(float(np.sum(sse_before)) / n),
+                     math.sqrt(float(np.sum(sse_after)) / n), values, data.noise_floor_nmm)
 
 
-def heldout_residuals(fitter: Fitter, config: Configuration) -> list[np.ndarray]:
-    data = fitter.data
-    out = []
-    for k in range(data.folds):
-        test = data.test_mask(k)
-        r, _ = fitter.fit(config.path, config.linear, ~test)
-        out.append(r[test])
-    return out
+def heldout(fitter: Fitter, config: Configuration) -> Heldout:
+    """The configuration's held-out sums of squares per fold."""
+    ff = fitter.solve(config.path, config.linear)
+    return Heldout(ff.sse_test.copy(), ff.n_test.copy())
 
 
 def _golden(f: Callable[[float], float], a: float, b: float, iters: int = 14) -> float:
@@ -249,9 +343,7 @@ def refit(fitter: Fitter, config: Configuration, eff: Effect) -> tuple[Configura
     grid = eff.grid(data)
 
     def sse(v: Any) -> float:
-        path, linear = _with(config, eff, v, data, None)
-        r, _ = fitter.fit(path, linear, None)
-        return float(np.sum(r * r))
+        return float(fitter.solve(*_with(config, eff, v, data)).sse_train[data.folds])
 
     scores = [sse(v) for v in grid]
     i = int(np.argmin(scores))
@@ -267,10 +359,10 @@ def refit(fitter: Fitter, config: Configuration, eff: Effect) -> tuple[Configura
             cand = _golden(sse, float(lo_v), float(hi_v))
         if sse(cand) < scores[i]:
             best = cand
-    _, beta, path, linear = _fit_with(fitter, config, eff, best, None)
+    ff, beta, path, linear = _fit_with(fitter, config, eff, best, None)
     new = Configuration(path, linear, beta)
     # The effect's own linear parameters follow the constant and the earlier effects' columns.
-    start = 1 + sum(e.columns(data, v, fitter.field(path), fitter.model).shape[1] for e, v in config.linear)
+    start = 1 + sum(ff.widths[:len(config.linear)])
     own = beta[start:] if not eff.field else np.zeros(0)
     return new, eff.params(best, own, path)
 
@@ -279,23 +371,22 @@ def linear_params(fitter: Fitter, config: Configuration) -> dict[str, dict[str, 
     """Every effect's parameters from a fitted configuration (field effects from the path)."""
     out = {}
     pos = 1
-    y = fitter.field(config.path)
-    for eff, value in config.linear:
-        p = eff.columns(fitter.data, value, y, fitter.model).shape[1]
+    widths = fitter.solve(config.path, config.linear).widths
+    for (eff, value), p in zip(config.linear, widths):
         out[eff.name] = eff.params(value, config.beta[pos:pos + p], config.path)
         pos += p
     return out
 
 
 def forward_selection(fitter: Fitter, *, library: Sequence[Effect] = LIBRARY, max_effects: int = 4,
-                      progress: Any = None, protocol: Sequence[Any] = ()) -> dict[str, Any]:
+                      progress: Any = None) -> dict[str, Any]:
     """Grouped forward selection (see the module doc). Returns the final configuration, the accepted steps, the
     rejected candidates (their last round) and the held-out RMS of the nominal and final configurations."""
     data = fitter.data
-    config = Configuration(FieldPath.nominal(fitter.model, protocol))
-    _, config.beta = fitter.fit(config.path, config.linear, None)
-    before = heldout_residuals(fitter, config)
-    nominal_rms = _rms(np.concatenate(before))
+    config = Configuration(fitter.nominal_path())
+    config.beta = fitter.solve(config.path, config.linear).beta[data.folds]
+    before = heldout(fitter, config)
+    nominal_rms = before.rms()
     accepted: list[dict[str, Any]] = []
     last: dict[str, Candidate] = {}
     remaining = list(library)
@@ -305,7 +396,7 @@ def forward_selection(fitter: Fitter, *, library: Sequence[Effect] = LIBRARY, ma
     tables = [e for e in remaining if e.name == "table_resolution"]
     remaining = [e for e in remaining if e.name != "table_resolution"]
     while (remaining or tables) and len(accepted) < max_effects:
-        current_rms = _rms(np.concatenate(before))
+        current_rms = before.rms()
         if current_rms <= NOISE_MARGIN * data.noise_floor_nmm:
             break
         candidates = tables if tables else remaining
@@ -333,7 +424,7 @@ def forward_selection(fitter: Fitter, *, library: Sequence[Effect] = LIBRARY, ma
             break
         best = max(ok, key=lambda c: c.mean_gain)
         config, params = refit(fitter, config, best.effect)
-        before = heldout_residuals(fitter, config)
+        before = heldout(fitter, config)
         row = best.row()
         row["params"] = params
         row["round"] = rounds
@@ -361,4 +452,4 @@ def forward_selection(fitter: Fitter, *, library: Sequence[Effect] = LIBRARY, ma
                          "accepted but another effect explained more; not needed afterwards")
         rejected.append(row)
     return {"config": config, "accepted": accepted, "rejected": rejected, "nominal_heldout_rms_nmm": nominal_rms,
-            "final_heldout_rms_nmm": _rms(np.concatenate(before)), "heldout_residual": before}
+            "final_heldout_rms_nmm": before.rms(), "heldout": before}

@@ -4,13 +4,12 @@ isotonic regression: no invented wiggles) and hand them to ``bmr.Hysteresis.from
 swapped, are ``bmr.Hysteresis.current_curves()``.)"""
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, Iterable
 
 import numpy as np
 
-from bmr._core import BmrError
+from bmr._core import BmrError, find_reversals
 from bmr.data.bundle import Run, runs_of
 from bmr.identification.spans import input_range_of, sample_noise
 
@@ -33,40 +32,6 @@ class FirstOrderCurves:
 
     def __len__(self) -> int:
         return len(self.ascending) + len(self.descending)
-
-
-def find_reversals(u: np.ndarray, deadband: float) -> np.ndarray:
-    """Indices of the reversal extrema of ``u``: a maximum (minimum) is confirmed once the signal has come back
-    from it by more than ``deadband`` — noise and small backward slips below the dead-band are ignored."""
-    u = np.asarray(u, dtype=float)
-    if not (deadband > 0 and math.isfinite(deadband)):
-        raise BmrError(f"reversal dead-band must be positive and finite, got {deadband!r}")
-    out: list[int] = []
-    n = u.size
-    if n < 2:
-        return np.zeros(0, dtype=int)
-    # Direction unknown until the signal leaves the starting value by more than the dead-band.
-    i_max = i_min = 0
-    direction = 0
-    for i in range(1, n):
-        x = u[i]
-        if direction >= 0 and x > u[i_max]:
-            i_max = i
-        if direction <= 0 and x < u[i_min]:
-            i_min = i
-        if direction == 0:
-            # The first move larger than the dead-band sets the direction; what came before is no reversal.
-            if u[i_max] - x > deadband:
-                direction, i_min = -1, i
-            elif x - u[i_min] > deadband:
-                direction, i_max = 1, i
-        elif direction > 0 and u[i_max] - x > deadband:
-            out.append(i_max)
-            direction, i_min = -1, i
-        elif direction < 0 and x - u[i_min] > deadband:
-            out.append(i_min)
-            direction, i_max = 1, i
-    return np.asarray(out, dtype=int)
 
 
 def _default_deadband(u: np.ndarray) -> float:

@@ -54,7 +54,9 @@ def _check_params(name: str, truth: dict[str, float], got: dict[str, float]) -> 
         assert truth["tau_s"] / 3 <= got["tau_s"] <= truth["tau_s"] * 3
 
 
-@pytest.mark.parametrize("name", PHYSICAL)
+# The quick tier runs two effects (a field effect and a linear one); the slow tier (CI: pytest -m slow) all.
+@pytest.mark.parametrize("name", [n if n in ("coil_lag", "friction_harmonics") else
+                                  pytest.param(n, marks=pytest.mark.slow) for n in PHYSICAL])
 def test_hidden_effect_is_named_fitted_and_removed(name: str) -> None:
     seed = 100 + PHYSICAL.index(name)
     truth = _draw(name, np.random.default_rng(seed))
@@ -73,13 +75,15 @@ def test_hidden_effect_is_named_fitted_and_removed(name: str) -> None:
     assert row["folds_positive"] * 2 > d.folds and row["gain"] > 0
 
 
-@pytest.mark.parametrize("preset,seed", [(PRESET, 7), (PRESET, 8), ("ideal", 0)])
+@pytest.mark.parametrize("preset,seed", [(PRESET, 7), pytest.param(PRESET, 8, marks=pytest.mark.slow),
+                                         pytest.param("ideal", 0, marks=pytest.mark.slow)])
 def test_clean_bundles_raise_no_physical_alarm(preset: str, seed: int) -> None:
     d = diagnose(diagnosis_bundle(preset, seed=seed), progress=False, closed_loop=False)
     assert d.cause in ("none", "table_resolution")
     assert not [e for e in d.effects if e["name"] in PHYSICAL], d.to_dict()["effects"]
 
 
+@pytest.mark.slow
 def test_two_effects_at_once_are_both_found() -> None:
     effects = {"coil_lag": {"tau_s": 0.025}, "friction_harmonics": {"order": 5.0, "amplitude_nmm": 5.0,
                                                                     "phase_rad": 0.7}}

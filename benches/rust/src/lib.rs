@@ -1,8 +1,7 @@
-//! The fixed workload of the step benches: tables measured from a 200-threshold Preisach plant (21 curves per
-//! family, ±1.25 A, ±300 N·mm) and a random multi-peak torque reference.
-#![allow(dead_code)]
-#[path = "../tests/rust/common/mod.rs"]
-mod common;
+//! The fixed workload of the step benches and of the callgrind instruction count: tables measured from a
+//! 200-threshold Preisach plant (the tests' independent `preisach-plant`, 21 curves per family, ±1.25 A,
+//! ±300 N·mm) and a random multi-peak torque reference.
+use preisach_plant as common;
 
 use bmr::{BuildOptions, Friction, Hysteresis, Initial};
 

@@ -1,7 +1,6 @@
 //! Criterion benches: `Hysteresis::step` and `Compensator::step` (exact and paper inverse) on a random
 //! multi-peak input, tables measured from a 200-threshold Preisach plant (21 curves per family).
-#[path = "workload.rs"]
-mod workload;
+use bmr_bench as workload;
 
 use bmr::{Compensator, InverseKind};
 use criterion::{Criterion, criterion_group, criterion_main};

@@ -1,7 +1,6 @@
 //! Runs `N` compensator steps (exact inverse) on a random multi-peak reference: a fixed workload for counting
 //! instructions per step with callgrind (`benches/callgrind.sh`). Usage: `step_count N [hysteresis|compensator]`.
-#[path = "../benches/workload.rs"]
-mod workload;
+use bmr_bench as workload;
 
 use bmr::{Compensator, InverseKind};
 use std::hint::black_box;

@@ -1,8 +1,7 @@
 //! Per-step latency distribution of `Compensator::step` (exact inverse) over 10⁶ steps of a random multi-peak
 //! reference: median, p99, p99.9 and max, each step timed alone (timer overhead measured and subtracted).
 //! Run: `cargo bench --bench latency`.
-#[path = "workload.rs"]
-mod workload;
+use bmr_bench as workload;
 
 use bmr::{Compensator, InverseKind};
 use std::hint::black_box;
