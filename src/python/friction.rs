@@ -1,10 +1,10 @@
 //! `bmr.Friction`: angle-periodic seal friction `c0 + Σ a_k sin kθ + b_k cos kθ` (N·mm), up to 12 harmonics.
-use numpy::{AllowTypeChange, PyArray1, PyArrayLike1};
+use numpy::PyArray1;
 use pyo3::prelude::*;
 
 use crate::friction::{Friction, MAX_ORDER};
 use crate::python::BmrError;
-use crate::python::arrays::{DETACH_LEN, extract_f64_array, to_numpy, to_vec};
+use crate::python::arrays::{DETACH_LEN, extract_f64_array, to_numpy};
 
 pub(crate) type Model = Friction<MAX_ORDER>;
 
@@ -59,12 +59,7 @@ impl PyFriction {
         if let Ok(x) = theta.extract::<f64>() {
             return Ok(self.f.eval(x).into_pyobject(py)?.into_any());
         }
-        let arr: PyArrayLike1<'py, f64, AllowTypeChange> = theta.extract().map_err(|_| {
-            BmrError::new_err(
-                "Friction(theta): theta must be a float or a 1-D array of angles (rad)",
-            )
-        })?;
-        let th = to_vec(arr);
+        let th = extract_f64_array(theta, "theta")?;
         let n = th.len();
         let f = self.f;
         let eval = move || th.iter().map(|&x| f.eval(x)).collect::<Vec<f64>>();

@@ -57,6 +57,8 @@ SANE: dict[str, object] = {
     "n": 10, "preset": "bmr2013", "seed": 0, "sample_rate_hz": 1000.0, "effects": None, "overrides": None,
     "friction": None, "inverse": "exact", "converter_gain": 0.125, "current_limit": 1.25,
     "torque_ref_nmm": 100 * U, "c0": 1.0, "a": [0.5], "b": [0.2], "amplitude": [1.0], "phase": [0.3],
+    "inputs": [(U, np.ones_like(U), 0)], "outputs": [10 * U], "warm_start": None, "deadband": 0.05, "lo": -1.0,
+    "hi": 1.0, "saturation_tol": None,
 }
 SANE["subdivisions"] = 2
 # Per-callable values where the generic ones do not fit (scalars for single steps, objects for methods).
@@ -88,6 +90,10 @@ def _targets() -> list[tuple[str, object, dict[str, object]]]:
         ("Hysteresis.restore", _hysteresis().restore, {"state": _hysteresis().snapshot()}),
         ("fit_friction_order", core.fit_friction_order, {}),
         ("fit_everett", core.fit_everett, {}),
+        ("EverettRegression", core.EverettRegression, {}),
+        ("EverettRegression.fit", core.EverettRegression(np.linspace(-1, 1, 9), [(U, np.ones_like(U), 0)]).fit, {}),
+        ("find_reversals", core.find_reversals, {}),
+        ("reversal_order", core.reversal_order, {"deadband": 0.05}),
         ("EverettModel", core.EverettModel, {}),
         ("EverettModel.everett", _everett().everett, {}),
         ("EverettModel.simulate", _everett().simulate, {}),
@@ -99,6 +105,7 @@ def _targets() -> list[tuple[str, object, dict[str, object]]]:
         ("VirtualActuator.theta_ahead", va.theta_ahead, {}),
         ("VirtualActuator.true_friction", va.true_friction, {}),
         ("Friction", core.Friction, {}),
+        ("Friction.__call__", lambda theta: core.Friction(1.0, [0.5], [0.2])(theta), {"theta": TH}),
         ("Friction.from_amplitude_phase", core.Friction.from_amplitude_phase, {}),
         ("Compensator", core.Compensator, {"hysteresis": _hysteresis()}),
         ("Compensator.step", comp.step, {}),
