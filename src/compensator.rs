@@ -1,8 +1,8 @@
 //! Open-loop torque compensator (paper figs 20 and 23): `I = H⁻¹[T_ref − T_f(θ)]`, split to the two coils
 //! (eq 8), limited, and converted to converter voltages.
 //!
-//! Safety invariants (property-tested): never both coils energised; `|I| <= limit`; a NaN/inf reference or angle
-//! gives zero current with `fault` set (no panic); the forward memory always follows the current actually
+//! Safety invariants (property-tested): never both coils energised; `|I| <= limit`; a NaN/inf reference or angle,
+//! or any intermediate that is not finite, gives zero current with `fault` set (no panic); the forward memory always follows the current actually
 //! commanded, including after limiting and faults. No allocation in `step`.
 use crate::cbh::Hysteresis;
 use crate::friction::Friction;
@@ -34,7 +34,8 @@ pub struct Command {
     pub volt2_v: f64,
     /// The torque asked for was not reachable (input range or current limit).
     pub saturated: bool,
-    /// The reference or angle was NaN/inf: zero current commanded.
+    /// The reference, the angle or an intermediate (friction, torque target, inverse) was not finite: zero current
+    /// commanded.
     pub fault: bool,
 }
 
@@ -68,6 +69,18 @@ pub struct CompensatorState<const N: usize> {
     paper: Option<crate::cbh::State<N>>,
 }
 
+#[cfg(feature = "alloc")]
+impl<const N: usize> CompensatorState<N> {
+    /// The state as plain words: the forward operator's and, with the paper's inverse, the inverse operator's
+    /// ([`crate::cbh::State::to_words`]); [`Compensator::state_from_words`] reads them back bit for bit.
+    pub fn to_words(&self) -> (alloc::vec::Vec<u64>, Option<alloc::vec::Vec<u64>>) {
+        (
+            self.forward.to_words(),
+            self.paper.as_ref().map(crate::cbh::State::to_words),
+        )
+    }
+}
+
 /// Hysteresis + friction compensator with a memory of `N` reversal points and `K` friction harmonics.
 #[derive(Debug, Clone)]
 pub struct Compensator<S, const N: usize, const K: usize> {
@@ -85,6 +98,8 @@ pub struct Compensator<S, const N: usize, const K: usize> {
 pub enum CompensatorError {
     /// Converter gain must be finite and positive (A/V).
     Gain(f64),
+    /// Converter gain so small that the current limit would need infinite volts.
+    GainForLimit { gain_a_per_v: f64, limit_a: f64 },
     /// Current limit must be finite and positive (A).
     Limit(f64),
 }
@@ -95,6 +110,14 @@ impl core::fmt::Display for CompensatorError {
             CompensatorError::Gain(g) => write!(
                 f,
                 "converter gain must be a positive finite A/V value, got {g}"
+            ),
+            CompensatorError::GainForLimit {
+                gain_a_per_v,
+                limit_a,
+            } => write!(
+                f,
+                "converter gain {gain_a_per_v} A/V is too small: the current limit {limit_a} A would need \
+                 infinite volts"
             ),
             CompensatorError::Limit(l) => write!(
                 f,
@@ -118,6 +141,12 @@ impl<S: AsRef<[f64]>, const N: usize, const K: usize> Compensator<S, N, K> {
         }
         if !(limit_a.is_finite() && limit_a > 0.0) {
             return Err(CompensatorError::Limit(limit_a));
+        }
+        if !(limit_a / gain_a_per_v).is_finite() {
+            return Err(CompensatorError::GainForLimit {
+                gain_a_per_v,
+                limit_a,
+            });
         }
         Ok(Compensator {
             forward,
@@ -156,8 +185,12 @@ impl<S: AsRef<[f64]>, const N: usize, const K: usize> Compensator<S, N, K> {
         if !(torque_ref_nmm.is_finite() && theta_rad.is_finite()) {
             return self.commit(0.0, false, true);
         }
-        self.friction_nmm = self.friction.eval(theta_rad);
-        let target = torque_ref_nmm - self.friction_nmm;
+        let friction_nmm = self.friction.eval(theta_rad);
+        let target = torque_ref_nmm - friction_nmm;
+        if !target.is_finite() {
+            return self.commit(0.0, false, true);
+        }
+        self.friction_nmm = friction_nmm;
         let InverseInput { input, saturated } = match &mut self.inverse {
             InverseKind::Exact => self.forward.inverse_input(target),
             InverseKind::Paper(inv) => {
@@ -168,6 +201,9 @@ impl<S: AsRef<[f64]>, const N: usize, const K: usize> Compensator<S, N, K> {
                 }
             }
         };
+        if !input.is_finite() {
+            return self.commit(0.0, false, true);
+        }
         let limited = input.clamp(-self.limit_a, self.limit_a);
         if matches!(self.inverse, InverseKind::Exact) && !saturated && limited == input {
             // The exact inverse already knows the output: commit without evaluating the branch again.
@@ -205,6 +241,25 @@ impl<S: AsRef<[f64]>, const N: usize, const K: usize> Compensator<S, N, K> {
             _ => return Err(crate::error::TableError::ForeignState),
         }
         self.forward.restore(&s.forward)
+    }
+
+    /// Read back the words of [`CompensatorState::to_words`], checked against this compensator's tables as
+    /// [`Hysteresis::state_from_words`] checks them; paper-inverse words are needed exactly when this
+    /// compensator uses the paper's inverse.
+    pub fn state_from_words(
+        &self,
+        forward: &[u64],
+        paper: Option<&[u64]>,
+    ) -> Result<CompensatorState<N>, crate::error::TableError> {
+        let paper = match (&self.inverse, paper) {
+            (InverseKind::Paper(inv), Some(w)) => Some(inv.state_from_words(w)?),
+            (InverseKind::Exact, None) => None,
+            _ => return Err(crate::error::TableError::ForeignState),
+        };
+        Ok(CompensatorState {
+            forward: self.forward.state_from_words(forward)?,
+            paper,
+        })
     }
 
     /// Reset both operators to `initial`.

@@ -4,6 +4,8 @@
 //! amplitude/phase form `c0 + Σ A_k sin(kθ + φ_k)` converts exactly: `a_k = A_k cos φ_k`, `b_k = A_k sin φ_k`.
 use nalgebra::SVector;
 
+use crate::limits::MAX_MAGNITUDE;
+
 /// Highest harmonic order supported by the fixed-size friction model.
 pub const MAX_ORDER: usize = 12;
 
@@ -28,14 +30,15 @@ impl<const K: usize> Friction<K> {
         }
     }
 
-    /// From sine/cosine coefficients; missing harmonics are zero. `None` if more than `K` are given or any value is
-    /// not finite.
+    /// From sine/cosine coefficients; missing harmonics are zero. `None` if more than `K` are given, any value is
+    /// not finite or the largest torque the model can give, `|c0| + Σ |a_k| + |b_k|`, exceeds
+    /// [`MAX_MAGNITUDE`] (so that every evaluation, and a reference minus it, is finite).
     pub fn from_coefficients(c0: f64, a: &[f64], b: &[f64]) -> Option<Self> {
-        if a.len() > K
-            || b.len() > K
-            || !c0.is_finite()
-            || a.iter().chain(b).any(|x| !x.is_finite())
-        {
+        if a.len() > K || b.len() > K {
+            return None;
+        }
+        let bound = a.iter().chain(b).fold(c0.abs(), |t, x| t + x.abs());
+        if bound.is_nan() || bound > MAX_MAGNITUDE {
             return None;
         }
         let mut f = Self::zero();

@@ -1,8 +1,10 @@
 //! `bmr.Friction`: angle-periodic seal friction `c0 + Σ a_k sin kθ + b_k cos kθ` (N·mm), up to 12 harmonics.
 use numpy::PyArray1;
 use pyo3::prelude::*;
+use pyo3::types::PyType;
 
 use crate::friction::{Friction, MAX_ORDER};
+use crate::limits::MAX_MAGNITUDE;
 use crate::python::BmrError;
 use crate::python::arrays::{DETACH_LEN, extract_f64_array, to_numpy};
 
@@ -25,7 +27,8 @@ impl PyFriction {
         let b = b.map_or(Ok(Vec::new()), |x| extract_f64_array(x, "b"))?;
         Model::from_coefficients(c0, &a, &b).map(|f| PyFriction { f }).ok_or_else(|| {
             BmrError::new_err(format!(
-                "Friction: need finite coefficients and at most {MAX_ORDER} harmonics (got {} sine, {} cosine)",
+                "Friction: need finite coefficients whose largest torque |c0| + Σ |a_k| + |b_k| is at most \
+                 {MAX_MAGNITUDE:e} N·mm and at most {MAX_ORDER} harmonics (got {} sine, {} cosine)",
                 a.len(),
                 b.len()
             ))
@@ -43,7 +46,8 @@ impl PyFriction {
         let phase = extract_f64_array(phase, "phase")?;
         Model::from_amplitude_phase(c0, &amplitude, &phase).map(|f| PyFriction { f }).ok_or_else(|| {
             BmrError::new_err(format!(
-                "Friction.from_amplitude_phase: need as many phases as amplitudes ({} vs {}), finite, at most {MAX_ORDER}",
+                "Friction.from_amplitude_phase: need as many phases as amplitudes ({} vs {}), finite, a largest \
+                 torque |c0| + Σ |a_k| + |b_k| of at most {MAX_MAGNITUDE:e} N·mm and at most {MAX_ORDER} harmonics",
                 amplitude.len(),
                 phase.len()
             ))
@@ -99,6 +103,17 @@ impl PyFriction {
             .map(|k| self.f.amplitude_phase(k))
             .unzip();
         (to_numpy(py, amp), to_numpy(py, ph))
+    }
+    fn __copy__(slf: PyRef<'_, Self>) -> PyRef<'_, Self> {
+        slf // immutable: a copy is the object itself
+    }
+    fn __deepcopy__<'py>(slf: PyRef<'py, Self>, _memo: &Bound<'py, PyAny>) -> PyRef<'py, Self> {
+        slf
+    }
+    /// Pickled as its coefficients (rebuilt through the checked constructor).
+    #[allow(clippy::type_complexity)]
+    fn __reduce__<'py>(&self, py: Python<'py>) -> (Bound<'py, PyType>, (f64, Vec<f64>, Vec<f64>)) {
+        (py.get_type::<Self>(), (self.f.c0(), self.a(), self.b()))
     }
     fn __repr__(&self) -> String {
         format!(

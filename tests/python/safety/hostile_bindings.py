@@ -82,6 +82,11 @@ def _targets() -> list[tuple[str, object, dict[str, object]]]:
     comp = core.Compensator(_hysteresis(), core.Friction(1.0, [0.5], [0.2]))
     asc, an, ac, desc, dn, dc, ylo, yhi, state = _reduce_args(h)
     vargs = _reduce_args(va)
+    paper = core.Compensator(_hysteresis(), core.Friction(1.0, [0.5], [0.2]), inverse="paper")
+    paper.run(100 * U, TH)
+    chys, cfric, cinv, cgain, climit, cpaper = _reduce_args(paper)
+    sforward, spaper = _reduce_args(paper.snapshot())
+    command = _reduce_args(comp.step(50.0, 0.3))
     targets: list[tuple[str, object, dict[str, object]]] = [
         ("Hysteresis.from_curves", core.Hysteresis.from_curves, {}),
         ("Hysteresis.step", _hysteresis().step, {"u": 0.3}),
@@ -116,6 +121,12 @@ def _targets() -> list[tuple[str, object, dict[str, object]]]:
          dict(asc=asc, asc_nodes=an, asc_curves=ac, desc=desc, desc_nodes=dn, desc_curves=dc, y_lo=ylo, y_hi=yhi,
               state=state)),
         ("_rebuild_hysteresis_state", core._rebuild_hysteresis_state, {"state": state}),
+        ("_rebuild_compensator", core._rebuild_compensator,
+         dict(hysteresis=chys, friction=cfric, inverse=cinv, converter_gain=cgain, current_limit=climit,
+              paper_state=cpaper)),
+        ("_rebuild_compensator_state", core._rebuild_compensator_state, {"forward": sforward, "paper": spaper}),
+        ("_rebuild_command", core._rebuild_command,
+         dict(zip(("current_a", "coil1_a", "coil2_a", "volt1_v", "volt2_v", "saturated", "fault"), command))),
         ("_rebuild_virtual_actuator", core._rebuild_virtual_actuator,
          dict(zip(("preset", "seed", "sample_rate_hz", "effects", "overrides", "state"), vargs))),
     ]
@@ -192,7 +203,10 @@ def main() -> int:
                     print(json.dumps({"call": name, "arg": p.name, "value": repr(value)[:60],
                                       "problem": f"{type(exc).__name__}: {exc}"[:300]}), flush=True)
     # Pickled data is data too: damaged pickles of every picklable object give errors, never panics.
-    for obj in (_hysteresis(), _hysteresis().snapshot(), core.VirtualActuator(), _everett()):
+    paper = core.Compensator(_hysteresis(), core.Friction(1.0, [0.5], [0.2]), inverse="paper")
+    paper.run(100 * U, TH)
+    for obj in (_hysteresis(), _hysteresis().snapshot(), core.VirtualActuator(), _everett(), paper,
+                paper.snapshot(), core.Friction(1.0, [0.5], [0.2]), paper.step(10.0, 0.2)):
         blob = pickle.dumps(obj)
         for i in range(0, len(blob), max(1, len(blob) // 200)):
             for b in (0, 0xFF, 0x7F):
