@@ -1,14 +1,16 @@
-"""Coverage-guided fuzzing (atheris) of the Python loaders: bundle manifests and model files.
+"""Coverage-guided fuzzing (atheris) of the Python loaders: bundle manifests, bundle run files and model files.
 
     python fuzz/python/loaders.py bundle_manifest CORPUS_DIR [SEED_DIR] -max_total_time=60
+    python fuzz/python/loaders.py run_file CORPUS_DIR [SEED_DIR] -max_total_time=60
     python fuzz/python/loaders.py model_file CORPUS_DIR [SEED_DIR] -max_total_time=60
 
-Each input is written as the file the loader reads (a manifest next to a valid run file, or a model file) and
-loaded. A ``bmr.BmrError`` is a correct answer; any other exception is a finding (atheris stops and writes the
+Each input is written as the file the loader reads (a manifest next to a valid run file, a CSV run file named by a
+valid manifest, or a model file) and loaded. A ``bmr.BmrError`` is a correct answer; any other exception is a finding (atheris stops and writes the
 input as ``crash-*``).
 """
 from __future__ import annotations
 
+import json
 import sys
 import tempfile
 from pathlib import Path
@@ -43,6 +45,30 @@ def _bundle_target(work: Path):
     return one
 
 
+def _run_file_target(work: Path):
+    root = work / "bundle"
+    root.mkdir()
+    (root / "manifest.json").write_text(json.dumps({
+        "format": bmr.data.bundle.FORMAT, "actuator": "fuzz", "sample_rate_hz": 500.0,
+        "runs": [{"name": "r", "kind": "custom", "file": "run.csv"}]}))
+    run = root / "run.csv"
+
+    def one(data: bytes) -> None:
+        run.write_bytes(data)
+        try:
+            bundle = bmr.read_bundle(root)
+        except bmr.BmrError:
+            return
+        # What reads is measurements: every column numeric (no dates, booleans, text or complex numbers).
+        for r in bundle.runs:
+            for column in r.data.columns:
+                values = r.data[column].to_numpy()
+                if values.dtype.kind not in "fiu":
+                    raise AssertionError(f"column {column!r} read as {values.dtype}")
+
+    return one
+
+
 def _model_target(work: Path):
     path = work / "model.json"
 
@@ -60,7 +86,7 @@ def _model_target(work: Path):
 
 
 def main() -> None:
-    targets = {"bundle_manifest": _bundle_target, "model_file": _model_target}
+    targets = {"bundle_manifest": _bundle_target, "run_file": _run_file_target, "model_file": _model_target}
     if len(sys.argv) < 2 or sys.argv[1] not in targets:
         sys.exit(f"usage: {sys.argv[0]} {{{'|'.join(targets)}}} [libFuzzer options and corpus folders]")
     name = sys.argv.pop(1)

@@ -215,10 +215,13 @@ pub fn check_inverse<const N: usize>(h: &mut Hysteresis<Vec<f64>, N>, target: f6
     }
 }
 
-/// Compensator safety invariants: never both coils, |I| within the limit, finite current, fault means zero.
+/// Compensator safety invariants: never both coils, |I| within the limit, finite currents and volts, fault means
+/// zero current.
 pub fn check_command(c: &Command, limit: f64) {
     assert!(
-        c.current_a.is_finite() && c.coil1_a.is_finite() && c.coil2_a.is_finite(),
+        [c.current_a, c.coil1_a, c.coil2_a, c.volt1_v, c.volt2_v]
+            .iter()
+            .all(|v| v.is_finite()),
         "non-finite command {c:?}"
     );
     assert!(!(c.coil1_a > 0.0 && c.coil2_a > 0.0), "both coils {c:?}");
