@@ -65,12 +65,12 @@ def main() -> int:
         rows.append({**row, "true": true, "z": z})
         if name == "c0" or abs(true) > 0 or abs(z) > 2:
             print(f"  {name:>5} {true:9.3f} {row['value']:9.3f} {row['stderr']:8.4f} {z:6.2f}")
-    for method, per_run in info["heldout_rms_nmm"].items():
+    for method, per_run in info["heldout_rms"].items():
         print(f"held-out RMS [{method}] " + ", ".join(f"{k} {v:.2f}" for k, v in per_run.items()) + " N·mm")
     if args.json:
         with open(args.json, "w") as fh:
             json.dump({"preset": args.preset, "samples": n, "identify_s": min(times), "friction": rows,
-                       "heldout_rms_nmm": info["heldout_rms_nmm"], "noise_nmm": bundle.meta["simulator"]["noise_nmm"]},
+                       "heldout_rms": info["heldout_rms"], "noise_nmm": bundle.meta["simulator"]["noise_nmm"]},
                       fh, indent=2)
     return 0
 

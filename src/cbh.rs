@@ -1,7 +1,7 @@
 //! The congruency-based hysteresis (CBH) operator: first-order curve tables + extrema memory → output.
 //!
 //! Rising from the newest minimum `m`: `y = y(m) + k·E^a(m, u)`; falling from the newest maximum `M`:
-//! `y = y(M) − k·E^d(M, u)` (paper eq 12 and 16, DESIGN section 2). `k = 1` for tables whose two families agree
+//! `y = y(M) − k·E^d(M, u)` (paper eq 12 and 16, docs/architecture.md §2.2). `k = 1` for tables whose two families agree
 //! (Preisach data); otherwise `k` scales the branch so that it closes exactly on the stored output of its target,
 //! which keeps the output continuous and monotone in the input when the measured families disagree.
 //! Inputs outside the table range saturate at its ends. `step` is `O(log nodes)`, allocation-free and

@@ -13,7 +13,7 @@ use crate::inverse::InverseInput;
 #[allow(clippy::large_enum_variant)]
 #[derive(Debug, Clone)]
 pub enum InverseKind<S, const N: usize> {
-    /// Exact inverse of the forward operator (DESIGN section 2).
+    /// Exact inverse of the forward operator (docs/architecture.md §2.5).
     Exact,
     /// The paper's inverse CBH operator on current curves (input torque, output current).
     Paper(Hysteresis<S, N>),

@@ -37,14 +37,24 @@ pub enum TableError {
         curve: usize,
         sample: usize,
     },
-    /// Input not strictly increasing (ascending) / decreasing (descending) along the curve.
-    InputNotMonotone {
+    /// Neither family has two curves (one family needs the major branch and one more).
+    NotEnoughCurves { ascending: usize, descending: usize },
+    /// The input steps back against the curve's direction by more than the limit (not one first-order curve).
+    InputBacktrack {
         family: FamilyKind,
         curve: usize,
         sample: usize,
-        previous: f64,
-        value: f64,
+        by: f64,
+        limit: f64,
     },
+    /// The only curve of a family (used as its major branch to derive the family) does not start at saturation.
+    NotAMajorBranch {
+        family: FamilyKind,
+        start: f64,
+        saturation: f64,
+    },
+    /// Every sample of the curve is at (or behind) its reversal input.
+    NoInputSpan { family: FamilyKind, curve: usize },
     /// Output moves against the curve's direction by more than the tolerance.
     OutputNotMonotone {
         family: FamilyKind,
@@ -154,22 +164,41 @@ impl fmt::Display for TableError {
                     "{family} curve {curve}, sample {sample}: value is NaN or infinite"
                 )
             }
-            TableError::InputNotMonotone {
+            TableError::NotEnoughCurves {
+                ascending,
+                descending,
+            } => write!(
+                f,
+                "{ascending} ascending and {descending} descending curve(s): one family needs at least 2 (its major branch and one more); the other family is then derived from it"
+            ),
+            TableError::InputBacktrack {
                 family,
                 curve,
                 sample,
-                previous,
-                value,
+                by,
+                limit,
             } => {
                 let dir = match family {
-                    FamilyKind::Ascending => "increase",
-                    FamilyKind::Descending => "decrease",
+                    FamilyKind::Ascending => "falls",
+                    FamilyKind::Descending => "rises",
                 };
                 write!(
                     f,
-                    "{family} curve {curve}, sample {sample}: input must strictly {dir} along the curve ({value} after {previous})"
+                    "{family} curve {curve}, sample {sample}: input {dir} back by {by:.6} against the curve's direction (limit {limit:.6}); is it cut at the right reversals?"
                 )
             }
+            TableError::NotAMajorBranch {
+                family,
+                start,
+                saturation,
+            } => write!(
+                f,
+                "the only {family} curve starts at {start}, but the other family's curves reach saturation at {saturation}: a family given as one curve must be its major branch (from saturation), from which the family is derived"
+            ),
+            TableError::NoInputSpan { family, curve } => write!(
+                f,
+                "{family} curve {curve}: every sample is at its reversal input; the curve has no span"
+            ),
             TableError::OutputNotMonotone {
                 family,
                 curve,
@@ -183,7 +212,7 @@ impl fmt::Display for TableError {
                 };
                 write!(
                     f,
-                    "{family} curve {curve}, sample {sample}: output {dir} by {drop:.6} against the curve's direction (tolerance {tolerance:.6})"
+                    "{family} curve {curve}, sample {sample}: output {dir} by {drop:.6} against the curve's direction (limit {tolerance:.6}); is it a curve of the other family?"
                 )
             }
             TableError::DuplicateReversal {

@@ -5,14 +5,18 @@
 //! `g` that contains every reversal `r_j`; `E_j = 0` at and below `r_j`. Values between nodes are linear in the
 //! input, so every evaluation and its inverse are closed-form inside one grid cell.
 //!
-//! Off-grid reversals (`r_j <= m < r_{j+1}`, `λ = (m - r_j)/(r_{j+1} - r_j)`) assume the Preisach density is uniform
-//! across the reversal direction inside one strip (it may vary freely along the input):
-//! - `u > r_{j+1}`: `E(m,u) = (1-λ) E_j(u) + λ E_{j+1}(u) - λ(1-λ) T_j`, with `T_j = E_j(r_{j+1})`;
-//! - `m < u <= r_{j+1}`: `E(m,u) = (1-λ)² E_j(r_j + (r_{j+1}-r_j)(u-m)/(r_{j+1}-m))`.
+//! Off-grid reversals (`r_j <= m < r_{j+1}`, `λ = (m - r_j)/(r_{j+1} - r_j)`) split the strip `[r_j, r_{j+1})` of
+//! the Preisach plane into its triangle (`β <= α <= r_{j+1}`, total `T_j = E_j(r_{j+1})`) and the rectangle above it:
+//! - inside the triangle the curve keeps its shape relative to its reversal, `E(m,u) = E_j(r_j + (u - m))` for
+//!   `m < u <= r_{j+1}` (exact for a density that depends on `α - β` only there: uniform, and a reversible part on
+//!   the diagonal alike), so the triangle's total from `m` is `Tri(m) = E_j(r_j + r_{j+1} - m)`;
+//! - the rectangle's density is uniform across the strip: for `u > r_{j+1}`,
+//!   `E(m,u) = (1-λ) E_j(u) + λ E_{j+1}(u) - [(1-λ) T_j - Tri(m)]`.
 //!
-//! This is exact for a density that is uniform inside the strip, exact at measured reversals (`λ = 0`),
-//! continuous in `m` and `u`, and monotone in `u`. The simpler interpolation
-//! `(1-λ)[E_j(u) - E_j(m)] + λ E_{j+1}(u)` misses the strip's triangle by `λ(1-λ)²T_j` under the same density.
+//! This is exact at measured reversals (`λ = 0`), continuous in `m` and `u`, monotone in both, and exact for a
+//! density uniform in each strip (where `Tri(m) = (1-λ)² T_j`) as well as for a reversible part (a diagonal mass,
+//! where `Tri(m) = (1-λ) T_j` and the curves are linear in `m`, as the least-squares tables are). The simpler
+//! interpolation `(1-λ)[E_j(u) - E_j(m)] + λ E_{j+1}(u)` misses the strip's triangle under both.
 //! Above the highest measured reversal the strip closes on a virtual curve at saturation (`E ≡ 0`).
 use crate::error::{FamilyKind, TableError};
 use crate::limits::{self, MAX_MAGNITUDE};
@@ -38,7 +42,9 @@ pub struct Strip {
     pub k_next: usize,
     /// Offset of row `j` in the table storage (row `j + 1` follows it).
     pub row_j: usize,
-    /// `λ(1-λ)T_j`, the strip combination's constant (precomputed for the per-step evaluation).
+    /// `Tri(m) = E_j(r_j + r_next - m)`: the strip triangle's total from `m`.
+    pub tri: f64,
+    /// `(1-λ)T_j - Tri(m)`, the strip combination's constant (precomputed for the per-step evaluation).
     pub shift: f64,
 }
 
@@ -54,6 +60,7 @@ impl Strip {
         k_j: 0,
         k_next: 0,
         row_j: 0,
+        tri: 0.0,
         shift: 0.0,
     };
 }
@@ -262,7 +269,12 @@ impl<S: AsRef<[f64]>> Family<S> {
         let k_next = g.partition_point(|&x| x < r_next);
         let t_j = self.row(j)[k_next];
         let row_j = self.nodes + self.curves + j * self.nodes;
-        let shift = lambda * (1.0 - lambda) * t_j;
+        let tri = if lambda == 0.0 {
+            t_j
+        } else {
+            self.strip_row(j, k_j, k_next, r_j + (r_next - m))
+        };
+        let shift = (1.0 - lambda) * t_j - tri;
         Strip {
             m,
             j,
@@ -273,8 +285,17 @@ impl<S: AsRef<[f64]>> Family<S> {
             k_j,
             k_next,
             row_j,
+            tri,
             shift,
         }
+    }
+
+    /// `E_j(v)` for `v` inside the strip's cells `[k_j, k_next]`.
+    #[inline]
+    fn strip_row(&self, j: usize, k_j: usize, k_next: usize, v: f64) -> f64 {
+        let g = &self.grid()[k_j..=k_next];
+        let k = k_j + g.partition_point(|&x| x <= v).clamp(1, g.len() - 1) - 1;
+        self.row_at(j, k, v)
     }
 
     /// `E(m, u)`: the output increment from reversal `s.m` to input `u` (rising orientation).
@@ -283,14 +304,9 @@ impl<S: AsRef<[f64]>> Family<S> {
         if u <= s.m {
             return 0.0;
         }
-        let one_l = 1.0 - s.lambda;
         if u <= s.r_next {
-            // Inside the strip's triangle: the measured curve j, squeezed onto [m, r_next].
-            let v = s.r_j + (s.r_next - s.r_j) * (u - s.m) / (s.r_next - s.m);
-            // Only the strip's own cells [k_j, k_next] can hold v.
-            let g = &self.grid()[s.k_j..=s.k_next];
-            let k = s.k_j + g.partition_point(|&x| x <= v).clamp(1, g.len() - 1) - 1;
-            return one_l * one_l * self.row_at(s.j, k, v);
+            // Inside the strip's triangle: the measured curve j, shifted to start at m.
+            return self.strip_row(s.j, s.k_j, s.k_next, s.r_j + (u - s.m));
         }
         let k = self.locate(u, hint);
         let lo = self.combined_node(s, k);
@@ -300,7 +316,8 @@ impl<S: AsRef<[f64]>> Family<S> {
         lo + t * (hi - lo)
     }
 
-    /// The strip combination `(1-λ)E_j + λE_{j+1} - λ(1-λ)T_j` at grid node `k` (only for nodes at or above r_next).
+    /// The strip combination `(1-λ)E_j + λE_{j+1} - [(1-λ)T_j - Tri(m)]` at grid node `k` (only for nodes at or
+    /// above r_next).
     #[inline]
     fn combined_node(&self, s: &Strip, k: usize) -> f64 {
         let d = self.data.as_ref();
@@ -326,15 +343,12 @@ impl<S: AsRef<[f64]>> Family<S> {
         if e <= 0.0 || s.m >= self.hi() {
             return s.m;
         }
-        let one_l = 1.0 - s.lambda;
-        let t_tri = one_l * one_l * s.t_j;
         let g = self.grid();
-        if e <= t_tri {
-            // Invert E_j on [r_j, r_next], then map back onto [m, r_next].
-            let target = e / (one_l * one_l);
+        if e <= s.tri {
+            // Invert E_j on [r_j, r_next], then shift back to start at m.
             let row = self.row(s.j);
-            let v = invert_monotone(g, |k| row[k], target, s.k_j, s.k_next, s.k_j);
-            return s.m + (v - s.r_j) * (s.r_next - s.m) / (s.r_next - s.r_j);
+            let v = invert_monotone(g, |k| row[k], e, s.k_j, s.k_next, s.k_j);
+            return (s.m + (v - s.r_j)).min(s.r_next);
         }
         if s.j + 1 >= self.curves {
             return self.hi();

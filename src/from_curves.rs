@@ -3,7 +3,10 @@ use alloc::vec::Vec;
 
 use crate::cbh::{Hysteresis, Initial};
 use crate::error::TableError;
-use crate::table_builder::{BuildOptions, MeasuredCurve, build_tables};
+use crate::everett::Family;
+use crate::table_builder::{
+    BuildOptions, BuildReport, FamilyNodes, MeasuredCurve, build_tables, select_family_nodes,
+};
 
 /// A curve as owned `(inputs, outputs)`.
 pub type CurveData = (Vec<f64>, Vec<f64>);
@@ -16,8 +19,19 @@ impl<const N: usize> Hysteresis<Vec<f64>, N> {
         opts: &BuildOptions,
         initial: Initial,
     ) -> Result<Self, TableError> {
+        Self::from_curves_reported(ascending, descending, opts, initial).map(|(h, _)| h)
+    }
+
+    /// [`Self::from_curves`], also returning what the build measured, fitted and derived.
+    pub fn from_curves_reported(
+        ascending: &[MeasuredCurve<'_>],
+        descending: &[MeasuredCurve<'_>],
+        opts: &BuildOptions,
+        initial: Initial,
+    ) -> Result<(Self, BuildReport), TableError> {
         let t = build_tables(ascending, descending, opts)?;
-        Hysteresis::new(t.ascending, t.descending, t.y_lo, t.y_hi, initial)
+        let h = Hysteresis::new(t.ascending, t.descending, t.y_lo, t.y_hi, initial)?;
+        Ok((h, t.report))
     }
 
     /// [`Self::from_curves`] for owned curves (`(inputs, outputs)` vectors).
@@ -27,6 +41,16 @@ impl<const N: usize> Hysteresis<Vec<f64>, N> {
         opts: &BuildOptions,
         initial: Initial,
     ) -> Result<Self, TableError> {
+        Self::from_curve_data_reported(ascending, descending, opts, initial).map(|(h, _)| h)
+    }
+
+    /// [`Self::from_curve_data`], also returning the build report.
+    pub fn from_curve_data_reported(
+        ascending: &[CurveData],
+        descending: &[CurveData],
+        opts: &BuildOptions,
+        initial: Initial,
+    ) -> Result<(Self, BuildReport), TableError> {
         let a: Vec<MeasuredCurve<'_>> = ascending
             .iter()
             .map(|(u, y)| (u.as_slice(), y.as_slice()))
@@ -35,7 +59,39 @@ impl<const N: usize> Hysteresis<Vec<f64>, N> {
             .iter()
             .map(|(u, y)| (u.as_slice(), y.as_slice()))
             .collect();
-        Self::from_curves(&a, &d, opts, initial)
+        Self::from_curves_reported(&a, &d, opts, initial)
+    }
+
+    /// The same operator on fewer nodes (for a firmware export with its own error bound): a node of either
+    /// family is dropped only where linear interpolation of every curve stays within `tolerance` (a fraction of
+    /// the output span), at most `max_nodes` per family (the tolerance is raised if needed). Returns the new
+    /// operator (after negative saturation) and the node grids it got, with the bound used and reached.
+    pub fn compressed(
+        &self,
+        tolerance: f64,
+        max_nodes: usize,
+    ) -> Result<(Self, [FamilyNodes; 2]), TableError> {
+        if !(tolerance.is_finite() && tolerance >= 0.0) {
+            return Err(TableError::BadParameter {
+                name: "tolerance",
+                value: tolerance,
+            });
+        }
+        if max_nodes < 2 {
+            return Err(TableError::BadParameter {
+                name: "max_nodes",
+                value: max_nodes as f64,
+            });
+        }
+        let tol = tolerance * (self.y_hi - self.y_lo);
+        let shrink = |f: &Family<Vec<f64>>| {
+            let rows: Vec<Vec<f64>> = (0..f.curves()).map(|j| f.row(j).to_vec()).collect();
+            select_family_nodes(f.grid(), f.reversals(), &rows, tol, max_nodes, f.kind())
+        };
+        let (a, an) = shrink(&self.asc)?;
+        let (d, dn) = shrink(&self.desc)?;
+        let h = Hysteresis::new(a, d, self.y_lo, self.y_hi, Initial::Negative)?;
+        Ok((h, [an, dn]))
     }
 
     /// The stored tables as first-order curves `(ascending, descending)` in [`Self::from_curves`] form: each

@@ -11,6 +11,10 @@ extern crate alloc;
 pub mod cbh;
 pub mod compensator;
 pub mod congruency;
+#[cfg(feature = "alloc")]
+pub mod curve_fit;
+#[cfg(feature = "alloc")]
+pub mod derived_family;
 pub mod error;
 pub mod everett;
 pub mod friction;
@@ -19,6 +23,8 @@ pub mod from_curves;
 pub mod history;
 pub mod inverse;
 pub mod limits;
+#[cfg(feature = "alloc")]
+pub mod node_selection;
 #[cfg(feature = "alloc")]
 pub mod paper_inverse;
 #[cfg(feature = "std")]
@@ -38,7 +44,7 @@ pub use inverse::InverseInput;
 pub use limits::LimitError;
 pub use reversals::{ReversalFinder, ReversalOrder, ReversalPoint};
 #[cfg(feature = "alloc")]
-pub use table_builder::{BuildOptions, MeasuredCurve, build_tables};
+pub use table_builder::{BuildOptions, BuildReport, MeasuredCurve, build_tables};
 
 #[cfg(feature = "python")]
 mod python;

@@ -30,6 +30,8 @@ __all__ = [
     "Command",
     "Compensator",
     "CompensatorState",
+    "CurveFit",
+    "CurveReport",
     "EFFECTS",
     "EverettModel",
     "EverettRegression",
@@ -37,8 +39,10 @@ __all__ = [
     "Hysteresis",
     "HysteresisState",
     "PRESETS",
+    "TableReport",
     "VirtualActuator",
     "effect_parameters",
+    "fit_curve",
     "fit_everett",
     "find_reversals",
     "fit_friction_order",
@@ -108,11 +112,18 @@ class Hysteresis:
         descending: Sequence[_Curve],
         *,
         initial: _Initial | None = None,
-        monotone_tolerance: float = 0.005,
+        monotone_tolerance: float = 0.25,
         reach_tolerance: float = 0.01,
         closure_tolerance: float = 0.05,
-        max_nodes: int = 1024,
+        node_tolerance: float = 0.0,
+        max_nodes: int = 16384,
+        subdivisions: int = 1,
     ) -> "Hysteresis": ...
+    @property
+    def build_report(self) -> TableReport | None:
+        """What from_curves measured, fitted and derived (None for operators not built from curves)."""
+    def compressed(self, tolerance: float, max_nodes: int = 16384) -> tuple["Hysteresis", dict[str, dict[str, float]]]:
+        """The same operator on fewer nodes within ``tolerance`` (fraction of the output span), and the bound."""
     def step(self, u: float) -> float: ...
     def run(self, u: _ArrayLike) -> np.ndarray: ...
     def __copy__(self) -> Hysteresis: ...
@@ -136,6 +147,94 @@ class Hysteresis:
     def curves(self) -> tuple[list[tuple[np.ndarray, np.ndarray]], list[tuple[np.ndarray, np.ndarray]]]: ...
     def current_curves(self) -> tuple[list[tuple[np.ndarray, np.ndarray]], list[tuple[np.ndarray, np.ndarray]]]:
         """The paper's current curves (torque, current): the stored curves with their axes swapped."""
+
+@final
+class CurveReport:
+    """One measured curve: its move against the curve's direction and what the monotone fit changed."""
+    @property
+    def family(self) -> str: ...
+    @property
+    def curve(self) -> int: ...
+    @property
+    def samples(self) -> int: ...
+    @property
+    def reversal(self) -> float: ...
+    @property
+    def violation(self) -> float: ...
+    @property
+    def violation_sample(self) -> int: ...
+    @property
+    def violation_input(self) -> float: ...
+    @property
+    def reshaped_rms(self) -> float: ...
+    @property
+    def input_backtrack(self) -> float: ...
+    def to_dict(self) -> dict[str, object]: ...
+
+@final
+class TableReport:
+    """What Hysteresis.from_curves measured (per-curve violations), fitted, derived (a missing family) and added
+    (curves between measured reversals), the node grids with their error bound, and the family mismatch."""
+    @property
+    def curves(self) -> list[CurveReport]: ...
+    @property
+    def worst_violation(self) -> CurveReport | None: ...
+    @property
+    def derived(self) -> str | None: ...
+    @property
+    def derived_major(self) -> str | None: ...
+    @property
+    def derived_curves(self) -> int: ...
+    @property
+    def derived_adjustment(self) -> float: ...
+    @property
+    def densified(self) -> tuple[int, int]: ...
+    @property
+    def nodes(self) -> tuple[int, int]: ...
+    @property
+    def inputs(self) -> tuple[int, int]: ...
+    @property
+    def node_tolerance(self) -> tuple[float, float]: ...
+    @property
+    def node_error(self) -> tuple[float, float]: ...
+    @property
+    def mismatch(self) -> dict[str, float] | None: ...
+    def to_dict(self) -> dict[str, object]: ...
+
+@final
+class CurveFit:
+    """One raw curve fitted by adaptive bins on the input axis and a monotone fit (``fit_curve``)."""
+    @property
+    def u(self) -> np.ndarray: ...
+    @property
+    def y(self) -> np.ndarray: ...
+    @property
+    def counts(self) -> np.ndarray: ...
+    @property
+    def nodes(self) -> int: ...
+    @property
+    def direction(self) -> str: ...
+    @property
+    def samples(self) -> int: ...
+    @property
+    def noise(self) -> float: ...
+    @property
+    def node_sigma(self) -> float: ...
+    @property
+    def violation(self) -> float: ...
+    @property
+    def violation_sample(self) -> int: ...
+    @property
+    def violation_input(self) -> float: ...
+    @property
+    def reshaped_rms(self) -> float: ...
+    @property
+    def input_backtrack(self) -> float: ...
+    def to_dict(self) -> dict[str, object]: ...
+
+def fit_curve(u: _ArrayLike, y: _ArrayLike, direction: str, *, pilot: int = 16) -> CurveFit:
+    """Fit one raw measured curve (first sample at its reversal): adaptive bins on the input axis, each bin's
+    local linear fit, then the least-squares monotone fit; ``direction``: "ascending" or "descending"."""
 
 @final
 class Friction:
@@ -188,23 +287,37 @@ class EverettModel:
     def offset(self) -> float: ...
     def everett(self, beta: float, alpha: float) -> float: ...
     def everett_table(self) -> np.ndarray: ...
-    def simulate(self, u: np.ndarray, offset: float | None = None) -> np.ndarray: ...
+    def simulate(
+        self, u: np.ndarray, offset: float | None = None, history: Sequence[float] | None = None
+    ) -> np.ndarray:
+        """Output along ``u`` from negative saturation followed by ``history`` (the run's initial state)."""
+    def best_initial_state(
+        self,
+        u: np.ndarray,
+        y: np.ndarray,
+        weight: np.ndarray | None = None,
+        *,
+        free_offset: bool = True,
+        gain: float = 1.0,
+    ) -> tuple[list[float], float, float]:
+        """(history, rss, offset) of the candidate initial state that predicts the run best."""
     def first_order_curves(
         self, subdivisions: int = 1
     ) -> tuple[list[tuple[np.ndarray, np.ndarray]], list[tuple[np.ndarray, np.ndarray]]]: ...
-    def hysteresis(self, subdivisions: int = 4) -> Hysteresis:
+    def hysteresis(self, subdivisions: int = 1) -> Hysteresis:
         """The CBH operator of this table, built in Rust (no curve lists cross the boundary)."""
 
 def fit_everett(
     grid: np.ndarray,
-    runs: Sequence[tuple[np.ndarray, np.ndarray, np.ndarray, int]],
+    runs: Sequence[tuple[object, ...]],
     n_offsets: int = 1,
     *,
     smoothing: float = 1e-4,
     ridge: float = 1e-9,
     max_iter: int = 500,
 ) -> dict:
-    """Regularised NNLS Everett table: model, offsets, rss, rms, n_rows, iterations, passive."""
+    """Regularised NNLS Everett table from runs ``(u, y, weight, offset_col[, history[, gain]])``: model, offsets,
+    rss, rms, n_rows, iterations, passive."""
 
 @final
 class EverettRegression:

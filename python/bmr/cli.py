@@ -1,4 +1,4 @@
-"""The ``bmr`` command line: ``bmr demo | simulate | identify | diagnose``.
+"""The ``bmr`` command line: ``bmr demo | simulate | import | identify | predict | diagnose``.
 
 Each subcommand's work lives in the module that owns the capability; this file only parses arguments.
 """
@@ -42,13 +42,51 @@ def _parser() -> argparse.ArgumentParser:
     s.add_argument("--format", choices=("csv", "parquet"), default="csv", help="run file format (default: csv)")
     s.add_argument("-o", "--out", required=True, help="bundle folder to write")
 
+    m = sub.add_parser("import", help="turn raw lab logs into a bundle (declared input/output, protocol, roles)",
+                       description="Read lab logs (CSV, Parquet, TDMS, MAT, dSPACE ControlDesk captures, "
+                       "tab-separated analyzer exports, SLAC magnetic-measurement tables) into a bundle. Columns "
+                       "are COL, COL:UNIT (the unit the bundle stores; converted from the unit the file states) "
+                       "or COL:SOURCE:UNIT (for files that state no unit).")
+    m.add_argument("files", nargs="+", help="log files (every table holding the declared columns is a run)")
+    m.add_argument("--input", required=True, metavar="COL[:UNIT]", help="the device's input column")
+    m.add_argument("--output", required=True, metavar="COL[:UNIT]", help="the device's output column")
+    m.add_argument("--angle", metavar="COL[:UNIT]",
+                   help="rotor angle column (optional; stored in rad, so a unit given here is the file's)")
+    m.add_argument("--time", metavar="COL[:UNIT]",
+                   help="time column (default: the format's time axis or a column named time/t; stored in s, so a unit "
+                        "given here is the file's)")
+    m.add_argument("--output-sigma", metavar="COL[:UNIT]",
+                   help="per-sample standard uncertainty of the output (optional)")
+    m.add_argument("--input-name", help="name of the input quantity (default from its unit, e.g. V -> voltage)")
+    m.add_argument("--output-name", help="name of the output quantity (e.g. 'integrated gradient')")
+    m.add_argument("--protocol", choices=("forc-ascending", "forc-descending", "major-loop", "any"),
+                   default="any", help="what the identification runs follow; checked with their reversals "
+                   "(default: any)")
+    m.add_argument("--holdout", action="append", default=[], metavar="RUN[,RUN...]",
+                   help="runs (or files) held out for evaluation; the others are for identification")
+    m.add_argument("--format", choices=("csv", "parquet", "tdms", "mat", "controldesk", "aixacct", "slac"),
+                   help="force a reader (default: from extension and content)")
+    m.add_argument("--device", help="device name stored in the bundle")
+    m.add_argument("--sample-rate", type=float, metavar="HZ", help="time from the sample index for files without one")
+    m.add_argument("--deadband", type=float, metavar="X", help="reversal dead-band in input units "
+                   "(default: 1 %% of the input span or 10x its sample noise)")
+    m.add_argument("--file-format", choices=("csv", "parquet"), default="csv", help="bundle run files (default csv)")
+    m.add_argument("-o", "--out", required=True, help="bundle folder to write (new or empty)")
+
     i = sub.add_parser("identify", help="identify friction and CBH tables from a bundle")
     i.add_argument("bundle", help=BUNDLE_HELP)
-    i.add_argument("--method", choices=("forc", "lstsq", "both"), default="forc",
+    i.add_argument("--method", choices=("auto", "forc", "lstsq", "both"), default="auto",
                    help="hysteresis tables from first-order reversal curves (forc, the paper's method), by least "
                         "squares from any excitation (lstsq), or both, keeping the one with the lower held-out "
-                        "error (default: forc)")
-    i.add_argument("-o", "--out", required=True, help="model file to write (bmr-model/1 JSON)")
+                        "error on the evaluation runs or, without any, on first-order curves held out in two "
+                        "folds (auto, the default, also when one of them is impossible)")
+    i.add_argument("--intervals", type=int, default=48, metavar="N",
+                   help="least-squares table: grid intervals over the input range (default: 48; nodes on the "
+                        "measurement's input steps resolve reversals there exactly)")
+    i.add_argument("--smoothing", type=float, default=1e-4, metavar="S",
+                   help="least-squares table: weight of the density's smoothness (default: 1e-4)")
+    i.add_argument("-o", "--out", required=True,
+                   help="model file to write (bmr-model/2 JSON: tables, friction, the bundle's quantities and units)")
 
     g = sub.add_parser("diagnose", help="find what the model gets wrong in a bundle and name the cause",
                        description="Diagnose one bundle (report on the terminal, --json, --report), or many at "
@@ -67,6 +105,29 @@ def _parser() -> argparse.ArgumentParser:
                                        "default: a local cluster on this machine")
     g.add_argument("--workers", type=int, help="several bundles: worker processes of the local cluster (default: "
                                                "one per core; 0: no Dask, one after the other here)")
+    r = sub.add_parser("predict", help="predict a bundle's held-out runs with a model: RMS and max error per run")
+    r.add_argument("model", help="model file (bmr-model JSON, from `bmr identify`)")
+    r.add_argument("bundle", help=BUNDLE_HELP)
+    r.add_argument("--runs", action="append", default=[], metavar="RUN[,RUN...]",
+                   help="runs to predict (default: the bundle's evaluation runs)")
+    r.add_argument("--offset", choices=("model", "first", "shrunk"), default="model",
+                   help="each run's output offset: the model's, from the run's leading --calibration samples "
+                        "(first; they are then not scored), or that shrunk towards the model's by how much the "
+                        "training runs' offsets spread (shrunk) (default: model)")
+    r.add_argument("--calibration", type=int, metavar="N",
+                   help="leading samples of each run used to calibrate it, not scored (default: 1 with --offset "
+                        "first, else 0)")
+    r.add_argument("--initial", choices=("negative", "positive", "estimate"), default="negative",
+                   help="each run's initial state: a saturation, or estimated from its calibration samples (the "
+                        "whole run without any) (default: negative)")
+    r.add_argument("--evaluate", choices=("known", "all"), default="known",
+                   help="score from where the run's state is known (after both saturation ends) or all samples "
+                        "(default: known)")
+    r.add_argument("--out-of-range", choices=("clamp", "extrapolate"), default="clamp",
+                   help="inputs beyond the model's range: held at its ends, or continued along the major branches "
+                        "(default: clamp)")
+    r.add_argument("--json", dest="json_out", help="write the bmr-prediction/1 JSON here")
+    r.add_argument("--figure", help="write a PNG figure (measured vs predicted vs input; residual) here")
     return p
 
 
@@ -79,8 +140,12 @@ def main(argv: Sequence[str] | None = None) -> int:
             from bmr.demo import run_cli
         elif args.command == "simulate":
             from bmr.simulation.experiments import run_cli
+        elif args.command == "import":
+            from bmr.data.importing import run_cli
         elif args.command == "identify":
             from bmr.identification.procedure import run_cli
+        elif args.command == "predict":
+            from bmr.identification.prediction import run_cli
         elif len(args.bundle) > 1 or args.out or args.scheduler or args.workers is not None:
             if args.json_out or args.report:
                 raise BmrError("--json and --report describe one bundle; for several, the table goes to --out")

@@ -252,7 +252,7 @@ def _metrics(preset: str, seed: int, quick: bool, model: Any, cases: dict[str, C
         "identification": {
             "friction_order": fr.get("order"),
             "friction_residual_rms_nmm": fr.get("residual_rms_nmm"),
-            "forc_consistency_nmm": ident.get("forc_consistency_nmm"),
+            "forc_consistency_nmm": ident.get("forc_consistency"),
         },
         "timing_s": {"identification": ident.get("time_s")},
         "paper_comparison": {

@@ -20,6 +20,8 @@ pub enum RunError {
         sample: usize,
         value: f64,
     },
+    /// A run gain that is not positive and finite.
+    BadGain { gain: f64 },
 }
 
 impl fmt::Display for RunError {
@@ -41,6 +43,9 @@ impl fmt::Display for RunError {
                 sample,
                 value,
             } => write!(f, "{what} sample {sample} is not finite ({value})"),
+            RunError::BadGain { gain } => {
+                write!(f, "run gain must be positive and finite, got {gain}")
+            }
         }
     }
 }

@@ -10,7 +10,7 @@
 use alloc::vec::Vec;
 
 use super::error::{IdentificationError, RunError};
-use super::everett_regressors::{EverettGrid, NormalEquations, simulate_everett};
+use super::everett_regressors::{EverettGrid, NormalEquations, simulate_everett_from};
 use super::nnls::nnls_gram_warm;
 use crate::from_curves::CurveData;
 use crate::limits::{self, MAX_CURVE_POINTS, MAX_SOLVER_ITERATIONS};
@@ -88,12 +88,83 @@ impl EverettModel {
 
     /// Output along input `u` from negative saturation, with output offset `offset` (None: the model's).
     pub fn simulate(&self, u: &[f64], offset: Option<f64>) -> Vec<f64> {
-        simulate_everett(
+        self.simulate_from(&[], u, offset)
+    }
+
+    /// Output along `u` from the state negative saturation followed by `history` leaves.
+    pub fn simulate_from(&self, history: &[f64], u: &[f64], offset: Option<f64>) -> Vec<f64> {
+        simulate_everett_from(
             &self.grid,
             &self.node_values,
             offset.unwrap_or(self.offset),
+            history,
             u,
         )
+    }
+
+    /// Candidate initial states for a run that starts at input `u0` from an unknown history: negative or positive
+    /// saturation, or one reversal after either (a maximum `a > u0` reached from negative saturation, or a
+    /// minimum `b < u0` reached from positive saturation) at every grid node. Each is a `history` for
+    /// [`Self::simulate_from`].
+    pub fn initial_candidates(&self, u0: f64) -> Vec<Vec<f64>> {
+        let g = self.grid.nodes();
+        let (lo, hi) = (self.grid.lo(), self.grid.hi());
+        let mut out = alloc::vec![Vec::new(), alloc::vec![hi]];
+        for &x in g {
+            if x > u0 && x < hi {
+                out.push(alloc::vec![x]);
+            }
+            if x < u0 && x > lo {
+                out.push(alloc::vec![hi, x]);
+            }
+        }
+        out
+    }
+
+    /// The candidate initial state ([`Self::initial_candidates`]) under which the run `(u, y)` (rows weighted by
+    /// `weight`) is predicted best, with the output offset free (`free_offset`) or the model's, and the output
+    /// multiplied by `gain` around the offset. Returns the history, its weighted residual sum of squares and the
+    /// offset it implies.
+    pub fn best_initial_state(
+        &self,
+        u: &[f64],
+        y: &[f64],
+        weight: &[f64],
+        free_offset: bool,
+        gain: f64,
+    ) -> (Vec<f64>, f64, f64) {
+        let mut best: (Vec<f64>, f64, f64) = (Vec::new(), f64::INFINITY, self.offset);
+        let Some(&u0) = u.first() else {
+            return best;
+        };
+        for h in self.initial_candidates(u0) {
+            let p = self.simulate_from(&h, u, Some(0.0));
+            let (mut sw, mut swr) = (0.0, 0.0);
+            for ((&yi, &pi), &wi) in y.iter().zip(&p).zip(weight) {
+                if wi > 0.0 {
+                    sw += wi;
+                    swr += wi * (yi - gain * pi);
+                }
+            }
+            if sw <= 0.0 {
+                continue;
+            }
+            let offset = if free_offset { swr / sw } else { self.offset };
+            let rss: f64 = y
+                .iter()
+                .zip(&p)
+                .zip(weight)
+                .filter(|&(_, &wi)| wi > 0.0)
+                .map(|((&yi, &pi), &wi)| {
+                    let r = yi - offset - gain * pi;
+                    wi * r * r
+                })
+                .sum();
+            if rss < best.1 {
+                best = (h, rss, offset);
+            }
+        }
+        best
     }
 
     /// The CBH operator of this Everett table (its first-order curves with `subdivisions` reversals per grid
@@ -120,8 +191,9 @@ impl EverettModel {
 
     /// As [`Self::first_order_curves`], with reversals also at `subdivisions − 1` evenly spaced points inside
     /// every grid interval. The curves stay exact (piecewise linear in `u` with nodes at the reversal and the
-    /// grid nodes beyond it); more reversals make a CBH operator built from them follow the Everett table
-    /// closely between grid reversals as well. The points of both families are at most [`MAX_CURVE_POINTS`].
+    /// grid nodes beyond it). A CBH operator built from the curves at the grid nodes alone already reproduces the
+    /// table at any reversal (its strip rule is exact for bilinear cells and a reversible diagonal); more
+    /// reversals only cost table size. The points of both families are at most [`MAX_CURVE_POINTS`].
     pub fn first_order_curves_subdivided(
         &self,
         subdivisions: usize,
@@ -208,6 +280,11 @@ pub struct EverettRun<'a> {
     pub weight: &'a [f64],
     /// Offset column of this run (`< n_offsets`).
     pub offset_col: usize,
+    /// Inputs applied after negative saturation before the run starts (its initial state; empty: negative
+    /// saturation).
+    pub history: &'a [f64],
+    /// Calibration gain of this run (the model's output is scaled by it; 1 for none).
+    pub gain: f64,
 }
 
 /// Result of [`fit_everett`] and [`EverettRegression::fit`].
@@ -239,8 +316,16 @@ pub fn fit_everett(
     check_options(n_offsets, options)?;
     let mut ne = NormalEquations::new(grid, n_offsets)?;
     for (k, run) in runs.iter().enumerate() {
-        ne.add_run(grid, run.u, run.y, run.weight, run.offset_col)
-            .map_err(|error| IdentificationError::Run { run: k, error })?;
+        ne.add_run(
+            grid,
+            run.u,
+            run.y,
+            run.weight,
+            run.offset_col,
+            run.history,
+            run.gain,
+        )
+        .map_err(|error| IdentificationError::Run { run: k, error })?;
     }
     if ne.n_rows == 0 {
         return Err(IdentificationError::NoSamples);
@@ -455,16 +540,24 @@ impl EverettRegression {
         let mut base = 0;
         for (k, run) in inputs.iter().enumerate() {
             normal
-                .add_rows(grid, run.u, run.weight, run.offset_col, |i, w, row| {
-                    for &(a, va) in row {
-                        col.push(a as u32);
-                        val.push(va);
-                    }
-                    row_ptr.push(col.len());
-                    row_sample.push(base + i);
-                    row_weight.push(w);
-                    Ok(())
-                })
+                .add_rows(
+                    grid,
+                    run.u,
+                    run.weight,
+                    run.offset_col,
+                    &[],
+                    1.0,
+                    |i, w, row| {
+                        for &(a, va) in row {
+                            col.push(a as u32);
+                            val.push(va);
+                        }
+                        row_ptr.push(col.len());
+                        row_sample.push(base + i);
+                        row_weight.push(w);
+                        Ok(())
+                    },
+                )
                 .map_err(|error| IdentificationError::Run { run: k, error })?;
             base += run.u.len();
         }
@@ -664,6 +757,8 @@ mod tests {
                 y: &y,
                 weight: &w,
                 offset_col: 0,
+                history: &[],
+                gain: 1.0,
             }],
             1,
             opts,
@@ -716,6 +811,26 @@ mod tests {
     }
 
     #[test]
+    fn an_unknown_start_state_is_found_among_the_candidates() {
+        let grid = EverettGrid::uniform(-1.0, 1.0, 8).unwrap();
+        let masses: Vec<f64> = (0..grid.n_cells())
+            .map(|k| 0.1 + 0.02 * (k % 5) as f64)
+            .collect();
+        let model = EverettModel::new(grid, masses, 0.5).unwrap();
+        // The run starts at 0.1 after positive saturation and a fall to -0.5 (a grid node), then wanders.
+        let u = [0.1, 0.3, -0.2, 0.6, 0.0, 0.45, -0.1];
+        let y: Vec<f64> = model
+            .simulate_from(&[1.0, -0.5], &u, None)
+            .iter()
+            .map(|v| v + 2.0)
+            .collect();
+        let w = [1.0; 7];
+        let (h, rss, offset) = model.best_initial_state(&u, &y, &w, true, 1.0);
+        assert_eq!(h, [1.0, -0.5]);
+        assert!(rss < 1e-20 && (offset - 2.5).abs() < 1e-12);
+    }
+
+    #[test]
     fn sizes_are_bounded_before_allocation() {
         use crate::limits::{MAX_EVERETT_INTERVALS, MAX_EVERETT_UNKNOWNS};
         let limit = |e: IdentificationError| matches!(e, IdentificationError::Limit(_));
@@ -728,6 +843,8 @@ mod tests {
             y: &[0.0, 1.0],
             weight: &[1.0, 1.0],
             offset_col: 0,
+            history: &[],
+            gain: 1.0,
         };
         let fit = |n_offsets, max_iter| {
             let opts = EverettFitOptions {
@@ -775,6 +892,8 @@ mod tests {
             y: &y,
             weight: &w,
             offset_col: 0,
+            history: &[],
+            gain: 1.0,
         };
         let once = fit_everett(&grid, &[run], 1, opts).unwrap();
         let input = EverettInput {

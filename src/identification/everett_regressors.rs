@@ -270,6 +270,16 @@ impl PreisachMemory {
         }
     }
 
+    /// Negative saturation, then the inputs of `history` (an initial state the run starts from: e.g. `[hi, b]`
+    /// is positive saturation followed by a fall to `b`).
+    pub fn with_history(grid: &EverettGrid, history: &[f64]) -> Self {
+        let mut m = Self::new(grid);
+        for &x in history {
+            m.update(x);
+        }
+        m
+    }
+
     /// Back to negative saturation.
     pub fn reset(&mut self) {
         self.stack.clear();
@@ -389,9 +399,11 @@ impl NormalEquations {
         self.n_nodes + self.n_offsets
     }
 
-    /// Accumulate one run: the memory starts at negative saturation at sample 0 and follows every sample of
-    /// `u`; rows with weight `weight[i] > 0` enter the regression `y[i] ≈ offset[offset_col] + Σ ±E`. Call
+    /// Accumulate one run: the memory starts at negative saturation, follows `history` (the run's initial state)
+    /// and then every sample of `u`; rows with weight `weight[i] > 0` enter the regression
+    /// `y[i] ≈ offset[offset_col] + gain · Σ ±E` (`gain`: the run's calibration gain, 1 for none). Call
     /// [`Self::finish`] after the last run.
+    #[allow(clippy::too_many_arguments)]
     pub fn add_run(
         &mut self,
         grid: &EverettGrid,
@@ -399,6 +411,8 @@ impl NormalEquations {
         y: &[f64],
         weight: &[f64],
         offset_col: usize,
+        history: &[f64],
+        gain: f64,
     ) -> Result<(), RunError> {
         if y.len() != u.len() || weight.len() != u.len() {
             return Err(RunError::Lengths {
@@ -409,7 +423,7 @@ impl NormalEquations {
         }
         let mut rhs = core::mem::take(&mut self.rhs);
         let mut yy = self.yy;
-        let result = self.add_rows(grid, u, weight, offset_col, |i, w, row| {
+        let result = self.add_rows(grid, u, weight, offset_col, history, gain, |i, w, row| {
             if !y[i].is_finite() {
                 return Err(RunError::NonFinite {
                     what: "output",
@@ -429,15 +443,18 @@ impl NormalEquations {
     }
 
     /// Accumulate the upper triangle of the Gram matrix of one run's regressors (memory from negative
-    /// saturation at sample 0, rows where `weight[i] > 0`) and hand every row to `visit(sample, weight, row)`
+    /// saturation followed by `history`, Everett terms scaled by `gain`, rows where `weight[i] > 0`) and hand every row to `visit(sample, weight, row)`
     /// (sparse `(column, value)` pairs sorted by column, one entry per column, the offset column included); the
     /// right-hand side is the visitor's business. Call [`Self::finish`] after the last run.
+    #[allow(clippy::too_many_arguments)]
     pub fn add_rows(
         &mut self,
         grid: &EverettGrid,
         u: &[f64],
         weight: &[f64],
         offset_col: usize,
+        history: &[f64],
+        gain: f64,
         mut visit: impl FnMut(usize, f64, &[(usize, f64)]) -> Result<(), RunError>,
     ) -> Result<(), RunError> {
         if weight.len() != u.len() {
@@ -460,9 +477,19 @@ impl NormalEquations {
                 value: u[i],
             });
         }
+        if let Some(i) = history.iter().position(|v| !v.is_finite()) {
+            return Err(RunError::NonFinite {
+                what: "initial history",
+                sample: i,
+                value: history[i],
+            });
+        }
+        if !(gain.is_finite() && gain > 0.0) {
+            return Err(RunError::BadGain { gain });
+        }
         let m = self.n_cols();
         let off = self.n_nodes + offset_col;
-        let mut memory = PreisachMemory::new(grid);
+        let mut memory = PreisachMemory::with_history(grid, history);
         let mut row: Vec<(usize, f64)> = Vec::with_capacity(64);
         for i in 0..u.len() {
             memory.update(u[i]);
@@ -471,8 +498,9 @@ impl NormalEquations {
                 continue;
             }
             row.clear();
-            memory
-                .for_each_term(|beta, alpha, sign| grid.push_everett(beta, alpha, sign, &mut row));
+            memory.for_each_term(|beta, alpha, sign| {
+                grid.push_everett(beta, alpha, gain * sign, &mut row)
+            });
             row.push((off, 1.0));
             merge_duplicates(&mut row);
             visit(i, w, &row)?;
@@ -534,7 +562,18 @@ pub fn simulate_everett(
     offset: f64,
     u: &[f64],
 ) -> Vec<f64> {
-    let mut memory = PreisachMemory::new(grid);
+    simulate_everett_from(grid, node_values, offset, &[], u)
+}
+
+/// [`simulate_everett`] from the state that negative saturation followed by `history` leaves.
+pub fn simulate_everett_from(
+    grid: &EverettGrid,
+    node_values: &[f64],
+    offset: f64,
+    history: &[f64],
+    u: &[f64],
+) -> Vec<f64> {
+    let mut memory = PreisachMemory::with_history(grid, history);
     let mut row: Vec<(usize, f64)> = Vec::with_capacity(64);
     u.iter()
         .map(|&x| {

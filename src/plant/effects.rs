@@ -1,4 +1,4 @@
-//! Switchable physical effects of the virtual actuator (the DESIGN section 5 vocabulary).
+//! Switchable physical effects of the virtual actuator (the effect vocabulary, docs/architecture.md §4).
 //!
 //! The effect set is data: an [`Effect`] enum carrying its parameters, parsed from `"name:key=value,…"`
 //! strings. Each effect changes the data with its documented signature and nothing else.
@@ -17,7 +17,7 @@ pub struct ParamSpec {
     pub doc: &'static str,
 }
 
-/// The names of the effect vocabulary, in DESIGN order.
+/// The names of the effect vocabulary, in the order the diagnosis tries them.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
 pub enum EffectKind {
     CoilLag,

@@ -402,6 +402,7 @@ impl PyCompensator {
         let args = (
             PyHysteresis {
                 op: me.core.forward().clone(),
+                report: None,
             },
             PyFriction {
                 f: *me.core.friction(),
@@ -441,6 +442,7 @@ impl PyCompensator {
     fn hysteresis(slf: &Bound<'_, Self>) -> PyResult<PyHysteresis> {
         Ok(PyHysteresis {
             op: borrow(slf)?.core.forward().clone(),
+            report: None,
         })
     }
     /// The friction model used in the feedforward.

@@ -8,8 +8,9 @@ use crate::congruency::congruency;
 use crate::error::FamilyKind;
 use crate::everett::Family;
 use crate::python::arrays::{DETACH_LEN, curves_to_py, extract_f64_array, to_numpy};
+use crate::python::table_report::{PyTableReport, congruency_dict};
 use crate::python::{BmrError, borrow, borrow_mut, bytes_to_words, table_err, words_to_bytes};
-use crate::table_builder::BuildOptions;
+use crate::table_builder::{BuildOptions, BuildReport};
 
 /// Memory capacity (reversal points) of the Python operator.
 pub(crate) const MEMORY: usize = 64;
@@ -202,7 +203,7 @@ fn _rebuild_hysteresis(
         .state_from_words(&bytes_to_words(state, "Hysteresis")?)
         .map_err(table_err)?;
     op.restore(&st).map_err(table_err)?;
-    Ok(PyHysteresis { op })
+    Ok(PyHysteresis { op, report: None })
 }
 
 /// CBH hysteresis operator built from measured first-order reversal curves.
@@ -210,6 +211,8 @@ fn _rebuild_hysteresis(
 #[derive(Clone)]
 pub(crate) struct PyHysteresis {
     pub(crate) op: Operator,
+    /// What the build from measured curves measured, fitted and derived (None for operators made otherwise).
+    pub(crate) report: Option<BuildReport>,
 }
 
 #[pymethods]
@@ -217,18 +220,35 @@ impl PyHysteresis {
     /// Build from measured curves. `ascending`: sequence of `(u, y)` array pairs, each from its reversal minimum
     /// up to positive saturation; `descending`: from reversal maxima down to negative saturation. The lowest
     /// ascending and highest descending curves are the major branches.
+    ///
+    /// Real curves are accepted as they are: samples are sorted by input (equal inputs averaged) and fitted
+    /// monotonically; how far each curve moved against its direction is in `build_report` (a move beyond
+    /// `monotone_tolerance` of the span is an error: not a curve of that family). One family of at least two
+    /// curves is enough: the other one is derived (congruency) from it and the opposite major branch, if given
+    /// as that family's only curve, else from the measured curves' reversal points. Grid nodes are dropped only
+    /// where linear interpolation of every curve stays within `node_tolerance` of the output span, at most
+    /// `max_nodes` per family (the bound is raised, and reported, if needed; the default 0 drops only nodes on
+    /// straight stretches). `reach_tolerance`: how far short of
+    /// saturation a curve may stop (fraction of the input span); `closure_tolerance`: how far the major branches
+    /// may miss each other at saturation (fraction of the output span); `subdivisions`: curves per interval
+    /// between measured reversals (`k > 1` adds `k − 1` from the strip shapes the opposite family calibrates, and
+    /// gives a derived family `k` reversals per interval; 1 keeps the measured curves, so that
+    /// `from_curves(*h.curves())` rebuilds `h` exactly).
     #[staticmethod]
-    #[pyo3(signature = (ascending, descending, *, initial=None, monotone_tolerance=0.005, reach_tolerance=0.01,
-                        closure_tolerance=0.05, max_nodes=1024))]
+    #[pyo3(signature = (ascending, descending, *, initial=None, monotone_tolerance=0.25, reach_tolerance=0.01,
+                        closure_tolerance=0.05, node_tolerance=0.0, max_nodes=16384, subdivisions=1))]
     #[allow(clippy::too_many_arguments)]
     fn from_curves(
+        py: Python<'_>,
         ascending: &Bound<'_, PyAny>,
         descending: &Bound<'_, PyAny>,
         initial: Option<&Bound<'_, PyAny>>,
         monotone_tolerance: f64,
         reach_tolerance: f64,
         closure_tolerance: f64,
+        node_tolerance: f64,
         max_nodes: usize,
+        subdivisions: usize,
     ) -> PyResult<Self> {
         let initial = initial_or_negative(initial)?;
         let asc = parse_family(ascending, "ascending")?;
@@ -237,10 +257,54 @@ impl PyHysteresis {
             monotone_tolerance,
             reach_tolerance,
             closure_tolerance,
+            node_tolerance,
             max_nodes,
+            subdivisions,
         };
-        let op = Operator::from_curve_data(&asc, &desc, &opts, initial).map_err(table_err)?;
-        Ok(PyHysteresis { op })
+        let (op, report) = py
+            .detach(|| Operator::from_curve_data_reported(&asc, &desc, &opts, initial))
+            .map_err(table_err)?;
+        Ok(PyHysteresis {
+            op,
+            report: Some(report),
+        })
+    }
+
+    /// What `from_curves` measured, fitted and derived (a `TableReport`), or None for an operator not built
+    /// from curves (e.g. `compressed`).
+    #[getter]
+    fn build_report(slf: &Bound<'_, Self>) -> PyResult<Option<PyTableReport>> {
+        Ok(borrow(slf)?
+            .report
+            .clone()
+            .map(|inner| PyTableReport { inner }))
+    }
+
+    /// The same operator on fewer nodes, e.g. for a firmware export with its own error bound: a node is dropped
+    /// only where linear interpolation of every stored curve stays within `tolerance` (fraction of the output
+    /// span), at most `max_nodes` per family. Returns `(operator, bound)`: the new operator (after negative
+    /// saturation) and a dict with, per family, the nodes kept, the tolerance used and the error reached
+    /// (output units).
+    #[pyo3(signature = (tolerance, max_nodes=16384))]
+    fn compressed<'py>(
+        slf: &Bound<'py, Self>,
+        tolerance: f64,
+        max_nodes: usize,
+    ) -> PyResult<(Self, Bound<'py, PyDict>)> {
+        let py = slf.py();
+        let (op, [a, d]) = borrow(slf)?
+            .op
+            .compressed(tolerance, max_nodes)
+            .map_err(table_err)?;
+        let out = PyDict::new(py);
+        for (name, n) in [("ascending", a), ("descending", d)] {
+            let e = PyDict::new(py);
+            e.set_item("nodes", n.nodes)?;
+            e.set_item("tolerance", n.tolerance)?;
+            e.set_item("error", n.error)?;
+            out.set_item(name, e)?;
+        }
+        Ok((PyHysteresis { op, report: None }, out))
     }
 
     /// Apply one input (A) and return the output. NaN returns NaN and leaves the memory unchanged; inputs outside
@@ -327,17 +391,16 @@ impl PyHysteresis {
         Ok(borrow(slf)?.op.output_range())
     }
 
-    /// Mismatch between the ascending and descending families (output units): `max_abs`, `rms`, `pairs`.
-    /// Zero for Preisach data; large values mean the data are not congruent.
+    /// Mismatch between the ascending and descending families (output units): `max_abs`, `rms`, `pairs`, over
+    /// pairs of measured reversals (as built from curves; the stored tables otherwise). Zero for Preisach data;
+    /// large values mean the data are not congruent.
     fn consistency<'py>(slf: &Bound<'py, Self>) -> PyResult<Bound<'py, PyDict>> {
-        let py = slf.py();
         let me = borrow(slf)?;
-        let c = congruency(me.op.ascending(), me.op.descending());
-        let d = PyDict::new(py);
-        d.set_item("max_abs", c.max_abs)?;
-        d.set_item("rms", c.rms)?;
-        d.set_item("pairs", c.pairs)?;
-        Ok(d)
+        let c = match me.report.as_ref().and_then(|r| r.mismatch) {
+            Some(c) => c,
+            None => congruency(me.op.ascending(), me.op.descending()),
+        };
+        congruency_dict(slf.py(), &c)
     }
 
     /// The stored tables as `(ascending, descending)` curve lists in `from_curves` form.

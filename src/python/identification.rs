@@ -17,10 +17,37 @@ use crate::table_builder::BuildOptions;
 /// A 1-D float array argument (lists and integer arrays accepted).
 /// (Floats or integers, as a numpy array or a sequence; anything else is a TypeError naming the argument.)
 type Array<'py> = Bound<'py, PyAny>;
-/// One training run as passed from Python: input, output, row weights, offset column.
-type RunArrays<'py> = (Array<'py>, Array<'py>, Array<'py>, usize);
+/// One training run as passed from Python: input, output, row weights, offset column, and optionally the
+/// initial history (inputs after negative saturation that set the run's state) and the run's gain.
+#[derive(FromPyObject)]
+enum RunArrays<'py> {
+    Full((Array<'py>, Array<'py>, Array<'py>, usize, Array<'py>, f64)),
+    WithHistory((Array<'py>, Array<'py>, Array<'py>, usize, Array<'py>)),
+    Plain((Array<'py>, Array<'py>, Array<'py>, usize)),
+}
 /// The same run copied out of Python (so the fit can run without the interpreter lock).
-type RunData = (Vec<f64>, Vec<f64>, Vec<f64>, usize);
+type RunData = (Vec<f64>, Vec<f64>, Vec<f64>, usize, Vec<f64>, f64);
+
+impl RunArrays<'_> {
+    /// Run `i`'s arrays, checked and named as `runs[i] ...` in errors.
+    fn into_data(self, i: usize) -> PyResult<RunData> {
+        let (u, y, w, o, h, g) = match self {
+            RunArrays::Full((u, y, w, o, h, g)) => (u, y, w, o, Some(h), g),
+            RunArrays::WithHistory((u, y, w, o, h)) => (u, y, w, o, Some(h), 1.0),
+            RunArrays::Plain((u, y, w, o)) => (u, y, w, o, None, 1.0),
+        };
+        Ok((
+            extract_f64_array(&u, &format!("runs[{i}] input"))?,
+            extract_f64_array(&y, &format!("runs[{i}] output"))?,
+            extract_f64_array(&w, &format!("runs[{i}] weights"))?,
+            o,
+            h.map(|h| extract_f64_array(&h, &format!("runs[{i}] history")))
+                .transpose()?
+                .unwrap_or_default(),
+            g,
+        ))
+    }
+}
 
 /// Least-squares friction fit of one harmonic order: returns a dict with c0, a, b, their standard errors,
 /// covariance (p × p), rss, n and order. Raises BmrError on bad input or rank deficiency.
@@ -58,7 +85,7 @@ fn fit_friction_order<'py>(
 /// A Preisach model with a tabulated Everett function `E(β, α)` on an input grid (see the Rust docs of
 /// `identification::everett_regressors`). The ascending first-order curve from reversal m is
 /// `y(m) + E(m, u)`, the descending one from M is `y(M) − E(u, M)`.
-#[pyclass(name = "EverettModel", module = "bmr._core", frozen)]
+#[pyclass(name = "EverettModel", module = "bmr", frozen)]
 pub struct PyEverettModel {
     inner: EverettModel,
 }
@@ -142,23 +169,80 @@ impl PyEverettModel {
         PyArray1::from_vec(py, out).reshape([n, n])
     }
 
-    /// Output along input `u` starting from negative saturation; `offset` overrides the model's offset.
-    #[pyo3(signature = (u, offset=None))]
+    /// Output along input `u` starting from negative saturation followed by `history` (inputs that set the run's
+    /// initial state; default none); `offset` overrides the model's offset.
+    #[pyo3(signature = (u, offset=None, history=None))]
     fn simulate<'py>(
         &self,
         py: Python<'py>,
         u: Array<'py>,
         offset: Option<f64>,
+        history: Option<Array<'py>>,
     ) -> PyResult<Bound<'py, PyArray1<f64>>> {
         let u = extract_f64_array(&u, "u")?;
+        let history = history
+            .map(|h| extract_f64_array(&h, "history"))
+            .transpose()?
+            .unwrap_or_default();
         if let Some(i) = u.iter().position(|v| !v.is_finite()) {
             return Err(crate::python::BmrError::new_err(format!(
                 "input sample {i} is not finite ({})",
                 u[i]
             )));
         }
-        let y = py.detach(|| self.inner.simulate(&u, offset));
+        if let Some(i) = history.iter().position(|v| !v.is_finite()) {
+            return Err(BmrError::new_err(format!(
+                "history entry {i} is not finite ({})",
+                history[i]
+            )));
+        }
+        let y = py.detach(|| self.inner.simulate_from(&history, &u, offset));
         Ok(PyArray1::from_vec(py, y))
+    }
+
+    /// The initial state under which run `(u, y)` is predicted best, among negative or positive saturation and
+    /// one reversal after either at every grid node. `weight` (default all 1) selects the rows that count;
+    /// `free_offset`: fit the run's own output offset; `gain`: the run's calibration gain. Returns
+    /// `(history, rss, offset)`: the inputs that set the state (for `simulate(history=...)`), the weighted
+    /// residual sum of squares and the offset.
+    #[pyo3(signature = (u, y, weight=None, *, free_offset=true, gain=1.0))]
+    fn best_initial_state(
+        &self,
+        py: Python<'_>,
+        u: Array<'_>,
+        y: Array<'_>,
+        weight: Option<Array<'_>>,
+        free_offset: bool,
+        gain: f64,
+    ) -> PyResult<(Vec<f64>, f64, f64)> {
+        let (u, y) = (extract_f64_array(&u, "u")?, extract_f64_array(&y, "y")?);
+        let w = match weight {
+            Some(w) => extract_f64_array(&w, "weight")?,
+            None => vec![1.0; u.len()],
+        };
+        if y.len() != u.len() || w.len() != u.len() {
+            return Err(BmrError::new_err(format!(
+                "best_initial_state: {} inputs, {} outputs, {} weights",
+                u.len(),
+                y.len(),
+                w.len()
+            )));
+        }
+        if let Some(i) = u
+            .iter()
+            .zip(&y)
+            .position(|(a, b)| !a.is_finite() || !b.is_finite())
+        {
+            return Err(BmrError::new_err(format!(
+                "best_initial_state: sample {i} is not finite"
+            )));
+        }
+        if !(gain.is_finite() && gain > 0.0) {
+            return Err(BmrError::new_err(format!(
+                "best_initial_state: gain must be positive and finite, got {gain}"
+            )));
+        }
+        Ok(py.detach(|| self.inner.best_initial_state(&u, &y, &w, free_offset, gain)))
     }
 
     /// First-order curves at every grid node (and at `subdivisions − 1` points inside every interval),
@@ -183,8 +267,9 @@ impl PyEverettModel {
     }
 
     /// The CBH operator (`bmr.Hysteresis`, memory of 64 reversals, starting after negative saturation) of this
-    /// table, built in Rust from its first-order curves with `subdivisions` reversals per grid interval.
-    #[pyo3(signature = (subdivisions=4))]
+    /// table, built in Rust from its first-order curves with `subdivisions` reversals per grid interval (1
+    /// reproduces the table exactly; more only add curves).
+    #[pyo3(signature = (subdivisions=1))]
     fn hysteresis(&self, subdivisions: usize) -> PyResult<PyHysteresis> {
         if subdivisions == 0 {
             return Err(BmrError::new_err("subdivisions must be at least 1"));
@@ -193,7 +278,7 @@ impl PyEverettModel {
             .inner
             .hysteresis(subdivisions, &BuildOptions::default(), Initial::Negative)
             .map_err(|e| identification_err("EverettModel.hysteresis", e))?;
-        Ok(PyHysteresis { op })
+        Ok(PyHysteresis { op, report: None })
     }
 
     fn __repr__(&self) -> String {
@@ -208,8 +293,10 @@ impl PyEverettModel {
 }
 
 /// Regularised nonnegative least squares for an Everett table on `grid` from `runs`, a list of
-/// `(u, y, weight, offset_col)` (weight 0 keeps a sample out of the fit while it drives the memory).
-/// Returns a dict: model (EverettModel), offsets, rss, rms, n_rows, iterations.
+/// `(u, y, weight, offset_col[, history[, gain]])` (weight 0 keeps a sample out of the fit while it drives the
+/// memory; `history`: inputs after negative saturation that set the run's initial state; `gain`: the run's
+/// calibration gain on the model output). Returns a dict: model (EverettModel), offsets, rss, rms, n_rows,
+/// iterations.
 #[pyfunction]
 #[pyo3(signature = (grid, runs, n_offsets=1, *, smoothing=1e-4, ridge=1e-9, max_iter=500))]
 fn fit_everett<'py>(
@@ -226,14 +313,7 @@ fn fit_everett<'py>(
     let data: Vec<RunData> = runs
         .into_iter()
         .enumerate()
-        .map(|(i, (u, y, w, o))| {
-            Ok((
-                extract_f64_array(&u, &format!("runs[{i}] input"))?,
-                extract_f64_array(&y, &format!("runs[{i}] output"))?,
-                extract_f64_array(&w, &format!("runs[{i}] weights"))?,
-                o,
-            ))
-        })
+        .map(|(i, run)| run.into_data(i))
         .collect::<PyResult<_>>()?;
     let options = EverettFitOptions {
         smoothing,
@@ -244,11 +324,13 @@ fn fit_everett<'py>(
         .detach(|| {
             let views: Vec<EverettRun<'_>> = data
                 .iter()
-                .map(|(u, y, w, o)| EverettRun {
+                .map(|(u, y, w, o, h, g)| EverettRun {
                     u,
                     y,
                     weight: w,
                     offset_col: *o,
+                    history: h,
+                    gain: *g,
                 })
                 .collect();
             fit_everett_rs(&grid, &views, n_offsets, options)

@@ -5,10 +5,12 @@ use pyo3::{PyClass, PyTypeInfo};
 
 mod arrays;
 mod compensator;
+mod curve_fit;
 mod friction;
 mod hysteresis;
 mod identification;
 mod reversals;
+mod table_report;
 mod virtual_actuator;
 
 /// The exception hierarchy, created here so that Rust and Python raise the same classes. `BmrError` (a
@@ -65,6 +67,20 @@ pub(crate) mod errors {
 }
 
 pub(crate) use errors::BmrError;
+
+/// `x` with `digits` significant digits (like Python's `g` format) for one-screen reprs.
+pub(crate) fn sig(x: f64, digits: usize) -> String {
+    if x == 0.0 || !x.is_finite() {
+        return format!("{x}");
+    }
+    let e = libm::floor(libm::log10(libm::fabs(x))) as i32;
+    if (-4..6).contains(&e) {
+        let decimals = (digits as i32 - 1 - e).max(0) as usize;
+        format!("{x:.decimals$}")
+    } else {
+        format!("{:.*e}", digits.saturating_sub(1), x)
+    }
+}
 
 /// Turn any displayable core error into a `BmrError`.
 pub(crate) fn bmr_err(e: impl core::fmt::Display) -> PyErr {
@@ -182,6 +198,8 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     friction::register(m)?;
     identification::register(m)?;
     reversals::register(m)?;
+    table_report::register(m)?;
+    curve_fit::register(m)?;
     virtual_actuator::register(m)?;
     compensator::register(m)?;
     Ok(())

@@ -84,7 +84,7 @@ fn apply_effects(set: &mut EffectSet, spec: &Bound<'_, PyAny>) -> PyResult<()> {
 ///
 /// Copyable and picklable (an unpickled actuator continues bit for bit). The configuration can be read at any
 /// time; a call that needs the simulation state while another thread is inside ``run`` raises ``InUseError``.
-#[pyclass(name = "VirtualActuator", module = "bmr._core", frozen)]
+#[pyclass(name = "VirtualActuator", module = "bmr", frozen)]
 pub struct PyVirtualActuator {
     /// The simulation; locked (never waited for) by every call that reads or advances its state.
     inner: Mutex<VirtualActuator>,

@@ -109,7 +109,7 @@ fn strip_uniform_interpolation_beats_linear_interpolation_of_reversals() {
             let truth = plant_everett(m, u);
             let mut hint = 0;
             let ours = fam.everett(&strip, u, &mut hint);
-            // DESIGN's baseline: (1-λ)[E_j(u) - E_j(m)] + λ E_{j+1}(u).
+            // The interpolation baseline (docs/architecture.md §2.3): (1-λ)[E_j(u) - E_j(m)] + λ E_{j+1}(u).
             let ej = |x: f64| row_interp(fam.grid(), fam.row(strip.j), x);
             let ej1 = |x: f64| {
                 if strip.j + 1 < r.len() {

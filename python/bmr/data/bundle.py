@@ -1,8 +1,28 @@
-"""Bundles: a folder of runs from one actuator (``manifest.json`` + one CSV or Parquet file per run).
+"""Bundles: a folder of runs from one device (``manifest.json`` + one CSV or Parquet file per run).
 
-Units are in the column names: ``t_s`` (s), ``current_a`` (nominal current, A), ``theta_rad`` (rotor angle, rad),
-``torque_nmm`` (measured torque, N·mm). Optional columns: ``reference_nmm``, ``coil1_a``, ``coil2_a``,
-``temperature_c``, ``speed_rad_s``.
+Two manifest versions are read; the writer uses the oldest that holds the bundle.
+
+``bmr-bundle/1`` (the BMR actuator): units are in the column names: ``t_s`` (s), ``current_a`` (nominal current, A),
+``theta_rad`` (rotor angle, rad), ``torque_nmm`` (measured torque, N·mm). Optional columns: ``reference_nmm``,
+``coil1_a``, ``coil2_a``, ``temperature_c``, ``speed_rad_s``::
+
+    {"format": "bmr-bundle/1", "actuator": "rig 1", "sample_rate_hz": 500.0,
+     "runs": [{"name": "off", "kind": "off_state", "file": "off.csv", ...run metadata}, ...]}
+
+``bmr-bundle/2`` (any hysteretic device) adds what the input and output are, in which units and columns, an
+optional angle and output sigma, and each run's role (identification or evaluation; without a role, a run's kind
+decides, as in version 1)::
+
+    {"format": "bmr-bundle/2", "device": "piezo stack P-888", "sample_rate_hz": 1000.0,
+     "quantities": {"input": {"name": "voltage", "unit": "V", "column": "voltage_v"},
+                    "output": {"name": "displacement", "unit": "µm", "column": "displacement_um"},
+                    "output_sigma": {"name": "displacement sigma", "unit": "µm", "column": "displacement_um_sigma"},
+                    "angle": null},
+     "runs": [{"name": "forc", "kind": "first_order_descending", "role": "identification", "file": "forc.csv"},
+              {"name": "multisine", "kind": "custom", "role": "evaluation", "file": "multisine.csv"}]}
+
+Time is always ``t_s`` in seconds; an angle, when present, ``theta_rad`` in radians. ``output_sigma`` is
+optional. A version 1 manifest reads as the actuator's quantities (:data:`bmr.data.quantities.ACTUATOR`).
 """
 from __future__ import annotations
 
@@ -18,8 +38,11 @@ import pandas as pd
 
 from bmr._core import BmrError, BundleError
 from bmr.data.files import check_output_folder, contained, read_json, write_atomic, write_text
+from bmr.data.quantities import ACTUATOR, Quantities
 
-FORMAT = "bmr-bundle/1"
+FORMAT_V1 = "bmr-bundle/1"
+FORMAT = "bmr-bundle/2"
+FORMATS = (FORMAT_V1, FORMAT)
 REQUIRED_COLUMNS = ("t_s", "current_a", "theta_rad", "torque_nmm")
 OPTIONAL_COLUMNS = ("reference_nmm", "coil1_a", "coil2_a", "temperature_c", "speed_rad_s")
 RUN_KINDS = (
@@ -27,33 +50,51 @@ RUN_KINDS = (
     "multi_step",
     "first_order_ascending",
     "first_order_descending",
+    "major_loop",
     "triangle",
     "multipeak",
     "tracking",
     "custom",
 )
 IDENTIFICATION_KINDS = ("off_state", "first_order_ascending", "first_order_descending")
+ROLES = ("identification", "evaluation")
+_V2_KINDS = ("major_loop",)
 
 
 @dataclass
 class Run:
-    """One experiment: its name, its kind (one of ``RUN_KINDS``) and its samples."""
+    """One experiment: its name, its kind (one of ``RUN_KINDS``), its samples, free metadata, the device's
+    quantities (default: the BMR actuator's) and its role (``"identification"``, ``"evaluation"`` or None: decided
+    by the kind).
+
+    Generic accessors: ``time`` (s), ``input`` and ``output`` (in the declared units), ``angle`` (rad, None without
+    one), ``output_sigma`` (None without one). ``current``, ``torque`` and ``theta`` read the actuator's columns.
+    """
 
     name: str
     kind: str
     data: pd.DataFrame
     meta: dict[str, Any] = field(default_factory=dict)
+    quantities: Quantities = ACTUATOR
+    role: str | None = None
 
     def __post_init__(self) -> None:
         if self.kind not in RUN_KINDS:
             raise BundleError(f"run {self.name!r}: unknown kind {self.kind!r}; expected one of {', '.join(RUN_KINDS)}")
-        validate_run_data(self.name, self.data)
+        if self.role is not None and self.role not in ROLES:
+            raise BundleError(f"run {self.name!r}: unknown role {self.role!r}; expected one of {', '.join(ROLES)}")
+        if not isinstance(self.quantities, Quantities):
+            raise TypeError(f"run {self.name!r}: quantities must be a bmr.data.quantities.Quantities, "
+                            f"got {type(self.quantities).__name__}")
+        validate_run_data(self.name, self.data, self.quantities)
 
     def __repr__(self) -> str:
         n = len(self.data)
         t = self.data["t_s"].to_numpy(dtype=float) if "t_s" in self.data.columns and n else np.zeros(0)
         span = f", {t[-1] - t[0]:.6g} s" if t.size > 1 else ""
-        return f"Run({self.name!r}, kind={self.kind!r}, {n} samples{span}, columns: {', '.join(self.data.columns)})"
+        role = f", role={self.role!r}" if self.role is not None else ""
+        return (f"Run({self.name!r}, kind={self.kind!r}{role}, {n} samples{span}, "
+                f"columns: {', '.join(self.data.columns)})")
 
     def column(self, name: str) -> np.ndarray:
         if name not in self.data.columns:
@@ -61,30 +102,71 @@ class Run:
         return self.data[name].to_numpy(dtype=float)
 
     @property
-    def t(self) -> np.ndarray:
+    def time(self) -> np.ndarray:
+        """Sample times (s)."""
         return self.column("t_s")
 
     @property
+    def t(self) -> np.ndarray:
+        return self.time
+
+    @property
+    def input(self) -> np.ndarray:
+        """The input in its declared unit (``quantities.input``)."""
+        return self.column(self.quantities.input.column)
+
+    @property
+    def output(self) -> np.ndarray:
+        """The measured output in its declared unit (``quantities.output``)."""
+        return self.column(self.quantities.output.column)
+
+    @property
+    def angle(self) -> np.ndarray | None:
+        """Rotor angle (rad), or None when the device has none."""
+        return self.column("theta_rad") if self.quantities.angle is not None else None
+
+    @property
+    def output_sigma(self) -> np.ndarray | None:
+        """Standard uncertainty of each output sample (output unit), or None."""
+        sigma = self.quantities.output_sigma
+        return self.column(sigma.column) if sigma is not None else None
+
+    @property
+    def is_identification(self) -> bool:
+        return self.role == "identification" if self.role is not None else self.kind in IDENTIFICATION_KINDS
+
+    def _actuator(self, column: str) -> np.ndarray:
+        if column not in self.data.columns and not self.quantities.is_actuator:
+            raise BmrError(f"run {self.name!r} holds {self.quantities.describe()}, not the actuator's {column!r}: "
+                           "use run.input, run.output and run.angle")
+        return self.column(column)
+
+    @property
     def current(self) -> np.ndarray:
-        return self.column("current_a")
+        """The actuator's nominal current (A)."""
+        return self._actuator("current_a")
 
     @property
     def theta(self) -> np.ndarray:
-        return self.column("theta_rad")
+        """The actuator's rotor angle (rad)."""
+        return self._actuator("theta_rad")
 
     @property
     def torque(self) -> np.ndarray:
-        return self.column("torque_nmm")
+        """The actuator's measured torque (N·mm)."""
+        return self._actuator("torque_nmm")
 
 
 @dataclass
 class Bundle:
-    """All runs from one actuator. ``sample_rate_hz`` is the nominal logging rate."""
+    """All runs from one device (``actuator``: its name). ``sample_rate_hz`` is the nominal logging rate;
+    ``quantities`` what the runs' input and output are (every run shares them)."""
 
     actuator: str
     sample_rate_hz: float
     runs: list[Run]
     meta: dict[str, Any] = field(default_factory=dict)
+    quantities: Quantities = ACTUATOR
 
     def __post_init__(self) -> None:
         rate = self.sample_rate_hz
@@ -96,6 +178,14 @@ class Bundle:
         dupes = sorted({n for n in names if names.count(n) > 1})
         if dupes:
             raise BundleError(f"duplicate run names in bundle: {', '.join(dupes)}")
+        for r in self.runs:
+            if r.quantities != self.quantities:
+                raise BundleError(f"run {r.name!r} holds {r.quantities.describe()} but the bundle declares "
+                                  f"{self.quantities.describe()}")
+
+    @property
+    def device(self) -> str:
+        return self.actuator
 
     def __repr__(self) -> str:
         kinds: dict[str, int] = {}
@@ -108,7 +198,10 @@ class Bundle:
                 t = r.data["t_s"].to_numpy(dtype=float)
                 duration += float(t[-1] - t[0])
         what = ", ".join(f"{n} {k}" for k, n in kinds.items())
-        return (f"Bundle({self.actuator!r}: {len(self.runs)} runs ({what}), {samples} samples, "
+        held = sum(not r.is_identification for r in self.runs) if any(r.role for r in self.runs) else None
+        roles = f", {held} held out" if held is not None else ""
+        device = "" if self.quantities.is_actuator else f"{self.quantities.describe()}: "
+        return (f"Bundle({self.actuator!r}: {device}{len(self.runs)} runs ({what}{roles}), {samples} samples, "
                 f"{duration:.6g} s at {self.sample_rate_hz:g} Hz)")
 
     def __iter__(self) -> Iterator[Run]:
@@ -136,40 +229,17 @@ class Bundle:
             raise BundleError(f"decimation factor must be an integer >= 1, got {factor!r}")
         if factor == 1:
             return self
-        runs = [Run(r.name, r.kind, r.data.iloc[::factor].reset_index(drop=True), dict(r.meta)) for r in self.runs]
-        return Bundle(self.actuator, self.sample_rate_hz / factor, runs, dict(self.meta))
+        runs = [Run(r.name, r.kind, r.data.iloc[::factor].reset_index(drop=True), dict(r.meta), r.quantities,
+                    r.role) for r in self.runs]
+        return Bundle(self.actuator, self.sample_rate_hz / factor, runs, dict(self.meta), self.quantities)
 
     def identification_runs(self) -> list[Run]:
-        return self.by_kind(*IDENTIFICATION_KINDS)
+        """Runs labelled for identification (by role, or by an identification kind when they have no role)."""
+        return [r for r in self.runs if r.is_identification]
 
     def evaluation_runs(self) -> list[Run]:
-        return [r for r in self.runs if r.kind not in IDENTIFICATION_KINDS]
-
-
-def nominal_sample_rate(t_s: np.ndarray) -> float:
-    """The logging rate (Hz) of a uniformly sampled time column, rounded to what its timestamps resolve: a log at
-    500 Hz whose times are stored with finite precision gives 500.0, not 499.99999999999955. NaN for fewer than
-    two samples."""
-    t = np.asarray(t_s, dtype=float)
-    if t.size < 2 or not t[-1] > t[0]:
-        return float("nan")
-    span = float(t[-1] - t[0])
-    rate = (t.size - 1) / span
-    # Timestamp resolution: the coarsest decimal step that all times sit on (to within float round-off).
-    scale = max(abs(float(t[0])), abs(float(t[-1])), span)
-    # Times on no decimal grid (accumulated float steps): their round-off, which grows with the sample count.
-    resolution = t.size * float(np.finfo(float).eps) * scale
-    for d in range(-9, 16):
-        step = 10.0 ** -d
-        if step > span:
-            continue
-        # Allowed deviation: float round-off of the stored times, in units of the step.
-        if np.all(np.abs(t / step - np.round(t / step)) <= max(1e-9, 8 * np.finfo(float).eps * scale / step)):
-            resolution = step
-            break
-    # Relative precision of the rate: one timestamp step over the whole span.
-    digits = max(3, min(15, int(math.floor(-math.log10(resolution / span)))))
-    return float(f"{rate:.{digits}g}")
+        """Every other run: held out to measure prediction."""
+        return [r for r in self.runs if not r.is_identification]
 
 
 def runs_of(runs: "Bundle | Run | Iterable[Run]") -> list[Run]:
@@ -181,17 +251,21 @@ def runs_of(runs: "Bundle | Run | Iterable[Run]") -> list[Run]:
     return list(runs)
 
 
-def validate_run_data(name: str, data: pd.DataFrame) -> None:
-    """Required columns present, numeric and finite; time strictly increasing. Raises BmrError naming the row."""
-    missing = [c for c in REQUIRED_COLUMNS if c not in data.columns]
+def validate_run_data(name: str, data: pd.DataFrame, quantities: Quantities = ACTUATOR) -> None:
+    """The quantities' columns present, numeric and finite (and the actuator's optional columns when present);
+    time strictly increasing. Raises BmrError naming the run, column and row."""
+    required = quantities.columns
+    missing = [c for c in required if c not in data.columns]
     if missing:
+        hint = ("units belong in the names, e.g. torque_nmm" if quantities.is_actuator
+                else f"the bundle declares {quantities.describe()}")
         raise BundleError(
             f"run {name!r}: missing required column(s) {', '.join(missing)} "
-            f"(have: {', '.join(map(str, data.columns))}; units belong in the names, e.g. torque_nmm)"
+            f"(have: {', '.join(map(str, data.columns))}; {hint})"
         )
     if len(data) < 2:
         raise BundleError(f"run {name!r}: needs at least 2 samples, has {len(data)}")
-    for c in [c for c in (*REQUIRED_COLUMNS, *OPTIONAL_COLUMNS) if c in data.columns]:
+    for c in [c for c in (*required, *OPTIONAL_COLUMNS) if c in data.columns]:
         _check_numeric_column(name, c, data[c])
         try:
             values = data[c].to_numpy(dtype=float)
@@ -245,11 +319,19 @@ def read_bundle(path: str | Path) -> Bundle:
     if not isinstance(manifest, dict):
         raise BundleError(f"{manifest_path}: expected a JSON object")
     fmt = manifest.get("format")
-    if fmt != FORMAT:
+    if fmt not in FORMATS:
         if isinstance(fmt, str) and fmt.startswith("bmr-bundle/"):
-            raise BundleError(f"{manifest_path}: format {fmt!r} is not supported by this bmr (reads {FORMAT!r}); "
-                           "upgrade bmr to read it")
-        raise BundleError(f"{manifest_path}: missing or unknown 'format' {fmt!r}; expected {FORMAT!r}")
+            raise BundleError(f"{manifest_path}: format {fmt!r} is not supported by this bmr (reads "
+                              f"{' and '.join(map(repr, FORMATS))}); upgrade bmr to read it")
+        raise BundleError(f"{manifest_path}: missing or unknown 'format' {fmt!r}; expected one of "
+                          f"{', '.join(map(repr, FORMATS))}")
+    if fmt == FORMAT_V1:
+        quantities = ACTUATOR
+    else:
+        try:
+            quantities = Quantities.from_dict(manifest.get("quantities"), f"{manifest_path}: quantities")
+        except BmrError as exc:
+            raise BundleError(str(exc)) from None
     runs_spec = manifest.get("runs")
     if not isinstance(runs_spec, list) or not runs_spec:
         raise BundleError(f"{manifest_path}: 'runs' must be a non-empty list")
@@ -265,25 +347,40 @@ def read_bundle(path: str | Path) -> Bundle:
         if not file.is_file():
             raise BundleError(f"{manifest_path}: runs[{i}] ({spec['name']!r}) file {spec['file']!r} does not exist")
         data = _read_table(file)
-        meta = {k: v for k, v in spec.items() if k not in ("name", "kind", "file")}
+        role = spec.get("role") if fmt != FORMAT_V1 else None
+        if role is not None and not isinstance(role, str):
+            raise BundleError(f"{manifest_path}: runs[{i}].role must be a string, got {role!r}")
+        meta = {k: v for k, v in spec.items() if k not in ("name", "kind", "file", "role")}
         try:
-            runs.append(Run(spec["name"], spec["kind"], data, meta))
+            runs.append(Run(spec["name"], spec["kind"], data, meta, quantities, role))
         except BmrError as exc:
             raise BundleError(f"{manifest_path}: runs[{i}]: {exc}") from None
+    device_key = "actuator" if fmt == FORMAT_V1 else "device"
     try:
         return Bundle(
-            actuator=str(manifest.get("actuator", "")),
+            actuator=str(manifest.get(device_key, "")),
             sample_rate_hz=manifest.get("sample_rate_hz", float("nan")),
             runs=runs,
-            meta={k: v for k, v in manifest.items() if k not in ("format", "actuator", "sample_rate_hz", "runs")},
+            meta={k: v for k, v in manifest.items()
+                  if k not in ("format", device_key, "sample_rate_hz", "quantities", "runs")},
+            quantities=quantities,
         )
     except BmrError as exc:
         raise BundleError(f"{manifest_path}: {exc}") from None
 
 
+def manifest_format(bundle: Bundle) -> str:
+    """The oldest manifest version that holds ``bundle``: ``bmr-bundle/1`` for the actuator's quantities without
+    run roles or newer run kinds, ``bmr-bundle/2`` otherwise."""
+    v1 = (bundle.quantities.is_actuator and all(r.role is None for r in bundle.runs)
+          and not any(r.kind in _V2_KINDS for r in bundle.runs))
+    return FORMAT_V1 if v1 else FORMAT
+
+
 def write_bundle(bundle: Bundle, path: str | Path, *, fmt: str = "csv",
                  on_run_written: Callable[[Run], None] | None = None) -> Path:
-    """Write ``bundle`` to folder ``path`` (created) as manifest + one file per run (``fmt``: csv or parquet).
+    """Write ``bundle`` to folder ``path`` (created) as manifest + one file per run (``fmt``: csv or parquet), in
+    the oldest manifest version that holds it (:func:`manifest_format`).
 
     CSV floats are written as their shortest round-trip representation, so a written bundle reads back bit for
     bit (and writes about twice as fast as fixed 17-digit formatting).
@@ -311,9 +408,14 @@ def write_bundle(bundle: Bundle, path: str | Path, *, fmt: str = "csv",
             write_atomic(root / file, lambda fh, run=run: run.data.to_parquet(fh, index=False), error=BundleError)
         if on_run_written is not None:
             on_run_written(run)
-        specs.append({"name": run.name, "kind": run.kind, "file": file, **run.meta})
-    manifest = {"format": FORMAT, "actuator": bundle.actuator, "sample_rate_hz": float(bundle.sample_rate_hz),
-                **bundle.meta, "runs": specs}
+        role = {"role": run.role} if run.role is not None else {}
+        specs.append({"name": run.name, "kind": run.kind, **role, "file": file, **run.meta})
+    fmt_version = manifest_format(bundle)
+    if fmt_version == FORMAT_V1:
+        head = {"format": FORMAT_V1, "actuator": bundle.actuator}
+    else:
+        head = {"format": FORMAT, "device": bundle.actuator, "quantities": bundle.quantities.to_dict()}
+    manifest = {**head, "sample_rate_hz": float(bundle.sample_rate_hz), **bundle.meta, "runs": specs}
     write_text(root / "manifest.json", json.dumps(manifest, indent=2, sort_keys=False) + "\n", error=BundleError)
     return root
 

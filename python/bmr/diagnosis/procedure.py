@@ -141,10 +141,11 @@ def _rms(x: np.ndarray) -> float:
 
 
 def nominal_model(bundle: Bundle) -> Any:
-    """The paper's model of a bundle: friction (3 harmonics) from the off-state run, CBH tables from the
-    first-order curves (least-squares tables when the bundle has no first-order runs)."""
+    """The paper's model of a bundle: friction (3 harmonics) from the off-state run, CBH tables from the measured
+    first-order curves alone (no curves added between them; least-squares tables when the bundle has no
+    first-order runs)."""
     method = "forc" if bundle.by_kind("first_order_ascending", "first_order_descending") else "lstsq"
-    return identify(bundle, method=method, max_order=NOMINAL_FRICTION_ORDER)
+    return identify(bundle, method=method, max_order=NOMINAL_FRICTION_ORDER, subdivisions=1)
 
 
 def diagnose(bundle: Bundle | str | Path, model: Any = None, *, folds: int = 5, seed: int = 0,

@@ -1,89 +1,80 @@
 """First-order reversal curves (the paper's identification path): find the reversals of the protocol runs with a
-dead-band, cut the first-order curves, fit each one monotonically (local linear smoothing on a node grid, then
-isotonic regression: no invented wiggles) and hand them to ``bmr.Hysteresis.from_curves``. (The paper's current curves, the torque curves with their axes
-swapped, are ``bmr.Hysteresis.current_curves()``.)"""
+dead-band (``bmr._core.find_reversals``), cut the first-order curves, fit each one from its raw samples
+(``bmr._core.fit_curve``: adaptive bins on the input axis, wide where the curve is straight and narrow where it
+switches sharply, then the least-squares monotone fit) and hand them to ``bmr.Hysteresis.from_curves``, which
+derives a missing family from the measured one. (The paper's current curves, the torque curves with their axes
+swapped, are ``bmr.Hysteresis.current_curves()``.)
+
+Real curves are accepted as they are: how far each one moved against its direction (continued switching after a
+reversal, noise, creep) is measured and kept in the result, and every sample of every run is accounted for (on a
+curve, or not, and why)."""
 from __future__ import annotations
 
-from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any, Iterable
+from dataclasses import dataclass, field
+from typing import Any, Iterable
 
 import numpy as np
 
-from bmr._core import BmrError, find_reversals
+from bmr._core import BmrError, find_reversals, fit_curve
 from bmr.data.bundle import Run, runs_of
+from bmr.data.signals import default_deadband
+from bmr.identification.accounting import SampleAccount
+from bmr.identification.signals import run_input, run_output
 from bmr.identification.spans import input_range_of, sample_noise
-
-if TYPE_CHECKING:
-    from bmr.identification.friction import FrictionFit
 
 __all__ = ["Curve", "FirstOrderCurves", "find_reversals", "extract_first_order_curves"]
 
 Curve = tuple[np.ndarray, np.ndarray]
 
+# Reasons a protocol-run sample is on no first-order curve.
+BEFORE_FIRST_REVERSAL = "before the run's first reversal (unknown state)"
+NOT_FIRST_ORDER = "not on a first-order curve (inner reversal or no saturation reached)"
+HELD_OUT = "on a curve held out (cross-validation)"
+
 
 @dataclass
 class FirstOrderCurves:
     """First-order curves in ``bmr.Hysteresis.from_curves`` form: ascending curves from their reversal minimum
-    up (increasing ``u``), descending ones from their reversal maximum down (decreasing ``u``)."""
+    up (increasing ``u``), descending ones from their reversal maximum down (decreasing ``u``).
+
+    ``fits``: the ``bmr.CurveFit`` of every curve (ascending first, in the same order), with its noise, bins and
+    how far the data moved against the curve's direction; ``samples``: which samples of each run lie on a curve
+    and why the others do not; ``deadband``: the reversal dead-band used (input units); ``membership``: per run,
+    the index of the curve each sample lies on (-1: none; ascending curves first, numbered over every curve found,
+    held-out ones included; the first ``n_ascending_found`` are ascending, the major branches first).
+    """
 
     ascending: list[Curve]
     descending: list[Curve]
     input_range: tuple[float, float]
+    fits: list[Any] = field(default_factory=list)
+    samples: SampleAccount = field(default_factory=SampleAccount)
+    deadband: float = 0.0
+    membership: dict[str, np.ndarray] = field(default_factory=dict)
+    n_ascending_found: int = 0
 
     def __len__(self) -> int:
         return len(self.ascending) + len(self.descending)
 
+    @property
+    def noise(self) -> float:
+        """Median output noise of one sample over the curves (output units)."""
+        return float(np.median([f.noise for f in self.fits])) if self.fits else float("nan")
 
-def _default_deadband(u: np.ndarray) -> float:
-    """1 % of the input span, or 10 × the sample noise of ``u`` if larger."""
-    return max(0.01 * float(np.ptp(u)), 10.0 * sample_noise(u), 1e-12)
+    def worst_violation(self) -> Any:
+        """The curve fit that moved furthest against its direction (or None)."""
+        return max(self.fits, key=lambda f: f.violation) if self.fits else None
 
-
-def _monotone_fit(u: np.ndarray, y: np.ndarray, nodes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Local linear estimate of ``y`` at each node (triangular window of one node spacing), then weighted
-    isotonic (nondecreasing) regression. Nodes without data are dropped."""
-    order = np.argsort(u, kind="stable")
-    u, y = u[order], y[order]
-    est, wts, keep = [], [], []
-    for j, x in enumerate(nodes):
-        h = (nodes[1] - nodes[0]) if len(nodes) > 1 else 1.0
-        h = max(h, 1e-12)
-        lo, hi = np.searchsorted(u, x - h, "left"), np.searchsorted(u, x + h, "right")
-        if hi - lo < 1:
-            continue
-        d = u[lo:hi] - x
-        w = np.clip(1.0 - np.abs(d) / h, 0.0, None) + 1e-9
-        sw = w.sum()
-        md = (w * d).sum() / sw
-        my = (w * y[lo:hi]).sum() / sw
-        var = (w * (d - md) ** 2).sum()
-        if hi - lo >= 3 and var > 1e-6 * h * h * sw:
-            slope = (w * (d - md) * (y[lo:hi] - my)).sum() / var
-            est.append(my - slope * md)
-        else:
-            est.append(my)
-        wts.append(sw)
-        keep.append(j)
-    if len(keep) < 2:
-        return np.zeros(0), np.zeros(0)
-    return nodes[keep], _isotonic(np.asarray(est), np.asarray(wts))
+    def __repr__(self) -> str:
+        lo, hi = self.input_range
+        w = self.worst_violation()
+        worst = (f", largest move against a curve's direction {w.violation:.3g} at input {w.violation_input:.4g}"
+                 if w is not None else "")
+        return (f"FirstOrderCurves({len(self.ascending)} ascending, {len(self.descending)} descending, input "
+                f"{lo:.4g}..{hi:.4g}, noise {self.noise:.3g}{worst}; {self.samples.used} of {self.samples.total} "
+                "samples on a curve)")
 
 
-def _isotonic(y: np.ndarray, w: np.ndarray) -> np.ndarray:
-    """Pool-adjacent-violators: the weighted least-squares nondecreasing fit."""
-    vals: list[float] = []
-    wts: list[float] = []
-    cnt: list[int] = []
-    for yi, wi in zip(y, w):
-        vals.append(float(yi))
-        wts.append(float(wi))
-        cnt.append(1)
-        while len(vals) > 1 and vals[-2] > vals[-1]:
-            wsum = wts[-2] + wts[-1]
-            v = (vals[-2] * wts[-2] + vals[-1] * wts[-1]) / wsum
-            c = cnt[-2] + cnt[-1]
-            vals[-2:], wts[-2:], cnt[-2:] = [v], [wsum], [c]
-    return np.repeat(vals, cnt)
 
 
 def _segments(u: np.ndarray, deadband: float) -> list[tuple[int, int]]:
@@ -93,100 +84,146 @@ def _segments(u: np.ndarray, deadband: float) -> list[tuple[int, int]]:
 
 
 def _raw_first_order_segments(u: np.ndarray, deadband: float, lo: float, hi: float, sat_tol: float
-                              ) -> tuple[list[tuple[int, int]], list[tuple[int, int]]]:
-    """Index ranges of first-order ascending and descending curves within one run."""
+                              ) -> tuple[dict[str, list[tuple[int, int, bool]]], int]:
+    """Index ranges ``(a, b, full)`` of first-order ascending and descending curves within one run (``full``: it
+    reaches the opposite saturation; a partial one only extends a full curve from the same reversal), and the
+    run's first reversal (samples before it have an unknown history)."""
     segs = _segments(u, deadband)
-    asc, desc = [], []
+    out: dict[str, list[tuple[int, int, bool]]] = {"asc": [], "desc": []}
     for k, (a, b) in enumerate(segs):
-        rising = u[b] > u[a]
         if k == 0:
             continue  # the run's start is not a reversal of known history
         prev_a, _ = segs[k - 1]
-        if rising:
-            at_top = u[b] >= hi - sat_tol
-            from_bottom = u[a] <= lo + sat_tol
-            came_from_top = u[prev_a] >= hi - sat_tol
-            if at_top and (from_bottom or came_from_top):
-                asc.append((a, b))
-        else:
-            at_bottom = u[b] <= lo + sat_tol
-            from_top = u[a] >= hi - sat_tol
-            came_from_bottom = u[prev_a] <= lo + sat_tol
-            if at_bottom and (from_top or came_from_bottom):
-                desc.append((a, b))
-    return asc, desc
+        if u[b] > u[a]:
+            # From negative saturation, or from a minimum reached coming down from positive saturation.
+            if u[a] <= lo + sat_tol or u[prev_a] >= hi - sat_tol:
+                out["asc"].append((a, b, bool(u[b] >= hi - sat_tol)))
+        elif u[a] >= hi - sat_tol or u[prev_a] <= lo + sat_tol:
+            out["desc"].append((a, b, bool(u[b] <= lo + sat_tol)))
+    first = segs[1][0] if len(segs) > 1 else len(u)
+    return out, first
 
 
 def extract_first_order_curves(
     run: Run | Iterable[Run],
-    friction: FrictionFit | Any | None = None,
+    friction: Any | None = None,
     *,
-    deadband_a: float | None = None,
-    n_nodes: int = 40,
-    saturation_tol_a: float | None = None,
+    deadband: float | None = None,
+    saturation_tol: float | None = None,
     input_range: tuple[float, float] | None = None,
+    pilot: int = 16,
+    exclude_curves: Iterable[int] = (),
 ) -> FirstOrderCurves:
-    """Cut and fit the first-order curves of one run (or several runs of one actuator).
+    """Cut and fit the first-order curves of one run (or several runs of one device).
 
-    Friction ``friction(theta)`` (N·mm) is subtracted first. Reversals of the current are found with a
-    dead-band (``deadband_a``, default: the larger of 1 % of the current span and 10 × the current's sample noise);
-    a rising segment from a minimum that followed positive saturation (or from negative saturation) up to
-    positive saturation is an ascending first-order curve, and symmetrically for descending ones. Curves whose
-    reversals lie within a few noise sigmas of each other are pooled (repeated branches average their noise).
-    Each curve is fitted monotonically on about ``n_nodes`` nodes per full input span.
+    Friction ``friction(theta)`` is subtracted first (when the runs have an angle). Reversals of the input are
+    found with a dead-band (``deadband``, input units; default: the larger of 1 % of the input span and 10 × the
+    input's sample noise); a rising segment from a minimum that followed positive saturation (or from negative
+    saturation) up to positive saturation is an ascending first-order curve, and symmetrically for descending
+    ones. Curves whose reversals lie within a few noise sigmas of each other are pooled (repeated branches average
+    their noise); the major branch pools only curves that start within that distance of saturation. Each curve is
+    fitted from its raw samples by ``bmr._core.fit_curve`` (``pilot``: samples per pilot bin).
+
+    One family is enough (``bmr.Hysteresis.from_curves`` derives the other one); a run set in which no first-order
+    curve is found is an error naming the runs and the dead-band. ``exclude_curves``: indices (into ``membership``
+    numbering of the same runs) of curves to hold out, e.g. for cross-validation; their samples are counted as held
+    out.
     """
     runs = runs_of(run)
     if not runs:
         raise BmrError("extract_first_order_curves needs at least one run")
-    if n_nodes < 4:
-        raise BmrError(f"n_nodes must be at least 4, got {n_nodes}")
-    all_u = np.concatenate([r.current for r in runs])
-    lo, hi = input_range if input_range is not None else input_range_of([r.current for r in runs])
+    inputs = [run_input(r) for r in runs]
+    all_u = np.concatenate(inputs)
+    lo, hi = input_range if input_range is not None else input_range_of(inputs)
+    names = ", ".join(repr(r.name) for r in runs)
+    q = runs[0].quantities.input
     if not hi > lo:
-        raise BmrError(f"runs {', '.join(r.name for r in runs)}: the current never varies; no curves to extract")
-    db = deadband_a if deadband_a is not None else _default_deadband(all_u)
+        raise BmrError(f"runs {names}: the input never varies; no curves to extract")
+    db = deadband if deadband is not None else default_deadband(inputs)
+    if not (np.isfinite(db) and db > 0):
+        raise BmrError(f"reversal dead-band must be positive and finite, got {db!r}")
     # Repeats of one curve (e.g. the major branches of several runs) have reversals a few noise sigmas apart.
     pool_tol = min(db, max(0.005 * (hi - lo), 4.0 * sample_noise(all_u)))
-    sat_tol = saturation_tol_a if saturation_tol_a is not None else max(2.0 * db, 0.02 * (hi - lo))
-    pools: dict[str, list[tuple[float, list[np.ndarray], list[np.ndarray]]]] = {"asc": [], "desc": []}
-    for r in runs:
-        u = r.current
-        y = r.torque - (friction(r.theta) if friction is not None else 0.0)
-        asc, desc = _raw_first_order_segments(u, db, lo, hi, sat_tol)
-        for key, segs in (("asc", asc), ("desc", desc)):
-            for a, b in segs:
+    sat_tol = saturation_tol if saturation_tol is not None else max(2.0 * db, 0.02 * (hi - lo))
+    # Pools of segments from one reversal: [reversal, [(run name, a, b)], ...] per family.
+    pools: dict[str, list[list[Any]]] = {"asc": [], "desc": []}
+    partial: list[tuple[str, float, str, int, int]] = []
+    firsts: dict[str, int] = {}
+    signals: dict[str, tuple[np.ndarray, np.ndarray]] = {}
+    for r, u in zip(runs, inputs):
+        y = run_output(r, friction)
+        signals[r.name] = (u, y)
+        segs, firsts[r.name] = _raw_first_order_segments(u, db, lo, hi, sat_tol)
+        for key in ("asc", "desc"):
+            for a, b, full in segs[key]:
                 rev = float(u[a])
-                if key == "asc" and rev <= lo + sat_tol:
+                # The major branch: a start within the pooling distance of saturation is saturation.
+                if key == "asc" and rev <= lo + pool_tol:
                     rev = lo
-                if key == "desc" and rev >= hi - sat_tol:
+                if key == "desc" and rev >= hi - pool_tol:
                     rev = hi
+                if not full:
+                    partial.append((key, rev, r.name, a, b))
+                    continue
                 for entry in pools[key]:
                     if abs(entry[0] - rev) <= pool_tol:
-                        entry[1].append(u[a:b + 1])
-                        entry[2].append(y[a:b + 1])
+                        entry[1].append((r.name, a, b))
                         break
                 else:
-                    pools[key].append((rev, [u[a:b + 1]], [y[a:b + 1]]))
+                    pools[key].append([rev, [(r.name, a, b)]])
+    # A curve cut short (the protocol reversed before saturation) extends a full curve from the same reversal.
+    for key, rev, name, a, b in partial:
+        for entry in pools[key]:
+            if abs(entry[0] - rev) <= pool_tol:
+                entry[1].append((name, a, b))
+                break
     span = hi - lo
     ascending: list[Curve] = []
     descending: list[Curve] = []
+    fits: list[Any] = []
+    membership = {r.name: np.full(u.size, -1, dtype=np.int64) for r, u in zip(runs, inputs)}
+    held_out = {int(k) for k in exclude_curves}
     for key in ("asc", "desc"):
-        for rev, us, ys in sorted(pools[key], key=lambda e: e[0]):
-            uu, yy = np.concatenate(us), np.concatenate(ys)
-            start, end = (rev, hi) if key == "asc" else (lo, rev)
-            if end - start < 1e-9 * span:
+        for rev, segs in sorted(pools[key], key=lambda e: e[0]):
+            end = hi if key == "asc" else lo
+            if abs(end - rev) < 1e-9 * span:
                 continue
-            k = max(3, int(round(n_nodes * (end - start) / span)))
-            nodes = np.linspace(start, end, k + 1)
-            nu, ny = _monotone_fit(uu, yy, nodes)
-            if nu.size < 2:
+            uu = np.concatenate([signals[n][0][a:b + 1] for n, a, b in segs])
+            yy = np.concatenate([signals[n][1][a:b + 1] for n, a, b in segs])
+            # Every pooled sample enters the fit; the curve starts at its (pooled) reversal input.
+            start = np.argmin(uu) if key == "asc" else np.argmax(uu)
+            order = np.r_[start, np.delete(np.arange(uu.size), start)]
+            uu, yy = uu[order], yy[order]
+            uu[0] = rev
+            try:
+                f = fit_curve(uu, yy, "ascending" if key == "asc" else "descending", pilot=pilot)
+            except BmrError:
+                continue  # a degenerate pool (all samples at one input): nothing to fit
+            index = len(fits)
+            for n, a, b in segs:
+                membership[n][a:b + 1] = index
+            fits.append(f)
+            if index in held_out:
                 continue
-            if key == "asc":
-                ascending.append((nu, ny))
-            else:
-                descending.append((nu[::-1].copy(), ny[::-1].copy()))
-    if not ascending or not descending:
-        names = ", ".join(r.name for r in runs)
+            (ascending if key == "asc" else descending).append((f.u, f.y))
+    if max(len(ascending), len(descending)) < 2:
         raise BmrError(f"runs {names}: found {len(ascending)} ascending and {len(descending)} descending "
-                       f"first-order curves (dead-band {db:.4g} A); both families need at least the major branch")
-    return FirstOrderCurves(ascending, descending, (lo, hi))
+                       f"first-order curves (reversal dead-band {q.format(db, 4)}, saturation within "
+                       f"{q.format(sat_tol, 4)} of {q.format(lo, 6)}..{q.format(hi, 6)}); one family needs its major "
+                       "branch and at least one more curve")
+    account = SampleAccount()
+    for r, u in zip(runs, inputs):
+        m = membership[r.name]
+        on_curve = m >= 0
+        out = np.isin(m, sorted(held_out)) if held_out else np.zeros(u.size, dtype=bool)
+        account.add_run(r.name, u.size)
+        account.use(r.name, int(np.count_nonzero(on_curve & ~out)))
+        account.drop(r.name, HELD_OUT, int(np.count_nonzero(out)))
+        early = int(np.count_nonzero(~on_curve[:firsts[r.name]]))
+        account.drop(r.name, BEFORE_FIRST_REVERSAL, early)
+        account.drop(r.name, NOT_FIRST_ORDER, int(np.count_nonzero(~on_curve)) - early)
+    n_asc = sum(1 for f in fits if f.direction == "ascending")
+    kept = [f for i, f in enumerate(fits) if i not in held_out]
+    return FirstOrderCurves(ascending, descending, (lo, hi), kept, account.check(), float(db), membership,
+                            n_asc)
+

@@ -85,14 +85,15 @@ class FrictionFit:
 
 def _off_state_samples(runs: list[Run], current_tol_a: float | None) -> tuple[np.ndarray, np.ndarray]:
     """Angle and torque of the zero-current part of each off-state run: everything after the opening excursion
-    (the last sample above a quarter of the run's largest current), less 1 % settling, and without samples whose
-    current exceeds ``current_tol_a`` (default 5 % of the excursion; measured currents are noisy)."""
+    (the last sample whose current exceeds ``current_tol_a``, default 5 % of the excursion: measured currents are
+    noisy), less 1 % settling, and without samples above that tolerance. The excursion's own tail (the last few
+    per cent of its ramp back to zero) carries hysteretic torque, not friction, and stays out."""
     thetas, torques = [], []
     for run in runs:
         i_a = np.abs(run.current)
         peak = float(np.max(i_a))
         tol = current_tol_a if current_tol_a is not None else max(1e-9, 0.05 * peak)
-        excursion = np.flatnonzero(i_a > max(0.25 * peak, tol))
+        excursion = np.flatnonzero(i_a > tol)
         start = int(excursion[-1]) + 1 if excursion.size else 0
         start += (len(i_a) - start) // 100
         keep = np.arange(start, len(i_a))

@@ -1,36 +1,134 @@
 """Least-squares Preisach tables: the output of a Preisach model is linear in its Everett table given the input
 history, so the table is identified by nonnegative, smoothness-regularised least squares from any excitation
-(``bmr._core.fit_everett``)."""
+(``bmr._core.fit_everett``) — first-order curves, a major loop with scattered minor loops, or a random drive.
+
+Every run keeps its own calibration, as explicit, reported parameters: an output offset (sensor offsets, remanence
+the previous run left), optionally a gain (drift between recording days, shrunk towards 1), and its initial state:
+a run that starts from an unknown state is not cut to the part after its first saturation; its initial memory is
+estimated (negative or positive saturation, or one reversal after either, at any grid node) together with the
+table. Every sample is used unless the caller asks otherwise, and the result says how many were used and why any
+others were not."""
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
-from typing import Any, Iterable
+from dataclasses import dataclass, field
+from typing import Any, Iterable, Mapping, Sequence
 
 import numpy as np
 
 from bmr import _core
 from bmr._core import BmrError
 from bmr.data.bundle import Run
+from bmr.identification.accounting import SampleAccount
 from bmr.identification.forc import Curve
+from bmr.identification.signals import run_input, run_output
 from bmr.identification.spans import SATURATION_TOL, evaluation_start, input_range_of
 
-__all__ = ["LstsqTables", "fit_tables_lstsq"]
+__all__ = ["RunCalibration", "LstsqTables", "fit_tables_lstsq", "INITIAL_STATES"]
+
+INITIAL_STATES = ("estimate", "saturation", "negative")
+BEFORE_KNOWN_STATE = "before the run's state is known (initial_state='saturation')"
+THINNED = "thinned to max_rows (every k-th sample kept)"
+HELD_OUT = "held out (cross-validation)"
 
 
 @dataclass
+class RunCalibration:
+    """One training run's own parameters: output ``offset`` (output units), ``gain`` on the model output (1 when
+    not fitted), its initial state as the ``history`` of inputs after negative saturation that sets it (empty:
+    negative saturation) and how it was obtained, the fit's RMS residual on the run (output units), and the offset
+    its first sample alone would give (how well one leading sample calibrates a run)."""
+
+    name: str
+    offset: float
+    gain: float
+    history: tuple[float, ...]
+    initial_state: str
+    rms: float
+    samples: int
+    first_sample_offset: float = math.nan
+
+    def describe_state(self) -> str:
+        h = self.history
+        if not h:
+            return "negative saturation"
+        if len(h) == 1:
+            return f"up from negative saturation to {h[0]:.6g}"
+        return f"down from positive saturation to {h[1]:.6g}" if len(h) == 2 else f"history {list(h)}"
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"name": self.name, "offset": self.offset, "gain": self.gain, "history": list(self.history),
+                "first_sample_offset": self.first_sample_offset,
+                "initial_state": self.initial_state, "state": self.describe_state(), "rms": self.rms,
+                "samples": self.samples}
+
+
+@dataclass(repr=False)
 class LstsqTables:
-    """Result of the least-squares table identification: the Everett model, its first-order curves and fit
-    statistics (``rms`` in output units over the regression rows)."""
+    """Result of the least-squares table identification: the Everett model (its offset is the common offset, the
+    mean over runs), its first-order curves, each run's calibration and the sample account. ``rms``: RMS residual
+    over the regression rows (output units)."""
 
     everett: Any
-    offsets: np.ndarray
-    rms: float
-    n_rows: int
-    iterations: int
     ascending: list[Curve]
     descending: list[Curve]
     input_range: tuple[float, float]
+    rms: float
+    n_rows: int
+    iterations: int
+    runs: list[RunCalibration]
+    samples: SampleAccount
+    n_intervals: int
+    settings: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def offsets(self) -> np.ndarray:
+        """Each run's output offset, in run order."""
+        return np.array([r.offset for r in self.runs])
+
+    @property
+    def gains(self) -> np.ndarray:
+        return np.array([r.gain for r in self.runs])
+
+    @property
+    def offset(self) -> float:
+        """The common offset (what a new run gets unless calibrated)."""
+        return float(self.everett.offset)
+
+    def offset_prior(self) -> dict[str, float]:
+        """How the per-run offsets spread around the common one (``spread``: their standard deviation) and how far
+        one leading sample's offset falls from a run's fitted offset (``first_sample_error``: RMS over the runs);
+        a new run's offset calibrated on leading samples is shrunk towards the common offset with these."""
+        offs = self.offsets
+        first = np.array([r.first_sample_offset for r in self.runs]) - offs
+        return {"common": self.offset, "runs": float(offs.size),
+                "spread": float(np.std(offs, ddof=1)) if offs.size > 1 else math.nan,
+                "first_sample_error": float(np.sqrt(np.mean(first ** 2))) if first.size else math.nan}
+
+    def calibration(self, name: str) -> RunCalibration:
+        for r in self.runs:
+            if r.name == name:
+                return r
+        raise BmrError(f"no training run named {name!r} (runs: {', '.join(r.name for r in self.runs)})")
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"rms": self.rms, "rows": self.n_rows, "iterations": self.iterations, "n_intervals": self.n_intervals,
+                "input_range": list(self.input_range), "offset": self.offset, "offset_prior": self.offset_prior(),
+                "runs": [r.to_dict() for r in self.runs], "samples": self.samples.to_dict(),
+                "settings": dict(self.settings)}
+
+    def __repr__(self) -> str:
+        lo, hi = self.input_range
+        est = sum(r.initial_state == "estimated" for r in self.runs)
+        g = self.gains
+        gains = f", gains {g.min():.4g}..{g.max():.4g}" if np.any(g != 1.0) else ""
+        return (f"LstsqTables({self.n_intervals} intervals over {lo:.6g}..{hi:.6g}, {len(self.runs)} runs "
+                f"({est} initial states estimated{gains}), RMS {self.rms:.4g} on {self.n_rows} rows; "
+                f"{self.samples.used} of {self.samples.total} samples used)")
+
+
+def _fit(grid: np.ndarray, packed: list[tuple], n_offsets: int, smoothing: float, ridge: float) -> dict[str, Any]:
+    return _core.fit_everett(grid, packed, n_offsets, smoothing=smoothing, ridge=ridge)
 
 
 def fit_tables_lstsq(
@@ -41,43 +139,178 @@ def fit_tables_lstsq(
     input_range: tuple[float, float] | None = None,
     smoothing: float = 1e-4,
     ridge: float = 1e-9,
-    per_run_offset: bool = False,
-    max_rows: int = 200_000,
-    start_at_saturation: bool = True,
-    curve_subdivisions: int = 4,
+    offsets: str = "per_run",
+    gains: bool = False,
+    gain_prior: float = 0.05,
+    initial_state: str = "estimate",
+    iterations: int = 3,
+    max_rows: int = 2_000_000,
+    curve_subdivisions: int = 1,
+    exclude: Mapping[str, np.ndarray] | None = None,
+    per_run_offset: bool | None = None,
+    start_at_saturation: bool | None = None,
 ) -> LstsqTables:
     """Identify an Everett table (Preisach model) from any runs by regularised nonnegative least squares.
 
-    The memory of each run starts at negative saturation; rows before the run's first saturation are left out
-    (``start_at_saturation``). Rows are thinned uniformly to at most ``max_rows``. ``per_run_offset`` fits one
-    free output offset per run (sensor offsets, unknown remanence) instead of one shared offset. The returned
-    first-order curves start at every grid node and at ``curve_subdivisions − 1`` points inside each interval, so a
-    CBH operator built from them follows the table between grid reversals too.
+    ``offsets``: ``"per_run"`` (each run its own output offset: sensor offsets, unknown remanence) or
+    ``"shared"``. ``gains``: also fit one gain per run on the model output, shrunk towards 1 with prior standard
+    deviation ``gain_prior`` (their geometric mean is 1; the table carries the common scale). ``initial_state``:
+    ``"estimate"`` (default: every run's initial memory is chosen among negative or positive saturation and one
+    reversal after either, alternating with the table fit ``iterations`` times; every sample is used),
+    ``"saturation"`` (rows before the run has reached both saturation ends are left out and counted) or
+    ``"negative"`` (every run starts at negative saturation). Rows are thinned uniformly only above ``max_rows``
+    (counted). The first-order curves start at every grid node (and at ``curve_subdivisions − 1`` points inside
+    each interval); the CBH operator built from them reproduces the table at every input history (its strip rule
+    is exact for the table's bilinear cells and reversible diagonal).
+
+    ``exclude``: ``{run name: boolean mask}`` of samples kept out of the regression (held out, e.g. for
+    cross-validation; they still drive the memory and are counted).
+
+    ``per_run_offset`` / ``start_at_saturation``: the former boolean spellings of ``offsets`` / ``initial_state``.
     """
     runs = list(runs)
     if not runs:
         raise BmrError("fit_tables_lstsq needs at least one run")
-    if n_intervals < 2:
-        raise BmrError(f"n_intervals must be at least 2, got {n_intervals}")
-    us = [r.current for r in runs]
-    ys = [r.torque - (friction(r.theta) if friction is not None else 0.0) for r in runs]
-    lo, hi = input_range if input_range is not None else input_range_of([r.current for r in runs])
+    if per_run_offset is not None:
+        offsets = "per_run" if per_run_offset else "shared"
+    if start_at_saturation is not None:
+        initial_state = "saturation" if start_at_saturation else "negative"
+    if offsets not in ("per_run", "shared"):
+        raise BmrError(f"offsets must be 'per_run' or 'shared', got {offsets!r}")
+    if initial_state not in INITIAL_STATES:
+        raise BmrError(f"initial_state must be one of {', '.join(INITIAL_STATES)}, got {initial_state!r}")
+    if not (isinstance(n_intervals, (int, np.integer)) and n_intervals >= 2):
+        raise BmrError(f"n_intervals must be an integer of at least 2, got {n_intervals!r}")
+    if not (isinstance(iterations, (int, np.integer)) and iterations >= 1):
+        raise BmrError(f"iterations must be a positive integer, got {iterations!r}")
+    if not (math.isfinite(gain_prior) and gain_prior > 0):
+        raise BmrError(f"gain_prior must be positive and finite, got {gain_prior!r}")
+    us = [run_input(r) for r in runs]
+    ys = [run_output(r, friction) for r in runs]
+    lo, hi = input_range if input_range is not None else input_range_of(us)
     if not hi > lo:
-        raise BmrError("the current never varies in the training runs; nothing to identify")
-    grid = np.linspace(lo, hi, n_intervals + 1)
+        raise BmrError(f"runs {', '.join(repr(r.name) for r in runs)}: the input never varies; nothing to identify")
+    grid = np.linspace(lo, hi, int(n_intervals) + 1)
     tol = SATURATION_TOL * (hi - lo)
     total = sum(u.size for u in us)
     stride = max(1, math.ceil(total / max_rows))
-    packed = []
-    for k, (r, u, y) in enumerate(zip(runs, us, ys)):
+    per_run = offsets == "per_run"
+    n_off = len(runs) if per_run else 1
+
+    account = SampleAccount()
+    weights = []
+    for r, u in zip(runs, us):
         w = np.zeros(u.size)
-        s = evaluation_start(u, lo, hi, tol) if start_at_saturation else 0
+        s = evaluation_start(u, lo, hi, tol) if initial_state == "saturation" else 0
         w[s::stride] = 1.0
-        packed.append((np.ascontiguousarray(u), np.ascontiguousarray(y), w, k if per_run_offset else 0))
-    res = _core.fit_everett(grid, packed, len(runs) if per_run_offset else 1, smoothing=smoothing, ridge=ridge)
+        held = np.zeros(u.size, dtype=bool)
+        if exclude is not None and r.name in exclude:
+            held = np.asarray(exclude[r.name], dtype=bool)
+            if held.shape != u.shape:
+                raise BmrError(f"run {r.name!r}: exclude mask has {held.size} samples, the run {u.size}")
+            held[:s] = False  # counted as before the known state already
+            w[held] = 0.0
+        weights.append(w)
+        acc = account.add_run(r.name, u.size)
+        acc.used = int(np.count_nonzero(w))
+        account.drop(r.name, BEFORE_KNOWN_STATE, s)
+        account.drop(r.name, HELD_OUT, int(held.sum()))
+        account.drop(r.name, THINNED, u.size - s - int(held.sum()) - acc.used)
+    account.check()
+    if account.used == 0:
+        raise BmrError("no sample is left to fit: every run is before its state is known "
+                       "(use initial_state='estimate')")
+
+    histories: list[list[float]] = [[] for _ in runs]
+    run_gains = [1.0] * len(runs)
+
+    def pack() -> list[tuple]:
+        return [(np.ascontiguousarray(u), np.ascontiguousarray(y), w, k if per_run else 0, h, g)
+                for k, (u, y, w, h, g) in enumerate(zip(us, ys, weights, histories, run_gains))]
+
+    # First fit on what is known: rows after both saturation ends (if estimating and any exist).
+    if initial_state == "estimate":
+        known = []
+        for u, w in zip(us, weights):
+            k = w.copy()
+            s = evaluation_start(u, lo, hi, tol)
+            full = np.any(u >= hi - tol) and np.any(u <= lo + tol)
+            k[:s if full else u.size] = 0.0
+            known.append(k)
+        # Runs without a known part sit out the first fit (their offset columns would be empty).
+        with_rows = [i for i, k in enumerate(known) if np.count_nonzero(k)]
+        if sum(np.count_nonzero(known[i]) for i in with_rows) >= 4 * grid.size:
+            first = [(np.ascontiguousarray(us[i]), np.ascontiguousarray(ys[i]), known[i], j if per_run else 0)
+                     for j, i in enumerate(with_rows)]
+            res = _fit(grid, first, len(with_rows) if per_run else 1, smoothing, ridge)
+        else:
+            res = _fit(grid, pack(), n_off, smoothing, ridge)
+    else:
+        res = _fit(grid, pack(), n_off, smoothing, ridge)
+
+    rounds = iterations if (initial_state == "estimate" or gains) else 0
+    for _ in range(rounds):
+        model = res["model"]
+        offs = np.asarray(res["offsets"])
+        if initial_state == "estimate":
+            for k, (u, y, w) in enumerate(zip(us, ys, weights)):
+                h, _, _ = model.best_initial_state(u, y, w, free_offset=per_run, gain=run_gains[k])
+                histories[k] = list(h)
+        if gains:
+            run_gains = _fit_gains(model, us, ys, weights, histories, offs, per_run, gain_prior)
+        res = _fit(grid, pack(), n_off, smoothing, ridge)
+
     model = res["model"]
-    asc, desc = model.first_order_curves(subdivisions=curve_subdivisions)
-    return LstsqTables(everett=model, offsets=np.asarray(res["offsets"]), rms=float(res["rms"]),
-                       n_rows=int(res["n_rows"]), iterations=int(res["iterations"]),
-                       ascending=[(np.asarray(u), np.asarray(y)) for u, y in asc],
-                       descending=[(np.asarray(u), np.asarray(y)) for u, y in desc], input_range=(lo, hi))
+    offs = np.asarray(res["offsets"], dtype=float)
+    run_offsets = offs if per_run else np.full(len(runs), offs[0])
+    common = float(np.mean(run_offsets))
+    everett = _core.EverettModel(model.grid, model.masses, common)
+    calib = []
+    for k, (r, u, y, w) in enumerate(zip(runs, us, ys, weights)):
+        part = run_gains[k] * everett.simulate(u, 0.0, histories[k])
+        pred = run_offsets[k] + part
+        sel = w > 0
+        e = (y - pred)[sel]
+        state = ("estimated" if initial_state == "estimate" else
+                 "negative saturation (rows before the known state left out)" if initial_state == "saturation"
+                 else "negative saturation")
+        calib.append(RunCalibration(r.name, float(run_offsets[k]), float(run_gains[k]), tuple(histories[k]),
+                                    state, float(np.sqrt(np.mean(e * e))) if e.size else float("nan"),
+                                    int(np.count_nonzero(sel)), float(y[0] - part[0])))
+    asc, desc = everett.first_order_curves(subdivisions=curve_subdivisions)
+    settings = {"smoothing": smoothing, "ridge": ridge, "offsets": offsets, "gains": gains,
+                "gain_prior": gain_prior, "initial_state": initial_state, "iterations": iterations,
+                "max_rows": max_rows, "curve_subdivisions": curve_subdivisions}
+    return LstsqTables(everett=everett, ascending=[(np.asarray(u), np.asarray(y)) for u, y in asc],
+                       descending=[(np.asarray(u), np.asarray(y)) for u, y in desc], input_range=(lo, hi),
+                       rms=float(res["rms"]), n_rows=int(res["n_rows"]), iterations=int(res["iterations"]),
+                       runs=calib, samples=account, n_intervals=int(n_intervals), settings=settings)
+
+
+def _fit_gains(model: Any, us: Sequence[np.ndarray], ys: Sequence[np.ndarray], weights: Sequence[np.ndarray],
+               histories: Sequence[list[float]], offs: np.ndarray, per_run: bool, prior: float) -> list[float]:
+    """Per-run gain on the model output by weighted least squares with the run's offset, shrunk towards 1 (normal
+    prior with standard deviation ``prior``); normalised to a geometric mean of 1."""
+    out = []
+    for k, (u, y, w, h) in enumerate(zip(us, ys, weights, histories)):
+        p = model.simulate(u, 0.0, h)
+        sel = w > 0
+        p, yy, ww = p[sel], y[sel], w[sel]
+        if p.size < 3:
+            out.append(1.0)
+            continue
+        pm = np.average(p, weights=ww)
+        ym = np.average(yy, weights=ww)
+        sxx = float(np.sum(ww * (p - pm) ** 2))
+        if sxx <= 0:
+            out.append(1.0)
+            continue
+        g_hat = float(np.sum(ww * (p - pm) * (yy - ym))) / sxx
+        resid = yy - ym - g_hat * (p - pm)
+        sigma2 = float(np.sum(ww * resid ** 2) / max(np.sum(ww) - 2, 1.0))
+        var_g = sigma2 / sxx
+        shrink = prior ** 2 / (prior ** 2 + var_g)
+        out.append(1.0 + shrink * (g_hat - 1.0))
+    g = np.asarray(out)
+    g = g / math.exp(float(np.mean(np.log(np.clip(g, 1e-6, None)))))
+    return [float(x) for x in g]

@@ -1,22 +1,28 @@
-"""The identified model of one actuator (friction + CBH tables) and its versioned file format ``bmr-model/1``.
+"""The identified model of one device (friction + CBH tables) and its versioned file format ``bmr-model/2``.
 
 File layout (JSON)::
 
-    {"format": "bmr-model/1",
+    {"format": "bmr-model/2",
+     "quantities": {"input": {"name": "current", "unit": "A", "column": "current_a"},
+                    "output": {"name": "torque", "unit": "N·mm", "column": "torque_nmm"},
+                    "angle": {"name": "angle", "unit": "rad", "column": "theta_rad"} | null},
      "friction": {"c0": ..., "a": [...], "b": [...], "order": K, "stderr": {...}} | null,
      "hysteresis": {"ascending": [[[u...], [y...]], ...], "descending": [[[u...], [y...]], ...],
-                    "initial": "negative"},
-     "limits": {"current_a": [lo, hi], "torque_nmm": [lo, hi]},
+                    "initial": "negative", "build": {"subdivisions": 4, "node_tolerance": 1e-4}},
+     "limits": {"<input column>": [lo, hi], "<output column>": [lo, hi]},
      "converter_gain_a_per_v": 0.125,
      "extensions": [{"name": ..., "params": {...}}, ...],
      "meta": {...},
      "sha256": "..."}
 
-``sha256`` is the digest of the canonical JSON of everything else: a damaged file is reported as such.
-Loading a missing, unknown or newer format is an error that names the format found; every other problem is a
-``bmr.ModelFileError`` naming the field. Non-finite numbers are stored as ``null`` (a friction score that could not be
-computed reads back as infinity). Files are written atomically, and a model that cannot be read back is refused
-before anything is written: every model that saves, loads, and saves again to the same bytes.
+``quantities`` says what the tables map (input and output in their units; the friction series, in output units,
+needs an angle). ``bmr-model/1`` files (the same without ``quantities``) load as the BMR actuator's model
+(current A → torque N·mm, angle rad). ``sha256`` is the digest of the canonical JSON of everything else: a
+damaged file is reported as such. Loading a missing, unknown or newer format is an error that names the format
+found; every other problem is a ``bmr.ModelFileError`` naming the field. Non-finite numbers are stored as ``null``
+(a friction score that could not be computed reads back as infinity). Files are written atomically, and a model
+that cannot be read back is refused before anything is written: every model that saves, loads, and saves again to
+the same bytes.
 """
 from __future__ import annotations
 
@@ -33,13 +39,15 @@ import numpy as np
 
 from bmr._core import BmrError, Compensator, Hysteresis, ModelFileError, ResourceLimitError
 from bmr.data.files import read_json, write_text
+from bmr.data.quantities import ACTUATOR, Quantities
 from bmr.identification.friction import FrictionFit
 
 __all__ = ["FORMAT", "Model"]
 
-FORMAT = "bmr-model/1"
+FORMAT = "bmr-model/2"
+FORMATS = ("bmr-model/1", FORMAT)
 _FAMILY = "bmr-model/"
-_VERSION = 1
+_VERSION = 2
 
 
 def _digest(content: dict[str, Any]) -> str:
@@ -48,12 +56,13 @@ def _digest(content: dict[str, Any]) -> str:
 
 
 class Model:
-    """Friction + CBH hysteresis of one actuator.
+    """Friction + CBH hysteresis of one device.
 
     ``hysteresis``: a ``bmr.Hysteresis``; ``friction``: a ``FrictionFit`` (callable on angles, with ``c0, a, b``)
-    or None; ``limits``: ``{"current_a": [lo, hi], "torque_nmm": [lo, hi]}``; ``converter_gain_a_per_v``: the
-    voltage-to-current converter gain (paper: 0.125 A/V); ``extensions``: discovered effects
-    ``[{"name": ..., "params": {...}}]``; ``meta``: free information (identification report).
+    or None; ``quantities``: what the input and output are (default: the BMR actuator's current A → torque N·mm);
+    ``limits``: ``{input column: [lo, hi], output column: [lo, hi]}`` (e.g. ``current_a``, ``torque_nmm``);
+    ``converter_gain_a_per_v``: the voltage-to-current converter gain (paper: 0.125 A/V); ``extensions``:
+    discovered effects ``[{"name": ..., "params": {...}}]``; ``meta``: free information (identification report).
     """
 
     def __init__(
@@ -66,7 +75,10 @@ class Model:
         extensions: Sequence[dict[str, Any]] | None = None,
         meta: dict[str, Any] | None = None,
         curves: tuple[list[tuple[np.ndarray, np.ndarray]], list[tuple[np.ndarray, np.ndarray]]] | None = None,
+        quantities: Quantities = ACTUATOR,
     ) -> None:
+        if not isinstance(quantities, Quantities):
+            raise TypeError(f"quantities must be a bmr.data.quantities.Quantities, got {type(quantities).__name__}")
         if not (_is_number(converter_gain_a_per_v) and math.isfinite(converter_gain_a_per_v)
                 and converter_gain_a_per_v > 0):
             raise BmrError(f"converter_gain_a_per_v must be positive and finite (A/V), got {converter_gain_a_per_v!r}")
@@ -78,39 +90,83 @@ class Model:
         self.converter_gain_a_per_v = float(converter_gain_a_per_v)
         self.extensions = [dict(e) for e in (extensions or [])]
         self.meta = dict(meta or {})
+        self.quantities = quantities
         lo, hi = hysteresis.input_range
         ylo, yhi = hysteresis.output_range
-        self.limits = {"current_a": [float(lo), float(hi)], "torque_nmm": [float(ylo), float(yhi)]}
+        self._build: dict[str, Any] = {}
+        # What identify() did (an IdentificationReport; its to_dict() is meta["identification"]).
+        self.identification: Any = None
+        self.limits = {quantities.input.column: [float(lo), float(hi)],
+                       quantities.output.column: [float(ylo), float(yhi)]}
         for key, value in (limits or {}).items():
             self.limits[key] = _limit(key, value, "limits")
 
     @classmethod
     def from_curves(cls, ascending: Sequence[tuple[Any, Any]], descending: Sequence[tuple[Any, Any]],
-                    friction: FrictionFit | None = None, *, initial: str = "negative", **kwargs: Any) -> "Model":
-        """Build the ``bmr.Hysteresis`` from first-order curves (``from_curves`` form) and wrap it."""
+                    friction: FrictionFit | None = None, *, initial: str = "negative",
+                    build: dict[str, Any] | None = None, **kwargs: Any) -> "Model":
+        """Build the ``bmr.Hysteresis`` from first-order curves (``from_curves`` form) and wrap it. ``build``:
+        options of ``bmr.Hysteresis.from_curves`` (``subdivisions``, ``node_tolerance``, ...), kept in the model
+        file so that loading rebuilds the same operator."""
         asc = [(np.asarray(u, float), np.asarray(y, float)) for u, y in ascending]
         desc = [(np.asarray(u, float), np.asarray(y, float)) for u, y in descending]
-        return cls(Hysteresis.from_curves(asc, desc, initial=initial), friction, curves=(asc, desc), **kwargs)
+        build = _build_options(build or {}, "from_curves")
+        model = cls(Hysteresis.from_curves(asc, desc, initial=initial, **build), friction, curves=(asc, desc),
+                    **kwargs)
+        model._build = build
+        return model
+
+    @property
+    def input_limits(self) -> tuple[float, float]:
+        """The input range the model was identified on (input unit)."""
+        lo, hi = self.limits[self.quantities.input.column]
+        return float(lo), float(hi)
+
+    @property
+    def output_limits(self) -> tuple[float, float]:
+        """The output range of the model's major loop (output unit)."""
+        lo, hi = self.limits[self.quantities.output.column]
+        return float(lo), float(hi)
 
     # ------------------------------------------------------------------------------------------- use
     def friction_torque(self, theta_rad: Any) -> np.ndarray:
-        """Friction (N·mm) at rotor angles ``theta_rad`` (zeros without a friction model)."""
+        """Friction (output unit, N·mm for the actuator) at rotor angles ``theta_rad`` (zeros without a friction
+        model)."""
         theta = np.asarray(theta_rad, dtype=float)
         return self.friction(theta) if self.friction is not None else np.zeros(theta.shape)
 
-    def simulate(self, current: Any, theta: Any = None, *, initial: str = "negative") -> np.ndarray:
-        """Torque (N·mm) for nominal current ``current`` (A) and rotor angle ``theta`` (rad; None: no friction),
-        starting from the ``initial`` saturation state."""
+    def simulate(self, current: Any, theta: Any = None, *, initial: Any = "negative",
+                 history: Sequence[float] | None = None, out_of_range: str = "clamp") -> np.ndarray:
+        """Output (``quantities.output``; torque in N·mm for the actuator) for the input ``current``
+        (``quantities.input``; nominal current in A for the actuator) and angle ``theta`` (rad; None: no friction),
+        starting from the ``initial`` state (``"negative"``, ``"positive"``, ``("ascending", u)``,
+        ``("descending", u)``) followed by the inputs of ``history`` (an initial memory, e.g. an estimated
+        ``[hi, b]``: positive saturation, then down to ``b``).
+
+        Inputs outside the table's input range: ``out_of_range="clamp"`` (default: the operator saturates, as
+        the real-time core does) or ``"extrapolate"`` (the output continues along the major branch's end slope
+        beyond each end; the memory still saturates). ``input_excess`` counts such samples."""
         i_a = _real_array(current, "current")
         if i_a.ndim != 1:
             raise BmrError(f"current must be one-dimensional, got shape {i_a.shape}")
         bad = np.flatnonzero(~np.isfinite(i_a))
         if bad.size:
             raise BmrError(f"current sample {int(bad[0])} is not finite ({i_a[bad[0]]!r})")
+        if out_of_range not in ("clamp", "extrapolate"):
+            raise BmrError(f"out_of_range must be 'clamp' or 'extrapolate', got {out_of_range!r}")
         # A copy: simulating never changes the model (its operator may be shared with a compensator).
         h = copy.copy(self.hysteresis)
         h.reset(initial=initial)
+        if history is not None and len(history):
+            hist = np.asarray(history, dtype=float)
+            if hist.ndim != 1 or not np.all(np.isfinite(hist)):
+                raise BmrError("history must be a one-dimensional sequence of finite inputs")
+            h.run(hist)
         y = np.asarray(h.run(i_a), dtype=float)
+        if out_of_range == "extrapolate":
+            lo, hi = h.input_range
+            s_lo, s_hi = self.end_slopes()
+            y = y + s_hi * np.maximum(i_a - hi, 0.0) + s_lo * np.minimum(i_a - lo, 0.0)
         if theta is not None:
             th = _real_array(theta, "theta")
             if th.shape != i_a.shape:
@@ -118,12 +174,31 @@ class Model:
             y = y + self.friction_torque(th)
         return y
 
+    def end_slopes(self) -> tuple[float, float]:
+        """Slopes (output per input) of the major branches where they meet the ends of the input range: the
+        descending major branch at the lowest input, the ascending one at the highest (used to extrapolate)."""
+        asc, desc = self.hysteresis.curves()
+        ua, ya = np.asarray(asc[0][0]), np.asarray(asc[0][1])
+        ud, yd = np.asarray(desc[0][0]), np.asarray(desc[0][1])
+        s_hi = float((ya[-1] - ya[-2]) / (ua[-1] - ua[-2])) if ua.size > 1 else 0.0
+        s_lo = float((yd[-1] - yd[-2]) / (ud[-1] - ud[-2])) if ud.size > 1 else 0.0
+        return s_lo, s_hi
+
+    def input_excess(self, current: Any) -> tuple[int, float]:
+        """How many samples of ``current`` lie outside the table's input range, and the largest distance beyond
+        it (input units; 0 when none)."""
+        u = np.asarray(current, dtype=float)
+        lo, hi = self.hysteresis.input_range
+        excess = np.maximum(u - hi, 0.0) + np.maximum(lo - u, 0.0)
+        excess[excess <= 1e-9 * (hi - lo)] = 0.0  # round-off at the ends is not beyond them
+        return int(np.count_nonzero(excess)), float(excess.max()) if excess.size else 0.0
+
     def compensator(self, **kwargs: Any) -> Any:
         """A ``bmr.Compensator`` for this model (friction and converter gain filled in; ``kwargs`` pass through,
         e.g. ``inverse="paper"``)."""
         friction = self.friction.to_friction() if self.friction is not None else None
         kwargs.setdefault("converter_gain", self.converter_gain_a_per_v)
-        lo, hi = self.limits["current_a"]
+        lo, hi = self.input_limits
         kwargs.setdefault("current_limit", max(abs(lo), abs(hi)))
         return Compensator(self.hysteresis, friction, **kwargs)
 
@@ -133,16 +208,20 @@ class Model:
 
     # --------------------------------------------------------------------------------------- files
     def to_dict(self) -> dict[str, Any]:
-        """The ``bmr-model/1`` content (without the digest)."""
+        """The ``bmr-model/2`` content (without the digest)."""
         asc, desc = self._source_curves if self._source_curves is not None else self.hysteresis.curves()
 
         def fam(curves: Any) -> list[list[list[float]]]:
             return [[[float(v) for v in u], [float(v) for v in y]] for u, y in curves]
 
+        hyst: dict[str, Any] = {"ascending": fam(asc), "descending": fam(desc), "initial": "negative"}
+        if self._source_curves is not None and self._build:
+            hyst["build"] = dict(self._build)
         return {
             "format": FORMAT,
+            "quantities": self.quantities.to_dict(),
             "friction": _jsonable(self.friction.to_dict()) if self.friction is not None else None,
-            "hysteresis": {"ascending": fam(asc), "descending": fam(desc), "initial": "negative"},
+            "hysteresis": hyst,
             "limits": self.limits,
             "converter_gain_a_per_v": self.converter_gain_a_per_v,
             "extensions": self.extensions,
@@ -150,7 +229,7 @@ class Model:
         }
 
     def save(self, path: str | Path) -> Path:
-        """Write the model as ``bmr-model/1`` JSON (with its sha256 digest), atomically. A model whose file would
+        """Write the model as ``bmr-model/2`` JSON (with its sha256 digest), atomically. A model whose file would
         not load (its tables do not rebuild from the stored curves, say) is refused before anything is written."""
         try:
             content = self.to_dict()
@@ -166,7 +245,8 @@ class Model:
 
     @classmethod
     def from_dict(cls, content: Any, *, source: str = "model") -> "Model":
-        """Rebuild a model from ``bmr-model/1`` content; every problem is a ``ModelFileError`` naming the field."""
+        """Rebuild a model from ``bmr-model/1`` or ``/2`` content; every problem is a ``ModelFileError`` naming the
+        field."""
         try:
             return cls._from_dict(content, source)
         except RecursionError:
@@ -174,7 +254,8 @@ class Model:
         except (ModelFileError, ResourceLimitError):
             raise
         except BmrError as exc:
-            raise ModelFileError(f"{source}: {exc}") from None
+            msg = str(exc)
+            raise ModelFileError(msg if msg.startswith(source) else f"{source}: {msg}") from None
 
     @classmethod
     def _from_dict(cls, content: Any, source: str) -> "Model":
@@ -182,7 +263,7 @@ class Model:
         if not isinstance(content, dict):
             raise err(f"{source}: expected a JSON object, got {type(content).__name__}")
         fmt = content.get("format")
-        if fmt != FORMAT:
+        if fmt not in FORMATS:
             if isinstance(fmt, str) and fmt.startswith(_FAMILY):
                 try:
                     version = int(fmt[len(_FAMILY):])
@@ -209,6 +290,8 @@ class Model:
         if initial not in ("negative", "positive"):
             raise err(f"{source}: hysteresis.initial must be 'negative' or 'positive', got {initial!r}")
         friction = _friction(content.get("friction"), source)
+        quantities = (ACTUATOR if fmt == "bmr-model/1"
+                      else Quantities.from_dict(content.get("quantities"), f"{source}: quantities"))
         gain = content.get("converter_gain_a_per_v", 0.125)
         if not (_is_number(gain) and math.isfinite(gain) and gain > 0):
             raise err(f"{source}: converter_gain_a_per_v must be a positive number (A/V), got {gain!r}")
@@ -229,18 +312,22 @@ class Model:
             meta = {}
         if not isinstance(meta, dict):
             raise err(f"{source}: 'meta' must be an object")
+        build = _build_options(hyst.get("build") or {}, f"{source}: hysteresis.build")
         try:
-            h = Hysteresis.from_curves(asc, desc, initial=initial)
+            h = Hysteresis.from_curves(asc, desc, initial=initial, **build)
         except ResourceLimitError as exc:
             raise ResourceLimitError(f"{source}: hysteresis tables: {exc}") from None
         except BmrError as exc:
             raise err(f"{source}: hysteresis tables rejected: {exc}") from None
-        return cls(h, friction, limits=limits, converter_gain_a_per_v=gain, extensions=ext, meta=meta,
-                   curves=(asc, desc))
+        model = cls(h, friction, limits=limits, converter_gain_a_per_v=gain, extensions=ext, meta=meta,
+                    curves=(asc, desc), quantities=quantities)
+        model._build = build
+        return model
 
     @classmethod
     def load(cls, path: str | Path) -> "Model":
-        """Read a ``bmr-model/1`` file; every problem is a ``ModelFileError`` naming the file and the field."""
+        """Read a ``bmr-model/1`` or ``bmr-model/2`` file; every problem is a ``ModelFileError`` naming the file
+        and the field."""
         p = Path(path)
         if p.is_dir():
             raise ModelFileError(f"model file {str(p)!r} is a folder")
@@ -249,14 +336,36 @@ class Model:
         return cls.from_dict(read_json(p, "model file", error=ModelFileError), source=str(p))
 
     def __repr__(self) -> str:
-        lo, hi = self.limits["current_a"]
+        q = self.quantities
+        lo, hi = self.input_limits
         fr = f"friction order {self.friction.order}" if self.friction is not None else "no friction"
-        return f"Model(current {lo:.4g}..{hi:.4g} A, {fr}, extensions={[e['name'] for e in self.extensions]})"
+        return (f"Model({q.describe()}, {q.input.name} {q.input.format(lo, 4)}..{q.input.format(hi, 4)}, {fr}, "
+                f"extensions={[e['name'] for e in self.extensions]})")
+
+
+# Options of ``Hysteresis.from_curves`` a model file may carry, with their types.
+_BUILD_OPTIONS = {"monotone_tolerance": float, "reach_tolerance": float, "closure_tolerance": float,
+                  "node_tolerance": float, "max_nodes": int, "subdivisions": int}
+
+
+def _build_options(value: Any, where: str) -> dict[str, Any]:
+    if not isinstance(value, dict):
+        raise BmrError(f"{where} must be an object of Hysteresis.from_curves options")
+    out: dict[str, Any] = {}
+    for k, v in value.items():
+        kind = _BUILD_OPTIONS.get(k)
+        if kind is None:
+            raise BmrError(f"{where}: unknown option {k!r} (known: {', '.join(_BUILD_OPTIONS)})")
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or (kind is int and int(v) != v):
+            raise BmrError(f"{where}.{k} must be {'an integer' if kind is int else 'a number'}, got {v!r}")
+        out[k] = kind(v)
+    return out
 
 
 def _curves(value: Any, where: str) -> list[tuple[np.ndarray, np.ndarray]]:
-    if not isinstance(value, list) or not value:
-        raise ModelFileError(f"{where} must be a non-empty list of [[u...], [y...]] curves")
+    # A family may be empty (derived from the other one).
+    if not isinstance(value, list):
+        raise ModelFileError(f"{where} must be a list of [[u...], [y...]] curves")
     out = []
     for k, c in enumerate(value):
         if not (isinstance(c, list) and len(c) == 2 and isinstance(c[0], list) and isinstance(c[1], list)):

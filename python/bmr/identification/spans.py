@@ -11,28 +11,29 @@ from typing import Sequence
 
 import numpy as np
 
+from bmr.data.signals import sample_noise
+
 __all__ = ["SATURATION_TOL", "evaluation_start", "input_range_of", "sample_noise"]
 
 # A run's state is known once its input is this close (fraction of the span) to a saturation end.
 SATURATION_TOL = 0.002
 
 
-def sample_noise(u: np.ndarray) -> float:
-    """White-noise standard deviation of ``u`` from its second differences (zero on ramps and holds, ``σ√6`` for
-    white noise), with the median so that the corners of the protocol do not count."""
-    return float(np.median(np.abs(np.diff(u, 2)))) / (0.6745 * math.sqrt(6.0)) if u.size > 2 else 0.0
-
-
 def input_range_of(currents: Sequence[np.ndarray], window: int = 21) -> tuple[float, float]:
-    """The saturation ends reached by measured currents: the extremes of their ``window``-sample running mean
-    (a noisy signal's single extreme samples overshoot the commanded saturation by several sigmas; the running
-    mean of a ramp's apex stays within half a window of steps of it)."""
+    """The saturation ends reached by measured inputs. A noisy input's single extreme samples overshoot the
+    commanded end by several sigmas, and the extremes of a ``window``-sample running mean stay within half a window
+    of steps of it; each end is the one of ``extreme ∓ 2.5 σ`` (``σ``: the input's sample noise; the extreme
+    itself for exact inputs) and the running-mean extreme that lies further out."""
     lo, hi = math.inf, -math.inf
     for u in currents:
         u = np.asarray(u, dtype=float)
+        if not u.size:
+            continue
         w = max(1, min(window, u.size))
         mean = np.convolve(u, np.full(w, 1.0 / w), mode="valid")
-        lo, hi = min(lo, float(mean.min())), max(hi, float(mean.max()))
+        sigma = sample_noise(u)
+        lo = min(lo, float(mean.min()), float(u.min()) + 2.5 * sigma)
+        hi = max(hi, float(mean.max()), float(u.max()) - 2.5 * sigma)
     return lo, hi
 
 

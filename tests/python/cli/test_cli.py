@@ -19,6 +19,9 @@ def test_version(capsys):
     ("simulate", ["bmr2013", "--effect", "--override", "seed"]),
     ("identify", ["forc", "lstsq", "held-out", "bundle folder"]),
     ("diagnose", ["blocked folds", "bundle folder", "bootstrap"]),
+    ("import", ["COL:UNIT", "COL:SOURCE:UNIT", "forc-ascending", "forc-descending", "major-loop", "--holdout",
+                "ControlDesk", "SLAC"]),
+    ("predict", ["evaluation runs", "--calibration", "estimate", "extrapolate", "bmr-prediction/1", "bundle folder"]),
 ])
 def test_help_documents_choices(command, words, capsys):
     with pytest.raises(SystemExit):

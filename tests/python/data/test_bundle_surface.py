@@ -6,7 +6,7 @@ import pandas as pd
 import pytest
 
 import bmr
-from bmr.data.bundle import nominal_sample_rate
+from bmr.data.signals import nominal_sample_rate
 
 
 def _run(name: str, n: int = 2000, rate: float = 500.0) -> bmr.Run:

@@ -77,7 +77,7 @@ def test_errors_name_the_problem(tmp_path):
     _frame().to_csv(tmp_path / "r.csv", index=False)
     with pytest.raises(bmr.BmrError, match="required column.*theta_rad"):
         bmr.read_table(tmp_path / "r.csv", {k: v for k, v in MAPPING.items() if k != "theta_rad"}, UNITS)
-    with pytest.raises(bmr.BmrError, match="unknown unit 'furlong'"):
+    with pytest.raises(bmr.BmrError, match="column 'theta_rad': unknown angle unit 'furlong'; use one of rad"):
         bmr.read_table(tmp_path / "r.csv", MAPPING, dict(UNITS, theta_rad="furlong"))
     with pytest.raises(bmr.BmrError, match="'Nope' for column 'torque_nmm' not found"):
         bmr.read_table(tmp_path / "r.csv", dict(MAPPING, torque_nmm="Nope"), UNITS)

@@ -37,5 +37,5 @@ def test_readme_lab_log_example(tmp_path):
     out = bmr.write_bundle(bundle, tmp_path / "rig2")
     again = bmr.read_bundle(out)
     model = bmr.identify(again, method="both")
-    rms = model.meta["identification"]["heldout_rms_nmm"][model.meta["identification"]["chosen"]]["random"]
+    rms = model.meta["identification"]["heldout_rms"][model.meta["identification"]["chosen"]]["random"]
     assert rms < 5.0  # the ideal preset with 1.5 N·mm sensor noise: a few N·mm with the quick set's tables

@@ -96,8 +96,8 @@ def test_forc_and_lstsq_reproduce_held_out_runs():
     b = synthetic_bundle(noise_nmm=1.0)
     model = bmr.identify(b, method="both")
     info = model.meta["identification"]
-    forc = info["heldout_rms_nmm"]["forc"]
-    lstsq = info["heldout_rms_nmm"]["lstsq"]
+    forc = info["heldout_rms"]["forc"]
+    lstsq = info["heldout_rms"]["lstsq"]
     assert set(forc) == {"triangle", "multipeak"}
     # FORC: 10 measured reversals per family over ±1.25 A (table resolution ~ 10 N·mm on a 1000 N·mm loop).
     assert max(forc.values()) < 15.0
@@ -119,7 +119,7 @@ def test_identify_rejects_unknown_method_and_missing_protocol():
         bmr.identify(only_eval, method="forc")
     # The least-squares path works from any excitation.
     model = bmr.identify(only_eval, method="lstsq")
-    assert model.meta["identification"]["lstsq_fit"]["runs"] == ["triangle", "multipeak"]
+    assert [r["name"] for r in model.meta["identification"]["lstsq_fit"]["runs"]] == ["triangle", "multipeak"]
 
 
 def test_everett_fit_errors_are_bmr_errors():
@@ -148,5 +148,5 @@ def test_cli_identify_writes_model_and_summary(tmp_path, capsys):
     text = capsys.readouterr().out
     assert "friction: order 3" in text and "held-out RMS" in text
     content = json.loads(out.read_text())
-    assert content["format"] == "bmr-model/1"
+    assert content["format"] == "bmr-model/2"
     assert main(["identify", str(tmp_path / "missing"), "-o", str(out)]) == 2

@@ -75,17 +75,17 @@ def test_paper_rig_friction_harmonics_within_uncertainty():
 
 
 def _heldout(model: bmr.Model, bundle: Bundle, name: str) -> float:
-    return model.meta["identification"]["heldout_rms_nmm"][name]
+    return model.meta["identification"]["heldout_rms"][name]
 
 
 def test_heldout_error_is_noise_floor_plus_table_resolution(ideal):
     # Table resolution: identification from the noise-free ideal plant (exactly Preisach): what is left is
     # the interpolation between the measured curves (FORC) or the table grid (lstsq).
     clean = bmr.identify(ideal, method="both")
-    res = {m: clean.meta["identification"]["heldout_rms_nmm"][m] for m in ("forc", "lstsq")}
+    res = {m: clean.meta["identification"]["heldout_rms"][m] for m in ("forc", "lstsq")}
     noisy = _noisy(ideal, NOISE_NMM, 2)
     model = bmr.identify(noisy, method="both")
-    got = model.meta["identification"]["heldout_rms_nmm"]
+    got = model.meta["identification"]["heldout_rms"]
     report = []
     for method in ("forc", "lstsq"):
         for run in ("triangle", "multipeak"):
@@ -102,13 +102,19 @@ def test_heldout_error_is_noise_floor_plus_table_resolution(ideal):
 
 
 @pytest.mark.parametrize("preset", ["ideal", "bmr2013"])
-def test_lstsq_tables_at_least_as_good_as_forc(preset, ideal):
+def test_both_methods_resolve_the_tables_and_the_better_is_kept(preset, ideal):
+    # First-order curves fitted on bins that follow the data, with curves added between the measured reversals,
+    # resolve the tables as finely as the least-squares table on the same runs; whichever predicts the held-out
+    # runs better is kept.
     bundle = ideal if preset == "ideal" else simulate_bundle("bmr2013", seed=4)
     model = bmr.identify(bundle, method="both")
     info = model.meta["identification"]
-    for run in ("triangle", "multipeak", "multi_step"):
-        assert info["heldout_rms_nmm"]["lstsq"][run] <= info["heldout_rms_nmm"]["forc"][run], info
-    assert info["chosen"] == "lstsq"
+    mean = {m: float(np.mean([info["heldout_rms"][m][r] for r in ("triangle", "multipeak", "multi_step")]))
+            for m in ("forc", "lstsq")}
+    assert info["chosen"] == min(mean, key=mean.get), mean
+    # ideal: noise-free, exactly Preisach (0.04 % of its 1200 N·mm span); bmr2013: 1.5 N·mm sensor noise.
+    bound = 0.5 if preset == "ideal" else 1.9
+    assert max(mean.values()) < bound, mean
     # How long identification takes is measured by benches/identify_bundle.py, not asserted here.
     assert info["time_s"]["total"] > 0
 
@@ -149,5 +155,5 @@ def test_noisy_current_measurement_is_tolerated():
     lo, hi = model.limits["current_a"]
     assert abs(lo + 1.25) < 0.01 and abs(hi - 1.25) < 0.01
     assert info["forc_curves"]["ascending"] >= 18 and info["forc_curves"]["descending"] >= 18
-    assert info["heldout_rms_nmm"]["lstsq"]["triangle"] < 3.0
-    assert info["heldout_rms_nmm"]["forc"]["triangle"] < 6.0
+    assert info["heldout_rms"]["lstsq"]["triangle"] < 3.0
+    assert info["heldout_rms"]["forc"]["triangle"] < 6.0

@@ -64,7 +64,7 @@ def test_corrupted_files_are_rejected(model, tmp_path):
         bmr.Model.load(_write(tmp_path / "bad_value.json", content))
     content = json.loads(text)
     del content["sha256"]
-    content["hysteresis"]["descending"] = []
+    content["hysteresis"]["descending"] = "nope"
     with pytest.raises(bmr.BmrError, match="descending"):
         bmr.Model.load(_write(tmp_path / "no_desc.json", content))
     (tmp_path / "bin.json").write_bytes(b"\xff\xfe\x00garbage")
@@ -77,9 +77,9 @@ def test_corrupted_files_are_rejected(model, tmp_path):
 def test_wrong_and_newer_formats_are_rejected(model, tmp_path):
     content = json.loads(model.save(tmp_path / "m.json").read_text())
     del content["sha256"]
-    content["format"] = "bmr-model/2"
+    content["format"] = "bmr-model/3"
     with pytest.raises(bmr.BmrError, match="newer"):
-        bmr.Model.load(_write(tmp_path / "v2.json", content))
+        bmr.Model.load(_write(tmp_path / "v3.json", content))
     content["format"] = "bmr-bundle/1"
     with pytest.raises(bmr.BmrError, match="unknown 'format'"):
         bmr.Model.load(_write(tmp_path / "other.json", content))

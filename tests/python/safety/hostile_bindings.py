@@ -50,7 +50,8 @@ U = np.sin(np.linspace(0, 20, 300))
 TH = np.linspace(0, 30, 300)
 SANE: dict[str, object] = {
     "ascending": _family(1.0), "descending": _family(-1.0), "initial": None, "monotone_tolerance": 0.005,
-    "reach_tolerance": 0.01, "closure_tolerance": 0.05, "max_nodes": 1024, "u": U, "theta_rad": TH,
+    "reach_tolerance": 0.01, "closure_tolerance": 0.05, "max_nodes": 1024, "node_tolerance": 0.0, "history": None,
+    "u": U, "theta_rad": TH,
     "torque_nmm": np.sin(TH), "order": 2, "grid": np.linspace(-1, 1, 9),
     "runs": [(U, 10 * U, np.ones_like(U), 0)], "n_offsets": 1, "smoothing": 1e-4, "ridge": 1e-9, "max_iter": 500,
     "masses": np.full(36, 0.1), "offset": 0.0, "beta": -0.5, "alpha": 0.5, "subdivisions": 2, "current_a": U,
@@ -58,7 +59,8 @@ SANE: dict[str, object] = {
     "friction": None, "inverse": "exact", "converter_gain": 0.125, "current_limit": 1.25,
     "torque_ref_nmm": 100 * U, "c0": 1.0, "a": [0.5], "b": [0.2], "amplitude": [1.0], "phase": [0.3],
     "inputs": [(U, np.ones_like(U), 0)], "outputs": [10 * U], "warm_start": None, "deadband": 0.05, "lo": -1.0,
-    "hi": 1.0, "saturation_tol": None,
+    "hi": 1.0, "saturation_tol": None, "y": 10 * U, "weight": None, "free_offset": True, "gain": 1.0,
+    "tolerance": 1e-3, "direction": "ascending", "pilot": 16,
 }
 SANE["subdivisions"] = 2
 # Per-callable values where the generic ones do not fit (scalars for single steps, objects for methods).
@@ -92,6 +94,8 @@ def _targets() -> list[tuple[str, object, dict[str, object]]]:
         ("Hysteresis.step", _hysteresis().step, {"u": 0.3}),
         ("Hysteresis.run", _hysteresis().run, {}),
         ("Hysteresis.reset", _hysteresis().reset, {}),
+        ("Hysteresis.compressed", _hysteresis().compressed, {}),
+        ("fit_curve", core.fit_curve, {"u": np.linspace(0, 1, 200), "y": np.linspace(0, 1, 200) ** 2}),
         ("Hysteresis.restore", _hysteresis().restore, {"state": _hysteresis().snapshot()}),
         ("fit_friction_order", core.fit_friction_order, {}),
         ("fit_everett", core.fit_everett, {}),
@@ -102,6 +106,7 @@ def _targets() -> list[tuple[str, object, dict[str, object]]]:
         ("EverettModel", core.EverettModel, {}),
         ("EverettModel.everett", _everett().everett, {}),
         ("EverettModel.simulate", _everett().simulate, {}),
+        ("EverettModel.best_initial_state", _everett().best_initial_state, {}),
         ("EverettModel.first_order_curves", _everett().first_order_curves, {}),
         ("EverettModel.hysteresis", _everett().hysteresis, {}),
         ("VirtualActuator", core.VirtualActuator, {}),

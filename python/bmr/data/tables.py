@@ -1,0 +1,396 @@
+"""Measurement tables read from lab files, before they become bundle runs.
+
+A :class:`Table` is one measurement as a file holds it: named numeric columns of equal length, the unit the file
+states for each column (if any), the column the format designates as time (if any), where it came from and the
+file's metadata. A file may hold several tables (an analyzer export with one table per measurement, a capture
+with several rasters). :func:`read_tables` picks the reader from the file's extension and content, or takes the
+one named by ``format``:
+
+| format | files | reader |
+|---|---|---|
+| ``csv`` | ``.csv`` (any delimiter), headers ``Name``, ``Name [unit]`` or ``Name (unit)`` | :func:`read_csv` |
+| ``parquet`` | ``.parquet``, ``.pq`` | :func:`read_parquet` |
+| ``tdms`` | NI TDMS (``group/channel``; ``unit_string`` property) | :func:`read_tdms` |
+| ``mat`` | MATLAB v5/v7 variables and ``struct.field`` | :func:`read_mat` |
+| ``controldesk`` | dSPACE ControlDesk captures (``.mat``) | :mod:`bmr.data.controldesk` |
+| ``aixacct`` | tab-separated analyzer exports (``.dat``, ``.txt``, ``.tsv``) | :mod:`bmr.data.aixacct` |
+| ``slac`` | SLAC magnetic-measurement tables (``strdat.ruN``, ``strplt.ruN``) | :mod:`bmr.data.slac` |
+"""
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Callable, Mapping
+
+import numpy as np
+import pandas as pd
+
+from bmr._core import BmrError, BundleError
+from bmr.data.units import unit as parse_unit
+
+__all__ = ["Table", "FORMATS", "read_tables", "read_text", "split_name_unit", "read_csv", "read_parquet",
+           "read_tdms", "read_mat", "load_mat"]
+
+
+@dataclass
+class Table:
+    """One measurement from a lab file. ``columns`` maps names to equal-length float arrays, ``units`` a column to
+    the unit the file states for it, ``time_column`` the format's time axis (None: find it by name), ``source``
+    names the file (and the table inside it) in messages, ``aliases`` maps other spellings (lower case) to
+    column names, ``not_numbers`` names the file's columns that hold something other than real numbers (date-times,
+    durations, booleans, complex numbers) and what they hold: naming one is an error that says so."""
+
+    name: str
+    columns: dict[str, np.ndarray]
+    source: str
+    units: dict[str, str] = field(default_factory=dict)
+    time_column: str | None = None
+    meta: dict[str, Any] = field(default_factory=dict)
+    aliases: dict[str, list[str]] = field(default_factory=dict)
+    not_numbers: dict[str, str] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        if not self.columns:
+            raise BundleError(f"{self.source}: no numeric columns")
+        lengths = {k: len(v) for k, v in self.columns.items()}
+        if len(set(lengths.values())) > 1:
+            raise BundleError(f"{self.source}: columns have different lengths: "
+                           + ", ".join(f"{k}={n}" for k, n in lengths.items()))
+        if self.n_samples == 0:
+            raise BundleError(f"{self.source}: the table has a header but no samples (empty or truncated file)")
+
+    @property
+    def n_samples(self) -> int:
+        return len(next(iter(self.columns.values())))
+
+    def find(self, name: str) -> str | None:
+        """The column spelled ``name``: exactly, ignoring case, or through an alias (e.g. the last part of a
+        ControlDesk signal path). Ambiguous aliases are an error."""
+        if name in self.columns:
+            return name
+        low = name.strip().lower()
+        hits = [k for k in self.columns if k.lower() == low]
+        if len(hits) == 1:
+            return hits[0]
+        targets = sorted(set(hits) | set(self.aliases.get(low, [])))
+        if len(targets) > 1:
+            raise BundleError(f"{self.source}: column {name!r} is ambiguous ({', '.join(targets)}); use the full name")
+        if not targets:
+            for key, what in self.not_numbers.items():
+                if key.lower() == low:
+                    raise BundleError(f"{self.source}: column {key!r} holds {what}")
+        return targets[0] if targets else None
+
+    def column(self, name: str, role: str = "column") -> tuple[str, np.ndarray]:
+        """``(column name, values)`` for ``name``; a ``BundleError`` naming the file, the role (e.g. "input") and the
+        available columns when it is missing."""
+        key = self.find(name)
+        if key is None:
+            raise BundleError(f"{self.source}: no column {name!r} for the {role} (columns: "
+                              f"{', '.join(self.columns)})")
+        return key, self.columns[key]
+
+    def unit_of(self, name: str) -> str | None:
+        return self.units.get(name) or None
+
+
+def split_name_unit(header: str) -> tuple[str, str | None]:
+    """``"Time [s]"``, ``"Time (s)"`` and ``"Time s"`` are the column ``Time`` in ``s``; a trailing word or
+    bracket is taken as a unit only when it is a registered unit (``"Force (filtered)"`` stays one name)."""
+    h = header.strip()
+    m = re.match(r"^(.*?)\s*[\[(]([^\[\]()]+)[\])]\s*$", h)
+    candidates = []
+    if m and m.group(1):
+        candidates.append((m.group(1).strip(), m.group(2).strip()))
+    parts = h.rsplit(None, 1)
+    if len(parts) == 2:
+        candidates.append((parts[0].strip(), parts[1].strip()))
+    for name, u in candidates:
+        try:
+            parse_unit(u)
+        except BmrError:
+            continue
+        return name, u
+    return h, None
+
+
+def read_text(path: Path) -> str:
+    """A text file's content: UTF-8 (with or without BOM), UTF-16 with BOM, otherwise Windows-1252 (what
+    instrument software on Windows writes)."""
+    raw = _read_bytes(path)
+    if raw[:2] in (b"\xff\xfe", b"\xfe\xff"):
+        try:
+            return raw.decode("utf-16")
+        except UnicodeDecodeError as exc:
+            raise BundleError(f"{path}: not valid UTF-16 text ({exc})") from None
+    if b"\x00" in raw[:4096]:
+        raise BundleError(f"{path}: binary content, not a text table")
+    try:
+        return raw.decode("utf-8-sig")
+    except UnicodeDecodeError:
+        return raw.decode("cp1252", errors="replace")
+
+
+def _read_bytes(path: Path) -> bytes:
+    try:
+        raw = path.read_bytes()
+    except OSError as exc:
+        raise BundleError(f"{path}: cannot be read ({exc.strerror or exc})") from None
+    if not raw.strip():
+        raise BundleError(f"{path}: the file is empty")
+    return raw
+
+
+# ------------------------------------------------------------------------------------------ generic readers
+# Column kinds that are not measurements, and what to do about them: naming such a column is an error saying so.
+_NOT_NUMBERS = {
+    "M": "date-times; convert them to seconds (e.g. (t - t[0]).dt.total_seconds()) before reading",
+    "m": "durations; convert them to seconds (e.g. .dt.total_seconds()) before reading",
+    "b": "booleans, not measurements",
+    "c": "complex numbers; keep the real-valued measurement",
+}
+
+
+def _frame_table(path: Path, df: pd.DataFrame, units: Mapping[str, str] | None = None) -> Table:
+    columns: dict[str, np.ndarray] = {}
+    found_units: dict[str, str] = dict(units or {})
+    aliases: dict[str, list[str]] = {}
+    not_numbers: dict[str, str] = {}
+    for c in df.columns:
+        series = df[c]
+        if series.dtype.kind not in "iuf":
+            what = _NOT_NUMBERS.get(series.dtype.kind)
+            if what is not None:
+                not_numbers[split_name_unit(str(c))[0]] = what
+            continue  # text, dates and flags are not signals
+        name, u = split_name_unit(str(c))
+        if name in columns:
+            name = str(c).strip()
+        columns[name] = series.to_numpy(dtype=float)
+        if u is not None:
+            found_units[name] = u
+            aliases.setdefault(str(c).strip().lower(), []).append(name)
+    if not columns:
+        raise BundleError(f"{path}: no numeric columns (columns: {', '.join(map(str, df.columns))})")
+    return Table(path.stem, columns, str(path), found_units, aliases=aliases, not_numbers=not_numbers)
+
+
+@dataclass(frozen=True)
+class _TextLayout:
+    """Where a delimited text table's header is and how its fields are written."""
+
+    delimiter: str | None  # None: runs of whitespace
+    header_line: int  # 0-based; the lines before it are a preamble (comments, metadata)
+    decimal: str
+
+
+def _number_text(x: str, decimal: str) -> bool:
+    x = x.strip()
+    if decimal == ",":
+        x = x.replace(",", ".")
+    try:
+        float(x)
+    except ValueError:
+        return False
+    return bool(x)
+
+
+def _text_layout(lines: list[str]) -> _TextLayout | None:
+    """The first header line (no field a number) followed by data rows with as many fields (at least half of them
+    numbers: label columns may sit beside the signals), for the first delimiter (comma, semicolon, tab, whitespace)
+    and decimal mark that give one; None if no line fits."""
+    for delimiter in (",", ";", "\t", None):
+        for decimal in (".", ","):
+            if decimal == "," and delimiter == ",":
+                continue
+            fields = [(line.split(delimiter) if delimiter else line.split()) for line in lines]
+
+            def data(row: list[str], width: int) -> bool:
+                return len(row) == width and 2 * sum(_number_text(x, decimal) for x in row) >= width
+
+            for i in range(len(lines) - 1):
+                head = fields[i]
+                if len(head) < 2 or any(_number_text(x, decimal) for x in head):
+                    continue  # a header names its columns
+                rows = fields[i + 1:i + 3]
+                if all(data(r, len(head)) for r in rows):
+                    return _TextLayout(delimiter, i, decimal)
+    return None
+
+
+def _preamble(lines: list[str]) -> dict[str, Any]:
+    """``key: value`` (or ``key = value``, ``key,value``) lines before a table's header, without comment marks."""
+    meta: dict[str, Any] = {}
+    for line in lines:
+        text = line.strip().lstrip("#%;").strip()
+        m = re.match(r"^([^:=,;\t]+?)\s*[:=,;\t]\s*(.+)$", text)
+        if m:
+            meta[m.group(1).strip()] = m.group(2).strip().strip('"')
+    return meta
+
+
+def read_csv(path: str | Path) -> list[Table]:
+    """A delimited text table: comma, semicolon, tab or whitespace, decimal point or comma, one header line, and any
+    preamble before it (comment or ``key: value`` lines, kept as the table's metadata); all found from the first
+    lines."""
+    p = Path(path)
+    raw = _read_bytes(p)
+    head = raw[:65536].decode("utf-8", errors="replace").splitlines()[:200]
+    layout = _text_layout([line.rstrip("\r\n") for line in head])
+    if layout is None:
+        raise BundleError(f"{p}: cannot be read as CSV: no header line followed by rows of numbers in its first "
+                          f"{len(head)} line(s) (empty, truncated or not a delimited table)")
+    try:
+        df = pd.read_csv(p, sep=layout.delimiter or r"\s+", skiprows=layout.header_line, decimal=layout.decimal,
+                         encoding_errors="replace")
+    except Exception as exc:  # noqa: BLE001 - any parser failure is a clear file error
+        raise BundleError(f"{p}: cannot be read as CSV ({exc})") from None
+    if len(df) == 0:
+        raise BundleError(f"{p}: the CSV has a header but no samples (empty or truncated file)")
+    table = _frame_table(p, df)
+    table.meta.update(_preamble(head[:layout.header_line]))
+    return [table]
+
+
+def read_parquet(path: str | Path) -> list[Table]:
+    p = Path(path)
+    _read_bytes(p)
+    try:
+        df = pd.read_parquet(p)
+    except Exception as exc:  # noqa: BLE001
+        raise BundleError(f"{p}: cannot be read as Parquet ({exc})") from None
+    return [_frame_table(p, df)]
+
+
+def read_tdms(path: str | Path) -> list[Table]:
+    """NI TDMS: every numeric channel as ``group/channel`` (and as ``channel`` when that name is unique); the
+    ``unit_string`` property is the channel's unit."""
+    p = Path(path)
+    _read_bytes(p)
+    try:
+        from nptdms import TdmsFile
+    except ImportError:  # pragma: no cover - npTDMS is a dependency
+        raise BundleError("reading .tdms needs the npTDMS package (pip install npTDMS)") from None
+    try:
+        tdms = TdmsFile.read(p)
+    except Exception as exc:  # noqa: BLE001
+        raise BundleError(f"{p}: cannot be read as TDMS ({exc})") from None
+    columns: dict[str, np.ndarray] = {}
+    units: dict[str, str] = {}
+    aliases: dict[str, list[str]] = {}
+    for group in tdms.groups():
+        for channel in group.channels():
+            data = np.asarray(channel[:])
+            if data.dtype.kind not in "iuf":
+                continue
+            key = f"{group.name}/{channel.name}"
+            columns[key] = data.astype(float)
+            u = channel.properties.get("unit_string")
+            if isinstance(u, str) and u.strip():
+                units[key] = u.strip()
+            aliases.setdefault(channel.name.lower(), []).append(key)
+    if not columns:
+        raise BundleError(f"{p}: no numeric TDMS channels")
+    return _split_by_length(p, columns, units, aliases)
+
+
+def load_mat(path: Path) -> dict[str, Any]:
+    """``scipy.io.loadmat`` with MATLAB structs as attribute objects and 1×N arrays squeezed; v7.3 (HDF5) files
+    and damaged files are clear errors."""
+    _read_bytes(path)
+    try:
+        from scipy.io import loadmat
+    except ImportError:  # pragma: no cover - scipy is a dependency
+        raise BundleError("reading .mat needs scipy") from None
+    try:
+        return loadmat(path, squeeze_me=True, struct_as_record=False)
+    except NotImplementedError:
+        raise BundleError(f"{path}: MATLAB v7.3 (HDF5) files are not read; save the data as a v7 MAT file "
+                          "(MATLAB: save(name, '-v7'); ControlDesk: MAT export) or export CSV") from None
+    except Exception as exc:  # noqa: BLE001
+        raise BundleError(f"{path}: cannot be read as a MATLAB file ({exc})") from None
+
+
+def read_mat(path: str | Path) -> list[Table]:
+    """MATLAB variables: numeric vectors by name, struct fields as ``struct.field``."""
+    p = Path(path)
+    mat = load_mat(p)
+    columns: dict[str, np.ndarray] = {}
+
+    def add(name: str, value: Any) -> None:
+        if hasattr(value, "_fieldnames"):
+            for f in value._fieldnames:
+                add(f"{name}.{f}", getattr(value, f))
+            return
+        arr = np.asarray(value)
+        if arr.dtype.kind in "iuf" and (arr.ndim == 1 or (arr.ndim == 2 and 1 in arr.shape)) and arr.size > 1:
+            columns[name] = arr.ravel().astype(float)
+
+    for key, value in mat.items():
+        if not key.startswith("__"):
+            add(key, value)
+    if not columns:
+        raise BundleError(f"{p}: no numeric vectors among the MATLAB variables "
+                          f"({', '.join(k for k in mat if not k.startswith('__')) or 'none'})")
+    return _split_by_length(p, columns, {}, {})
+
+
+def _split_by_length(path: Path, columns: dict[str, np.ndarray], units: dict[str, str],
+                     aliases: dict[str, list[str]]) -> list[Table]:
+    """One table if every column has the same length, otherwise one per length (named by it)."""
+    by_len: dict[int, list[str]] = {}
+    for k, v in columns.items():
+        by_len.setdefault(len(v), []).append(k)
+    if len(by_len) == 1:
+        return [Table(path.stem, columns, str(path), units, aliases=aliases)]
+    out = []
+    for n, keys in sorted(by_len.items(), key=lambda kv: -kv[0]):
+        keep = set(keys)
+        al = {a: [k for k in ks if k in keep] for a, ks in aliases.items()}
+        out.append(Table(f"{path.stem}-{n}", {k: columns[k] for k in keys}, f"{path} ({n}-sample columns)",
+                         {k: u for k, u in units.items() if k in keep}, aliases={a: v for a, v in al.items() if v}))
+    return out
+
+
+# ------------------------------------------------------------------------------------------------ dispatch
+def _readers() -> dict[str, Callable[[Path], list[Table]]]:
+    from bmr.data import aixacct, controldesk, slac
+
+    return {"csv": read_csv, "parquet": read_parquet, "tdms": read_tdms, "mat": read_mat,
+            "controldesk": controldesk.read, "aixacct": aixacct.read, "slac": slac.read}
+
+
+FORMATS = ("csv", "parquet", "tdms", "mat", "controldesk", "aixacct", "slac")
+
+
+def detect_format(path: Path) -> str:
+    """The reader for ``path`` from its extension and, for ``.mat`` and text files, its content."""
+    from bmr.data import aixacct, controldesk, slac
+
+    suffix = path.suffix.lower()
+    if suffix in (".parquet", ".pq"):
+        return "parquet"
+    if suffix == ".tdms":
+        return "tdms"
+    if suffix == ".mat":
+        return "controldesk" if controldesk.looks_like(path) else "mat"
+    if slac.looks_like(path):
+        return "slac"
+    if suffix == ".csv":
+        return "csv"
+    return "aixacct" if aixacct.looks_like(path) else "csv"
+
+
+def read_tables(path: str | Path, format: str | None = None) -> list[Table]:
+    """Every measurement table in ``path``, read with the reader named by ``format`` (one of ``FORMATS``) or the
+    one its extension and content call for."""
+    p = Path(path)
+    if not p.is_file():
+        raise BundleError(f"{str(p)!r} does not exist" if not p.exists() else f"{str(p)!r} is not a file")
+    readers = _readers()
+    if format is None:
+        format = detect_format(p)
+    if format not in readers:
+        raise BundleError(f"unknown file format {format!r}; use one of {', '.join(FORMATS)}")
+    return readers[format](p)

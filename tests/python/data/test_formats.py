@@ -1,0 +1,192 @@
+"""Instrument readers, each on files written in its layout: dSPACE ControlDesk captures, analyzer exports (tab-
+separated tables with units), SLAC magnetic-measurement tables; plus unit-bearing CSV/TDMS headers and the errors
+for files that are empty, truncated or of another format."""
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+import pytest
+
+import bmr
+from bmr.data.tables import read_tables
+from lab_files import write_aixacct, write_controldesk, write_slac
+
+N = 300
+T = np.arange(N) * 1e-3
+VOLTS = 50.0 + 50.0 * np.sin(2 * np.pi * 3 * T)
+MICRONS = 0.3 * VOLTS
+
+
+# ------------------------------------------------------------------------------------------------ ControlDesk
+def test_controldesk_capture_channels_by_name_path_and_tail(tmp_path):
+    p = write_controldesk(tmp_path / "forc_01.mat", "forc_01", [T], [
+        ("Model Root/Amp/Vout", "Model Root/Amp", VOLTS, "V", 1),
+        ("x_um", "Model Root/Sensor", MICRONS, "", 1)])
+    [t] = read_tables(p)  # detected from the .mat content
+    assert t.name == "forc_01" and t.time_column == "time" and t.n_samples == N
+    np.testing.assert_array_equal(t.columns["time"], T)
+    assert t.column("Vout")[0] == "Model Root/Amp/Vout"  # the last part of the signal path
+    assert t.column("Model Root/Sensor/x_um")[0] == "x_um"  # Path/Name
+    np.testing.assert_array_equal(t.column("X_UM")[1], MICRONS)
+    assert t.unit_of("Model Root/Amp/Vout") == "V" and t.unit_of("x_um") is None and t.unit_of("time") == "s"
+    assert t.meta["RTProgram"] == "piezo_rig.sdf"
+
+
+def test_controldesk_rasters_become_tables_and_bad_captures_are_named(tmp_path):
+    slow = T[::10]
+    p = write_controldesk(tmp_path / "two.mat", "cap", [T, slow], [
+        ("Vout", "Model Root/Amp", VOLTS, "V", 1), ("Temp", "Model Root/Th", np.full(slow.size, 21.0), "degC", 2)])
+    fast, slow_t = read_tables(p, "controldesk")
+    assert fast.name == "cap-x1" and slow_t.name == "cap-x2" and slow_t.n_samples == slow.size
+    assert "raster X(2)" in slow_t.source
+    cut = write_controldesk(tmp_path / "cut.mat", "cut", [T], [("Vout", "Model Root/Amp", VOLTS[:-5], "V", 1)])
+    with pytest.raises(bmr.BundleError, match=r"cut.mat: cut: channel 'Vout' has 295 samples but its time axis X\(1\) "
+                                           r"has 300 \(truncated capture\?\)"):
+        read_tables(cut)
+    dup = write_controldesk(tmp_path / "dup.mat", "dup", [T], [
+        ("Out1", "Model Root/A", VOLTS, "V", 1), ("Out1", "Model Root/B", MICRONS, "um", 1)])
+    [t] = read_tables(dup)
+    with pytest.raises(bmr.BmrError, match=r"column 'out1' is ambiguous"):
+        t.column("out1")
+    np.testing.assert_array_equal(t.column("Model Root/B/Out1")[1], MICRONS)
+    v73 = write_controldesk(tmp_path / "new.mat", "x", [], [], v73=True)
+    with pytest.raises(bmr.BmrError, match=r"new.mat: MATLAB v7.3 \(HDF5\) files are not read; save the data as a "
+                                           r"v7 MAT file"):
+        read_tables(v73)
+
+
+def test_plain_mat_is_not_a_capture(tmp_path):
+    from scipy.io import savemat
+
+    savemat(tmp_path / "plain.mat", {"u": VOLTS, "y": MICRONS, "rig": {"t": T}})
+    [t] = read_tables(tmp_path / "plain.mat")  # detected: plain variables
+    assert set(t.columns) == {"u", "y", "rig.t"}
+    with pytest.raises(bmr.BmrError, match=r"plain.mat: not a dSPACE ControlDesk capture: no variable is a struct "
+                                           r"with X \(time\) and Y \(channels\) \(variables: u, y, rig\)"):
+        read_tables(tmp_path / "plain.mat", "controldesk")
+
+
+# ------------------------------------------------------------------------------------------------ analyzer
+def _loop(k: int) -> np.ndarray:
+    t = np.arange(200) * 1e-4
+    v = 10.0 * np.sin(2 * np.pi * 50 * t + k)
+    return np.column_stack([t, v, -v, 1e-6 * np.cos(2 * np.pi * 50 * t), 20.0 * np.tanh(v / 3.0)])
+
+
+@pytest.mark.parametrize("brackets", [False, True])
+def test_analyzer_export_with_several_tables(tmp_path, brackets):
+    header = ["Time s", "Vplus V", "Vminus V", "I1 A", "P1 uC_per_cm2"]
+    p = write_aixacct(tmp_path / "forc.dat", [({"Hysteresis Amplitude [V]": "10", "Waveform": "triangle"},
+                                               header, _loop(k)) for k in range(3)], bracket_units=brackets)
+    tables = read_tables(p)
+    assert [t.name for t in tables] == ["forc-1", "forc-2", "forc-3"]
+    t = tables[1]
+    assert list(t.columns) == ["Time", "Vplus", "Vminus", "I1", "P1"]
+    assert t.units["P1"] in ("uC_per_cm2", "uC/cm2") and t.units["Time"] == "s"
+    np.testing.assert_allclose(t.columns["P1"], _loop(1)[:, 4], rtol=1e-6)
+    assert t.meta["Waveform"] == "triangle" and t.meta["SampleName"] == "C12" and t.meta["table"] == "Table 2"
+    assert "table 2, Table 2, header at line" in t.source
+
+
+def test_analyzer_truncated_headerless_and_wrong_files(tmp_path):
+    header = ["Time s", "Vplus V", "P1 uC_per_cm2"]
+    p = write_aixacct(tmp_path / "cut.dat", [({}, header, _loop(0)[:, [0, 1, 4]])])
+    text = p.read_text(encoding="cp1252").rstrip("\n")
+    p.write_text(text[: text.rfind("\t")] + "\n", encoding="cp1252")  # the last line loses its last value
+    with pytest.raises(bmr.BundleError, match=r"cut.dat, line \d+: 2 values under a header of 3 \(Time s, Vplus V, "
+                                           r"P1 uC_per_cm2\) \(truncated file\?\)"):
+        read_tables(p)
+    (tmp_path / "comma.dat").write_text("Time s\tVplus V\n0,0\t-1,5E+00\n1,0E-03\t2,25\n")
+    [c] = read_tables(tmp_path / "comma.dat")
+    np.testing.assert_array_equal(c.columns["Vplus"], [-1.5, 2.25])
+    (tmp_path / "word.dat").write_text("Time s\tVplus V\n0\t1.0\n1e-3\tover\n2e-3\t3.0\n")
+    with pytest.raises(bmr.BmrError, match=r"word.dat, line 3: not a row of numbers: '1e-3\\tover'"):
+        read_tables(tmp_path / "word.dat")
+    (tmp_path / "bare.txt").write_text("1.0\t2.0\n3.0\t4.0\n")
+    with pytest.raises(bmr.BmrError, match=r"bare.txt, line 1: numbers without a header line"):
+        read_tables(tmp_path / "bare.txt", "aixacct")
+    pd.DataFrame({"a": [1.0, 2.0], "b": [3.0, 4.0]}).to_csv(tmp_path / "comma.csv", index=False)
+    with pytest.raises(bmr.BmrError, match=r"comma.csv: no tab-separated table found"):
+        read_tables(tmp_path / "comma.csv", "aixacct")
+    (tmp_path / "empty.dat").write_text("\n  \n")
+    with pytest.raises(bmr.BmrError, match=r"empty.dat: the file is empty"):
+        read_tables(tmp_path / "empty.dat")
+    (tmp_path / "head.csv").write_text("time,volts\n")
+    with pytest.raises(bmr.BundleError, match=r"head.csv: cannot be read as CSV: no header line followed by rows of "
+                                              r"numbers in its first 1 line\(s\) \(empty, truncated"):
+        read_tables(tmp_path / "head.csv")
+    with pytest.raises(bmr.BmrError, match=r"unknown file format 'xlsx'"):
+        read_tables(tmp_path / "head.csv", "xlsx")
+    with pytest.raises(bmr.BmrError, match=r"does not exist"):
+        read_tables(tmp_path / "nothing.dat")
+
+
+# ------------------------------------------------------------------------------------------------ SLAC
+def test_slac_tables_in_their_layout(tmp_path):
+    cur = np.array([0.0, 82.5, 84.15, 85.8, 84.15, 82.5, 80.85, 82.5])
+    bl = 0.0317 * cur + 0.034
+    dat, plt = write_slac(tmp_path, 4, cur, bl, comment="Minor hysteresis loop 1")
+    [d] = read_tables(dat)
+    assert d.name == "run4" and d.time_column is None
+    assert list(d.columns) == ["MAIN", "sigMAIN", "BL", "sigBL", "TF", "sigTF", "THsp", "sigTHsp"]
+    assert d.units == {"MAIN": "A", "sigMAIN": "A", "BL": "T", "sigBL": "T", "TF": "T/A", "sigTF": "T/A",
+                       "THsp": "deg", "sigTHsp": "deg"}
+    assert d.meta["Comment"] == "Minor hysteresis loop 1" and d.meta["Run Number"] == "4"
+    np.testing.assert_allclose(d.columns["BL"], bl, atol=1e-6)
+    assert d.column("sigma")[0] == "sigMAIN"
+    [p] = read_tables(plt)
+    assert p.name == "run4" and p.time_column == "Time" and p.units["Time"] == "s" and p.units["BL"] == "T"
+    assert "sigTHsp" in p.columns  # written +/-sigThsp in this file's header
+    assert p.meta["metadata_from"] == "strdat.ru4" and p.meta["Comment"] == "Minor hysteresis loop 1"
+    np.testing.assert_allclose(p.columns["MAIN"], cur, atol=1e-6)
+    # Truncated: the last row lost its last columns.
+    lines = plt.read_text().splitlines()
+    plt.write_text("\n".join(lines[:-1] + [lines[-1][:30]]) + "\n")
+    with pytest.raises(bmr.BundleError, match=r"strplt.ru4, line 9: 3 values where the header names 9 "
+                                           r"\(truncated file\?\)"):
+        read_tables(plt)
+    (tmp_path / "other.txt").write_text("Time\tVolts\n0\t1\n")
+    with pytest.raises(bmr.BmrError, match=r"other.txt: not a SLAC magnetic-measurement table"):
+        read_tables(tmp_path / "other.txt", "slac")
+
+
+def test_slac_measurements(slac_data):
+    sizes = {3: 61, 4: 42, 5: 22, 6: 42, 7: 10, 8: 10}
+    for run, n in sizes.items():
+        [d] = read_tables(slac_data / f"strdat.ru{run}")
+        [p] = read_tables(slac_data / f"strplt.ru{run}")
+        assert d.name == p.name == f"run{run}" and d.n_samples == p.n_samples == n
+        assert p.units["BL"] == "T" and p.units["MAIN"] == "A" and p.units["Time"] == "s"
+        np.testing.assert_allclose(p.columns["BL"], d.columns["BL"], atol=1e-6)
+        assert np.all(np.diff(p.columns["Time"]) > 0)
+        assert 1e-6 < np.median(p.columns["sigBL"]) < 1e-4  # the field measurement's sigma, ~1e-5 T
+
+
+# ------------------------------------------------------------------------------------------------ generic
+def test_units_in_csv_and_tdms_headers(tmp_path):
+    pd.DataFrame({"Time [ms]": T * 1e3, "Drive (V)": VOLTS, "Force (filtered)": MICRONS}).to_csv(
+        tmp_path / "log.csv", index=False)
+    [t] = read_tables(tmp_path / "log.csv")
+    assert t.units == {"Time": "ms", "Drive": "V"} and "Force (filtered)" in t.columns
+    assert t.column("Drive (V)")[0] == "Drive"
+    from nptdms import ChannelObject, TdmsWriter
+
+    with TdmsWriter(tmp_path / "r.tdms") as w:
+        w.write_segment([ChannelObject("Data", "Vout", VOLTS, properties={"unit_string": "V"}),
+                         ChannelObject("Data", "x", MICRONS, properties={"unit_string": "um"})])
+    [t] = read_tables(tmp_path / "r.tdms")
+    assert t.units == {"Data/Vout": "V", "Data/x": "um"} and t.column("x")[0] == "Data/x"
+
+
+def test_delimited_logs_with_a_preamble_decimal_commas_and_blanks(tmp_path):
+    rows = "\n".join(f"{t:.4f};{v:.6f}".replace(".", ",") + ";ok" for t, v in zip(T[:50], VOLTS[:50]))
+    (tmp_path / "eu.csv").write_text("# exported by RigLogger 2.1\nOperator: A. Muster\nSample rate: 1000 Hz\n\n"
+                                     "Zeit [s];Spannung [V];Status\n" + rows + "\n")
+    [t] = read_tables(tmp_path / "eu.csv")
+    assert t.units == {"Zeit": "s", "Spannung": "V"} and t.n_samples == 50 and "Status" not in t.columns
+    np.testing.assert_allclose(t.columns["Spannung"], VOLTS[:50], atol=1e-6)
+    assert t.meta["Operator"] == "A. Muster" and t.meta["Sample rate"] == "1000 Hz"
+    body = "\n".join(f"  {a:.4f}   {b:.5f}" for a, b in zip(T[:20], MICRONS[:20]))
+    (tmp_path / "blank.txt").write_text("t x_um\n" + body + "\n")
+    [w] = read_tables(tmp_path / "blank.txt", "csv")
+    np.testing.assert_allclose(w.columns["x_um"], MICRONS[:20], atol=1e-5)
