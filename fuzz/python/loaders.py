@@ -49,7 +49,7 @@ def _run_file_target(work: Path):
     root = work / "bundle"
     root.mkdir()
     (root / "manifest.json").write_text(json.dumps({
-        "format": bmr.data.bundle.FORMAT, "actuator": "fuzz", "sample_rate_hz": 500.0,
+        "format": bmr.data.bundle.FORMAT_V1, "actuator": "fuzz", "sample_rate_hz": 500.0,
         "runs": [{"name": "r", "kind": "custom", "file": "run.csv"}]}))
     run = root / "run.csv"
 
