@@ -80,3 +80,34 @@ def test_no_traceback_from_the_installed_command(tmp_path):
     assert proc.returncode == 2
     assert "Traceback" not in proc.stderr
     assert proc.stderr.strip() == f"bmr simulate: error: bundle folder {str(tmp_path / 'file')!r} is a file, not a folder"
+
+
+@pytest.mark.parametrize("problem", ["oversized", "infinite_score_as_text", "wrong_types"])
+def test_a_hostile_model_file_is_one_line_from_bmr_diagnose(tmp_path, capsys, problem):
+    # A 10 MB model file without a digest aborted the interpreter in `bmr diagnose --model`; wrong field types
+    # printed a traceback.
+    import json
+
+    import numpy as np
+    import pandas as pd
+
+    from bmr.data.bundle import write_bundle
+
+    t = np.arange(200) / 500.0
+    run = bmr.Run("r", "custom", pd.DataFrame({"t_s": t, "current_a": np.sin(t), "theta_rad": t,
+                                               "torque_nmm": np.cos(t)}))
+    bundle = write_bundle(bmr.Bundle("rig", 500.0, [run]), tmp_path / "b")
+    u = np.linspace(-1, 1, 9)
+    asc = [(u[k:], 100 * (u[k:] + 1)) for k in range(4)]
+    desc = [(u[::-1][k:], 100 * (u[::-1][k:] + 1)) for k in range(4)]
+    content = bmr.Model.from_curves(asc, desc).to_dict()
+    if problem == "oversized":
+        content["hysteresis"]["ascending"] = [[[0.0, 1.0], [0.0, 1.0]]] * 100_001
+    elif problem == "infinite_score_as_text":
+        content["friction"] = {"c0": 1.0, "a": [0.5], "b": [0.1], "scores": {"1": "inf"}}
+    else:
+        content["limits"] = {"current_a": [1, 0]}
+    path = tmp_path / "m.json"
+    path.write_text(json.dumps(content))
+    assert main(["diagnose", str(bundle), "--model", str(path)]) == 2
+    _one_line_error(capsys, "bmr diagnose: error:", str(path))
