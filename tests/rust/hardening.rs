@@ -388,3 +388,35 @@ fn merging_a_full_memory_keeps_the_output_continuous_at_later_wipe_outs() {
     }
     assert!(steepest.is_finite());
 }
+
+#[test]
+fn a_curve_leaving_the_major_loop_is_refused() {
+    // Found by fuzzing (table_build): an ascending family whose second curve climbs to 1e70 while the major
+    // branch ends at 814.875 was accepted; the derived descending family then held -1e70 and the operator did not
+    // rebuild from its own curves.
+    let asc: Curves = vec![
+        (vec![-100000.0, -272.0625], vec![-273.125, 814.875]),
+        (vec![-285.125, -273.125], vec![272.0, 1.0000000000000002e70]),
+    ];
+    let err = outcome(build(&asc, &[])).unwrap_err();
+    assert!(
+        matches!(
+            err,
+            TableError::OutsideMajorLoop {
+                family: FamilyKind::Ascending,
+                curve: 1,
+                ..
+            }
+        ),
+        "{err}"
+    );
+    assert!(err.to_string().contains("outside the major loop"), "{err}");
+    // The same family inside the loop builds and rebuilds from its own curves.
+    let asc: Curves = vec![
+        (vec![-100000.0, -272.0625], vec![-273.125, 814.875]),
+        (vec![-285.125, -273.125], vec![272.0, 800.0]),
+    ];
+    let h = build(&asc, &[]).unwrap();
+    let (a, d) = h.curves();
+    outcome(build(&a, &d)).unwrap();
+}
