@@ -24,26 +24,16 @@ import numpy as np
 
 from bmr.diagnosis.procedure import diagnose
 from bmr.diagnosis.effects import PHYSICAL
-from bmr.simulation.excitation import diagnosis_bundle
+from bmr.simulation.excitation import MEDIUM_EFFECTS, diagnosis_bundle
 
-# Medium size of each effect and the parameter whose relative error is reported.
-MEDIUM: dict[str, tuple[dict[str, float], str]] = {
-    "coil_lag": ({"tau_s": 0.02}, "tau_s"),
-    "thermal_drift": ({"gain_loss": 0.1, "tau_s": 60.0}, "gain_loss"),
-    "friction_current": ({"gain_per_a": 0.6}, "gain_per_a"),
-    "friction_harmonics": ({"order": 7.0, "amplitude_nmm": 5.0, "phase_rad": 0.5}, "amplitude_nmm"),
-    "torque_ripple": ({"eps": 0.05, "phase_rad": 1.0}, "eps"),
-    "sensor_drift": ({"rate_nmm_per_s": 0.06}, "rate_nmm_per_s"),
-    "time_delay": ({"delay_s": 0.02}, "delay_s"),
-    "non_congruent": ({"curvature": 2.0}, "curvature"),
-}
+# The parameters scaled with the size (the first is the one whose relative error is reported).
 SCALED = {"coil_lag": ["tau_s"], "thermal_drift": ["gain_loss"], "friction_current": ["gain_per_a"],
           "friction_harmonics": ["amplitude_nmm"], "torque_ripple": ["eps"], "sensor_drift": ["rate_nmm_per_s"],
           "time_delay": ["delay_s"], "non_congruent": ["curvature"]}
 
 
 def effect_at(name: str, size: float) -> dict[str, float]:
-    params, _ = MEDIUM[name]
+    params = MEDIUM_EFFECTS[name]
     out = dict(params)
     for k in SCALED[name]:
         out[k] = params[k] * size
@@ -67,7 +57,7 @@ def one(name: str | None, size: float, seed: int, closed_loop: bool = False) -> 
     if name:
         row["detected"] = name in physical
         row["wrong"] = any(n != name for n in physical)
-        key = MEDIUM[name][1]
+        key = SCALED[name][0]
         truth = effects[name][key]
         got = next((e["params"].get(key) for e in d.effects if e["name"] == name), None)
         row["param_err"] = abs(got - truth) / abs(truth) if got is not None else math.nan
@@ -80,7 +70,7 @@ def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--seeds", type=int, default=10)
     p.add_argument("--sizes", default="0.5,1,2")
-    p.add_argument("--effects", default=",".join(MEDIUM))
+    p.add_argument("--effects", default=",".join(MEDIUM_EFFECTS))
     p.add_argument("--closed-loop", action="store_true",
                    help="also measure extended vs nominal compensator tracking on each bundle's plant")
     args = p.parse_args(argv)

@@ -78,7 +78,7 @@ def measure_performance(repeat: int) -> None:
     values["latency_ns"] = {k: {q: _spread([r[q] for r in v]) for q in ("median", "p99", "p999")}
                             for k, v in latency.items()}
     values["instructions"] = {}
-    for what in ("compensator", "hysteresis"):
+    for what in ("compensator", "extended", "hysteresis"):
         _, _, out = _timed(["bash", "benches/callgrind.sh", what])
         m = re.search(r"(\d+) instructions per step", out)
         values["instructions"][what] = int(m.group(1)) if m else None
@@ -91,6 +91,11 @@ def measure_performance(repeat: int) -> None:
     record("performance", "python benches/readme_figures.py measure performance", values)
 
 
+def measure_closed_loop(repeat: int) -> None:
+    """Closed-loop tracking ratio per effect (deterministic for a seed: measured once, ``repeat`` is not used)."""
+    _timed([sys.executable, "benches/closed_loop_ratios.py", "--record"])
+
+
 def measure_identification(repeat: int) -> None:
     """Identification on an independent plant and on the SLAC quadrupole (``benches/identification_real_data.py``
     records its own section; no timings, so no repeats)."""
@@ -98,6 +103,7 @@ def measure_identification(repeat: int) -> None:
 
 
 MEASURE: dict[str, Callable[[int], None]] = {"demo": measure_demo, "performance": measure_performance,
+                                             "closed_loop": measure_closed_loop,
                                              "identification": measure_identification}
 
 
@@ -114,8 +120,13 @@ def render_demo(rec: dict[str, Any]) -> str:
     m = v["full"]["metrics"]
     fs = m["full_scale_nmm"]
     rows = ["| case | paper fig | RMS (N·mm) | max (N·mm) | RMS (% FS) | max (% FS) |", "|---|---|---|---|---|---|"]
-    for c in m["cases"].values():
-        fig = c["paper_figure"] if c["paper_figure"] != "baseline" else "—"
+    # The paper's order: triangle experiments (figs 18-22), then the multi-peak reference (24-25) and the baselines.
+    order = ["triangle_current_without_friction_compensation", "triangle_current_with_friction_compensation",
+             "triangle_hysteresis_compensation", "multipeak_uncompensated", "multipeak_hysteresis_compensation",
+             "multipeak_both_compensations", "multipeak_both_paper_inverse"]
+    cases = sorted(m["cases"].items(), key=lambda kv: (order.index(kv[0]) if kv[0] in order else len(order), kv[0]))
+    for _, c in cases:
+        fig = c["paper_figure"] if c["paper_figure"][:1].isdigit() else "—"
         rows.append(f"| {c['title']} | {fig} | {c['rms_nmm']:.3g} | {c['max_abs_nmm']:.4g} | "
                     f"{c['rms_pct_fs']:.2g} | {c['max_pct_fs']:.2g} |")
     t = {k: v[k] for k in ("full", "quick")}
@@ -145,15 +156,45 @@ def render_performance(rec: dict[str, Any]) -> str:
                     f"p99 {q['p99']['median']:.0f} ns, p99.9 {q['p999']['median']:.0f} ns over 10⁶ steps | "
                     "`cargo bench -p bmr-bench --bench latency` |")
     for what, n in ins.items():
-        name = {"compensator": "Compensator::step", "hysteresis": "Hysteresis::step"}[what]
-        rows.append(f"| `{name}` instructions | {n} per step | `benches/callgrind.sh {what}` |")
+        name = {"compensator": "`Compensator::step`", "extended": "`Compensator::step` with every extension stage",
+                "hysteresis": "`Hysteresis::step`"}[what]
+        rows.append(f"| {name} instructions | {n} per step | `benches/callgrind.sh {what}` |")
     cmd = "`python benches/python_peers.py`"
+    cpu_us = py.get("per_call_cpu_us", {})
     for name, s in py["per_call_us"].items():
-        rows.append(f"| `{name}` from Python | {_pm(s, '{:.3g}', ' µs')} per call | {cmd} |")
+        cpu = f", CPU {_pm(cpu_us[name], '{:.3g}', ' µs')}" if name in cpu_us else ""
+        rows.append(f"| `{name}` from Python | wall {_pm(s, '{:.3g}', ' µs')}{cpu} per call | {cmd} |")
+    cpu_rate = py.get("throughput_cpu_msps", {})
     for name, s in py["throughput_msps"].items():
-        rows.append(f"| `{name}` | {_pm(s, '{:.3g}', ' M samples/s')} | {cmd} |")
+        cpu = f" ({_pm(cpu_rate[name], '{:.3g}', ' M')} per CPU-second)" if name in cpu_rate else ""
+        rows.append(f"| `{name}` | {_pm(s, '{:.3g}', ' M samples/s')}{cpu} | {cmd} |")
     for name, s in py["ratio_to_compensator_step"].items():
         rows.append(f"| peer: {name} | {_pm(s, '{:.3g}', '×')} the cost of our `Compensator.step()` | {cmd} |")
+    return "\n".join(rows)
+
+
+def render_closed_loop(rec: dict[str, Any]) -> str:
+    v = rec["values"]
+    rows = [f"Seed {v['seed']}, `{v['preset']}`, multi-peak reference ({v['duration_s']:g} s); ratio = extended / "
+            "nominal tracking RMS; the last two columns are the closed-loop check's verdicts stored in the model "
+            "file (tracking with / without the stage, the other stages in; above 1: left off).", "",
+            "| effect (medium size) | named | stages on | nominal RMS (N·mm) | extended RMS (N·mm) | ratio | "
+            "its stage, with / without | refined tables, with / without |", "|---|---|---|---|---|---|---|---|"]
+
+    def verdict(r: dict[str, Any], stage: str) -> str:
+        s = r["stages"].get(stage)
+        if s is None:
+            return "—"
+        return f"{s['ratio']:.2f}" + ("" if s["in_loop"] else " (left off)")
+
+    ratios = []
+    for r in v["rows"]:
+        params = ", ".join(f"{k}={x:g}" for k, x in r["params"].items())
+        ratios.append(r["ratio"])
+        rows.append(f"| {r['effect']} ({params}) | {', '.join(r['named'])} | {', '.join(r['stages_on']) or '—'} | "
+                    f"{r['nominal_rms_nmm']:.2f} | {r['extended_rms_nmm']:.2f} | {r['ratio']:.2f} | "
+                    f"{verdict(r, r['effect'])} | {verdict(r, 'core_tables')} |")
+    rows += ["", f"Ratios {min(ratios):.2f}-{max(ratios):.2f} over {len(ratios)} effects."]
     return "\n".join(rows)
 
 
@@ -213,7 +254,8 @@ def render_identification(rec: dict[str, Any]) -> str:
 
 
 RENDER: dict[str, Callable[[dict[str, Any]], str]] = {"demo": render_demo, "performance": render_performance,
-                                                       "identification": render_identification}
+                                                      "closed_loop": render_closed_loop,
+                                                      "identification": render_identification}
 
 
 def _footer(rec: dict[str, Any]) -> str:

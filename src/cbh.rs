@@ -64,6 +64,9 @@ pub struct Hysteresis<S, const N: usize> {
     pub(crate) anchor: Reversal,
     fingerprint: u64,
     pub(crate) state: State<N>,
+    /// The exact inverse's shortcut for the branch and cell of its last committed answer (see
+    /// `inverse::FastBranch`); dropped by every other change of the state.
+    pub(crate) fast: Option<crate::inverse::FastBranch>,
 }
 
 impl<S: AsRef<[f64]>, const N: usize> Hysteresis<S, N> {
@@ -129,6 +132,7 @@ impl<S: AsRef<[f64]>, const N: usize> Hysteresis<S, N> {
             anchor,
             fingerprint,
             state,
+            fast: None,
         };
         h.reset(initial);
         Ok(h)
@@ -165,11 +169,13 @@ impl<S: AsRef<[f64]>, const N: usize> Hysteresis<S, N> {
             return Err(TableError::ForeignState);
         }
         self.state = *s;
+        self.fast = None;
         Ok(())
     }
 
     /// Forget all memory and start from `initial`. A major-branch input outside the range saturates.
     pub fn reset(&mut self, initial: Initial) {
+        self.fast = None;
         let st = &mut self.state;
         st.history = History::new(self.anchor);
         st.u = self.lo;
@@ -202,6 +208,7 @@ impl<S: AsRef<[f64]>, const N: usize> Hysteresis<S, N> {
             return f64::NAN;
         }
         let u = u.clamp(self.lo, self.hi);
+        self.fast = None;
         self.advance(u);
         let y = self.branch_output(u);
         self.state.u = u;
@@ -481,6 +488,7 @@ impl<S: AsRef<[f64]>, const N: usize> Hysteresis<S, N> {
             anchor: self.anchor,
             fingerprint: self.fingerprint,
             state: st,
+            fast: None,
         };
         let on_branch = probe.branch_output(st.u);
         let off = (on_branch - st.y).abs();

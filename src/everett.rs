@@ -340,20 +340,32 @@ impl<S: AsRef<[f64]>> Family<S> {
     /// nearby input), so slowly varying targets cost O(1) and any hint gives the same answer.
     #[inline]
     pub fn everett_inverse(&self, s: &Strip, e: f64, hint: usize) -> f64 {
+        self.everett_inverse_cell(s, e, hint).0
+    }
+
+    /// [`Self::everett_inverse`] and, when the answer lies beyond the strip's own curve, the grid cell holding it
+    /// with the Everett values at its nodes (the next query's search hint and shortcut).
+    #[inline(always)]
+    pub(crate) fn everett_inverse_cell(
+        &self,
+        s: &Strip,
+        e: f64,
+        hint: usize,
+    ) -> (f64, Option<Hit>) {
         if e <= 0.0 || s.m >= self.hi() {
-            return s.m;
+            return (s.m, None);
         }
         let g = self.grid();
         if e <= s.tri {
             // Invert E_j on [r_j, r_next], then shift back to start at m.
             let row = self.row(s.j);
-            let v = invert_monotone(g, |k| row[k], e, s.k_j, s.k_next, s.k_j);
-            return (s.m + (v - s.r_j)).min(s.r_next);
+            let v = invert_monotone(g, |k| row[k], e, s.k_j, s.k_next, s.k_j).value;
+            return ((s.m + (v - s.r_j)).min(s.r_next), None);
         }
         if s.j + 1 >= self.curves {
-            return self.hi();
+            return (self.hi(), None);
         }
-        let u = invert_monotone(
+        let hit = invert_monotone(
             g,
             |k| self.combined_node(s, k),
             e,
@@ -361,13 +373,34 @@ impl<S: AsRef<[f64]>> Family<S> {
             self.nodes - 1,
             hint,
         );
-        u.max(s.r_next)
+        (hit.value.max(s.r_next), Some(hit))
     }
 }
 
 /// Input where the piecewise-linear function with node values `f(k)` on `grid` first reaches `target`, searching
 /// nodes `start..=end` (`f` non-decreasing there). Returns `grid[end]` if `target` is never reached. The answer
 /// does not depend on `hint`; a hint near the answer makes the search O(1).
+/// Where [`invert_monotone`] found its answer: the value, the cell (nodes `cell`, `cell + 1`) and `f` there
+/// (NaN when the answer is an end of the range, not inside a cell).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct Hit {
+    pub value: f64,
+    pub cell: usize,
+    pub f_lo: f64,
+    pub f_hi: f64,
+}
+
+impl Hit {
+    fn edge(value: f64, cell: usize) -> Hit {
+        Hit {
+            value,
+            cell,
+            f_lo: f64::NAN,
+            f_hi: f64::NAN,
+        }
+    }
+}
+
 #[inline]
 fn invert_monotone(
     grid: &[f64],
@@ -376,14 +409,19 @@ fn invert_monotone(
     start: usize,
     end: usize,
     hint: usize,
-) -> f64 {
+) -> Hit {
     let cell = |lo: usize, hi: usize, f0: f64, f1: f64| {
         let t = if f1 > f0 {
             (target - f0) / (f1 - f0)
         } else {
             1.0
         };
-        grid[lo] + t.clamp(0.0, 1.0) * (grid[hi] - grid[lo])
+        Hit {
+            value: grid[lo] + t.clamp(0.0, 1.0) * (grid[hi] - grid[lo]),
+            cell: lo,
+            f_lo: f0,
+            f_hi: f1,
+        }
     };
     let h = hint.clamp(start, end - 1);
     // Fast path: the hinted cell holds the answer (f(h) < target <= f(h+1) makes h+1 the first node reaching it).
@@ -398,7 +436,7 @@ fn invert_monotone(
         let mut step = 1;
         loop {
             if lo == end {
-                return grid[end]; // never reached
+                return Hit::edge(grid[end], end - 1); // never reached
             }
             let probe = (lo + step).min(end);
             if f(probe) >= target {
@@ -413,7 +451,7 @@ fn invert_monotone(
         let mut step = 1;
         loop {
             if hi == start {
-                return grid[start]; // reached at the start
+                return Hit::edge(grid[start], start); // reached at the start
             }
             let probe = hi.saturating_sub(step).max(start);
             if f(probe) < target {

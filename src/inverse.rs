@@ -6,7 +6,7 @@
 //! do), and invert that one branch in closed form inside a table cell. `forward(inverse(T)) = T` to round-off
 //! for every reachable `T`; unreachable targets saturate at the input range and are flagged. No allocation.
 use crate::cbh::{Hysteresis, branch_scale, push_reversal};
-use crate::everett::Strip;
+use crate::everett::{Hit, Strip};
 use crate::history::Reversal;
 
 /// Result of an inverse query.
@@ -16,6 +16,80 @@ pub struct InverseInput {
     pub input: f64,
     /// The target lies outside the outputs reachable from this state.
     pub saturated: bool,
+    /// The table cell holding `input` when the search found it (the commit's next search hint).
+    pub(crate) cell: Option<usize>,
+    /// What the answer does to the shortcut (see [`FastBranch`]).
+    pub(crate) fast: Shortcut,
+}
+
+/// What an inverse's answer does to the operator's shortcut once committed.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) enum Shortcut {
+    /// The answer came from the shortcut: it still holds.
+    Kept,
+    /// A full search found the answer on this branch and cell.
+    New(FastBranch),
+    /// No shortcut for the next query.
+    None,
+}
+
+/// The inverse's shortcut: the branch (newest reversal, moving its way) and table cell of the last exact inverse
+/// committed. A next target on the same branch whose answer lies in the same cell is inverted with the very
+/// arithmetic of the full search (same bits), skipping branch selection and cell search. Held by the operator
+/// (not its state) and dropped by every other change of the state.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct FastBranch {
+    up: bool,
+    len: usize,
+    r_y: f64,
+    r_k: f64,
+    end_u: f64,
+    end_y: f64,
+    t_tri: f64,
+    r_next: f64,
+    cell: usize,
+    f_lo: f64,
+    f_hi: f64,
+    g_lo: f64,
+    g_hi: f64,
+}
+
+impl FastBranch {
+    /// The input for `target` from output `y_c`, if it lies on this branch inside this cell.
+    #[inline(always)]
+    fn invert(&self, target: f64, y_c: f64) -> Option<f64> {
+        let (dy, inside) = if self.up {
+            (target - self.r_y, target > y_c && target <= self.end_y)
+        } else {
+            (self.r_y - target, target < y_c && target >= self.end_y)
+        };
+        if !inside {
+            return None;
+        }
+        let e = dy / self.r_k;
+        if !(e > self.t_tri && self.f_lo < e && e <= self.f_hi) {
+            return None;
+        }
+        // `invert_monotone`'s cell interpolation and the clamps of `everett_inverse_cell` and `invert_branch`.
+        let t = (e - self.f_lo) / (self.f_hi - self.f_lo);
+        let v = (self.g_lo + t.clamp(0.0, 1.0) * (self.g_hi - self.g_lo)).max(self.r_next);
+        Some(if self.up {
+            v.min(self.end_u)
+        } else {
+            (-v).max(self.end_u)
+        })
+    }
+}
+
+impl InverseInput {
+    pub fn new(input: f64, saturated: bool) -> Self {
+        InverseInput {
+            input,
+            saturated,
+            cell: None,
+            fast: Shortcut::None,
+        }
+    }
 }
 
 /// Input where the straight line from `(u0, y0)` to `(u1, y1)` reaches `target` (clamped to the segment).
@@ -28,19 +102,26 @@ fn line_inverse(u0: f64, y0: f64, u1: f64, y1: f64, target: f64) -> f64 {
 
 impl<S: AsRef<[f64]>, const N: usize> Hysteresis<S, N> {
     /// The input whose `step` would output `target`, without changing the state. NaN target → NaN input.
+    #[inline(always)]
     pub fn inverse_input(&self, target: f64) -> InverseInput {
         if target.is_nan() {
-            return InverseInput {
-                input: f64::NAN,
-                saturated: true,
-            };
+            return InverseInput::new(f64::NAN, true);
         }
         let st = &self.state;
         let (u_c, y_c) = (st.u, st.y);
         if target == y_c {
+            return InverseInput::new(u_c, false);
+        }
+        if let Some(f) = &self.fast
+            && st.history.len() == f.len
+            && st.history.rising() == f.up
+            && let Some(input) = f.invert(target, y_c)
+        {
             return InverseInput {
-                input: u_c,
+                input,
                 saturated: false,
+                cell: Some(f.cell),
+                fast: Shortcut::Kept,
             };
         }
         let up = target > y_c;
@@ -81,18 +162,46 @@ impl<S: AsRef<[f64]>, const N: usize> Hysteresis<S, N> {
             };
             let inside = if up { target <= end_y } else { target >= end_y };
             if inside {
+                let (input, hit) = self.invert_branch(level, target, up, (end_u, end_y));
+                // The shortcut holds for the newest reversal's branch when moving its way (no turn, no wipe-out).
+                let fast = match hit {
+                    Some((hit, t_tri, r_next))
+                        if !turning && below == len - 1 && level.via.is_none() && level.k > 0.0 =>
+                    {
+                        let g = if up {
+                            self.asc.grid()
+                        } else {
+                            self.desc.grid()
+                        };
+                        Shortcut::New(FastBranch {
+                            up,
+                            len,
+                            r_y: level.y,
+                            r_k: level.k,
+                            end_u,
+                            end_y,
+                            t_tri,
+                            r_next,
+                            cell: hit.cell,
+                            f_lo: hit.f_lo,
+                            f_hi: hit.f_hi,
+                            g_lo: g[hit.cell],
+                            g_hi: g[hit.cell + 1],
+                        })
+                    }
+                    _ => Shortcut::None,
+                };
                 return InverseInput {
-                    input: self.invert_branch(level, target, up, (end_u, end_y)),
+                    input,
                     saturated: false,
+                    cell: hit.map(|h| h.0.cell),
+                    fast,
                 };
             }
             if below < 2 {
                 // Past the anchor's branch (up) or the first maximum's (down): saturation.
                 let input = if up { self.hi } else { self.lo };
-                return InverseInput {
-                    input,
-                    saturated: true,
-                };
+                return InverseInput::new(input, true);
             }
             level = h.get(below - 2);
             below -= 2;
@@ -114,15 +223,27 @@ impl<S: AsRef<[f64]>, const N: usize> Hysteresis<S, N> {
     }
 
     /// Input on `r`'s branch where the output equals `target` (inside the branch's output range); `end` is the
-    /// branch's closure target `(input, output)`.
-    fn invert_branch(&self, r: &Reversal, target: f64, up: bool, end: (f64, f64)) -> f64 {
+    /// branch's closure target `(input, output)`. With the input, the table cell it was found in (for the
+    /// shortcut; None for straight pieces and flat tables).
+    #[inline(always)]
+    fn invert_branch(
+        &self,
+        r: &Reversal,
+        target: f64,
+        up: bool,
+        end: (f64, f64),
+    ) -> (f64, Option<(Hit, f64, f64)>) {
         let end_u = end.0;
         // Straight-line pieces (see `Reversal::linear`) invert in closed form.
         let second = matches!(r.via, Some(v) if (up && target > v.y) || (!up && target < v.y));
         match r.via {
-            Some(v) if second && v.linear => return line_inverse(v.u, v.y, end.0, end.1, target),
-            Some(v) if !second && r.linear => return line_inverse(r.u, r.y, v.u, v.y, target),
-            None if r.linear => return line_inverse(r.u, r.y, end.0, end.1, target),
+            Some(v) if second && v.linear => {
+                return (line_inverse(v.u, v.y, end.0, end.1, target), None);
+            }
+            Some(v) if !second && r.linear => {
+                return (line_inverse(r.u, r.y, v.u, v.y, target), None);
+            }
+            None if r.linear => return (line_inverse(r.u, r.y, end.0, end.1, target), None),
             _ => {}
         }
         // Increment along the branch, in the family's rising orientation.
@@ -143,18 +264,17 @@ impl<S: AsRef<[f64]>, const N: usize> Hysteresis<S, N> {
                 }
             }
         };
+        if e.is_infinite() {
+            return (end_u, None);
+        }
+        let s = &r.strip;
+        let tri = s.tri;
         if up {
-            if e.is_infinite() {
-                return end_u;
-            }
-            self.asc
-                .everett_inverse(&r.strip, e, self.state.hint_a)
-                .min(end_u)
+            let (u, hit) = self.asc.everett_inverse_cell(s, e, self.state.hint_a);
+            (u.min(end_u), hit.map(|h| (h, tri, s.r_next)))
         } else {
-            if e.is_infinite() {
-                return end_u;
-            }
-            (-self.desc.everett_inverse(&r.strip, e, self.state.hint_d)).max(end_u)
+            let (u, hit) = self.desc.everett_inverse_cell(s, e, self.state.hint_d);
+            ((-u).max(end_u), hit.map(|h| (h, tri, s.r_next)))
         }
     }
 
@@ -167,7 +287,7 @@ impl<S: AsRef<[f64]>, const N: usize> Hysteresis<S, N> {
                 self.step(inv.input);
             }
         } else {
-            self.commit(inv.input, target);
+            self.commit(inv.input, target, inv.cell, inv.fast);
         }
         inv
     }
@@ -175,17 +295,39 @@ impl<S: AsRef<[f64]>, const N: usize> Hysteresis<S, N> {
     /// Apply input `u` whose output `y` is already known (from the exact inverse): the memory update of `step`
     /// without evaluating the branch again.
     #[inline]
-    pub(crate) fn commit(&mut self, u: f64, y: f64) {
-        let u = u.clamp(self.lo, self.hi);
-        self.advance(u);
-        // Keep the search hint on the input's cell: the next inverse starts there.
-        let st = &mut self.state;
-        if st.history.rising() {
-            self.asc.locate(u, &mut st.hint_a);
+    pub(crate) fn commit(&mut self, u: f64, y: f64, cell: Option<usize>, fast: Shortcut) {
+        // Inside the range already (the inverse's answers are); NaN never reaches here.
+        let u = if u < self.lo {
+            self.lo
+        } else if u > self.hi {
+            self.hi
         } else {
-            self.desc.locate(-u, &mut st.hint_d);
+            u
+        };
+        self.advance(u);
+        // Keep the search hint on the input's cell: the next inverse starts there (the inverse usually knows it).
+        let st = &mut self.state;
+        let hint = if st.history.rising() {
+            &mut st.hint_a
+        } else {
+            &mut st.hint_d
+        };
+        match cell {
+            Some(k) => *hint = k,
+            None if st.history.rising() => {
+                self.asc.locate(u, &mut st.hint_a);
+            }
+            None => {
+                self.desc.locate(-u, &mut st.hint_d);
+            }
         }
         st.u = u;
         st.y = y;
+        // The shortcut holds while the branch it was made for is still the newest (no wipe-out on the way).
+        match fast {
+            Shortcut::Kept => {}
+            Shortcut::New(f) if f.len == st.history.len() => self.fast = Some(f),
+            _ => self.fast = None,
+        }
     }
 }

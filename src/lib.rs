@@ -17,12 +17,18 @@ pub mod curve_fit;
 pub mod derived_family;
 pub mod error;
 pub mod everett;
+#[cfg(feature = "alloc")]
+pub mod export;
+#[cfg(feature = "ffi")]
+pub mod ffi;
+pub mod filters;
 pub mod friction;
 #[cfg(feature = "alloc")]
 pub mod from_curves;
 pub mod history;
 pub mod inverse;
 pub mod limits;
+pub mod model_data;
 #[cfg(feature = "alloc")]
 pub mod node_selection;
 #[cfg(feature = "alloc")]
@@ -30,16 +36,19 @@ pub mod paper_inverse;
 #[cfg(feature = "std")]
 pub mod plant;
 pub mod reversals;
+pub mod simulation;
+pub mod stages;
 #[cfg(feature = "alloc")]
 pub mod table_builder;
 pub mod trig;
+pub mod vocabulary;
 
 pub use cbh::{Hysteresis, Initial, State};
 pub use compensator::{Command, Compensator, CompensatorError, CompensatorState, InverseKind};
 pub use congruency::{Congruency, congruency};
 pub use error::{FamilyKind, TableError};
 pub use everett::{Family, Strip};
-pub use friction::Friction;
+pub use friction::{Friction, FrictionError};
 pub use inverse::InverseInput;
 pub use limits::LimitError;
 pub use reversals::{ReversalFinder, ReversalOrder, ReversalPoint};

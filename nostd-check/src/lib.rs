@@ -1,10 +1,16 @@
 //! Links the bmr real-time core into a `#![no_std]` static library with no global allocator: a CBH operator on
-//! static tables, stepped, and a compensator (exact inverse + friction) on it. If anything in that path needed `std` or `alloc`, this would
-//! not build.
+//! static tables, stepped, a compensator (exact inverse + friction) on it, the extended compensator of an exported
+//! model (`model.rs`, written by `bmr export`) and the C ABI (`bmr_compensator_*`, header `include/bmr.h`). If
+//! anything in that path needed `std` or `alloc`, this would not build.
 #![no_std]
 
 use bmr::{Compensator, Family, FamilyKind, Friction, Hysteresis, Initial, InverseKind};
 use core::panic::PanicInfo;
+
+// The C ABI, linked into the static library.
+pub use bmr::ffi::*;
+
+include!("model.rs");
 
 #[panic_handler]
 fn panic(_: &PanicInfo) -> ! {
@@ -43,4 +49,14 @@ pub unsafe extern "C" fn bmr_nostd_demo(inputs: *const f64, n: usize, theta: f64
     };
     let cmd = c.step(0.5, theta);
     y + cmd.current_a + cmd.volt2_v
+}
+
+/// One step of the exported extended model's compensator (every stage on) at a 2 ms control period: the
+/// commanded current, NaN if the model does not build.
+#[unsafe(no_mangle)]
+pub extern "C" fn bmr_nostd_model_demo(torque_ref_nmm: f64, theta_rad: f64) -> f64 {
+    match model::compensator(0.002) {
+        Ok(mut c) => c.step(torque_ref_nmm, theta_rad).current_a,
+        Err(_) => f64::NAN,
+    }
 }

@@ -2,7 +2,8 @@
 hysteretic device identified from its measured data.
 
 Core (Rust): ``Hysteresis`` (CBH operator), ``Friction`` (angle-periodic seal friction), ``Compensator``
-(exact or paper inverse + friction feedforward, coil split, current limit), ``VirtualActuator`` (a physical
+(exact or paper inverse + friction feedforward, coil split, current limit; ``Compensator.from_model`` adds the
+stages of what a diagnosis found, ``ExtendedSimulation`` runs them forwards), ``VirtualActuator`` (a physical
 simulator of the rig; ``EFFECTS`` names its switchable effects, ``effect_parameters()`` documents them).
 Experiment protocols and bundles of them: ``bmr.experiments`` (:mod:`bmr.simulation.experiments`).
 Package layout, in data-flow order: :mod:`bmr.data` (bundles, lab readers) → :mod:`bmr.identification`
@@ -35,9 +36,12 @@ from bmr._core import (
     CompensatorState,
     CurveFit,
     CurveReport,
+    EverettFit,
     EverettModel,
     ExcitationError,
+    ExtendedSimulation,
     Friction,
+    FrictionOrderFit,
     Hysteresis,
     HysteresisState,
     IdentificationError,
@@ -86,13 +90,16 @@ __all__ = [
     "BundleError",
     "Command",
     "Compensator",
+    "ExtendedSimulation",
     "CompensatorState",
     "CurveFit",
     "CurveReport",
     "Diagnosis",
+    "EverettFit",
     "EverettModel",
     "ExcitationError",
     "Friction",
+    "FrictionOrderFit",
     "FrictionFit",
     "Hysteresis",
     "HysteresisState",

@@ -21,9 +21,6 @@ __all__ = [
     "ModelFileError",
     "ResourceLimitError",
     "TableError",
-    "_rebuild_command",
-    "_rebuild_compensator",
-    "_rebuild_compensator_state",
     "_rebuild_hysteresis",
     "_rebuild_hysteresis_state",
     "_rebuild_virtual_actuator",
@@ -33,7 +30,9 @@ __all__ = [
     "CurveFit",
     "CurveReport",
     "EFFECTS",
+    "EverettFit",
     "EverettModel",
+    "ExtendedSimulation",
     "EverettRegression",
     "Friction",
     "Hysteresis",
@@ -46,6 +45,20 @@ __all__ = [
     "fit_everett",
     "find_reversals",
     "fit_friction_order",
+    "FrictionOrderFit",
+    "FRICTION_MAX_ORDER",
+    "MODEL_EXTENSIONS",
+    "check_extensions",
+    "delay",
+    "export_source",
+    "friction_series",
+    "heating_state",
+    "lag",
+    "lead",
+    "output_map",
+    "output_map_inverse",
+    "_rebuild_compensator",
+    "_rebuild_compensator_state",
     "reversal_order",
 ]
 
@@ -76,14 +89,6 @@ class InUseError(BmrError):
 LIMITS: dict[str, float]
 """Documented bounds on every size and magnitude a caller can ask for (checked before allocation)."""
 
-def _rebuild_command(
-    current_a: float, coil1_a: float, coil2_a: float, volt1_v: float, volt2_v: float, saturated: bool, fault: bool
-) -> Command: ...
-def _rebuild_compensator(
-    hysteresis: Hysteresis, friction: Friction, inverse: str, converter_gain: float, current_limit: float,
-    paper_state: bytes | None = None,
-) -> Compensator: ...
-def _rebuild_compensator_state(forward: bytes, paper: bytes | None = None) -> CompensatorState: ...
 def _rebuild_hysteresis(
     asc: bytes, asc_nodes: int, asc_curves: int, desc: bytes, desc_nodes: int, desc_curves: int, y_lo: float,
     y_hi: float, state: bytes,
@@ -238,16 +243,26 @@ def fit_curve(u: _ArrayLike, y: _ArrayLike, direction: str, *, pilot: int = 16) 
 
 @final
 class Friction:
-    """Seal friction c0 + Σ a_k sin kθ + b_k cos kθ (N·mm), up to 12 harmonics."""
-    def __new__(cls, c0: float = 0.0, a: Sequence[float] | None = None, b: Sequence[float] | None = None) -> Self: ...
+    """Seal friction c0 + (1 + gain_per_a·|I|)·Σ a_k sin kθ + b_k cos kθ (N·mm), up to FRICTION_MAX_ORDER
+    harmonics."""
+    def __new__(
+        cls,
+        c0: float = 0.0,
+        a: Sequence[float] | None = None,
+        b: Sequence[float] | None = None,
+        gain_per_a: float = 0.0,
+    ) -> Self: ...
     @staticmethod
     def from_amplitude_phase(c0: float, amplitude: Sequence[float], phase: Sequence[float]) -> "Friction": ...
-    def __copy__(self) -> Friction: ...
-    def __deepcopy__(self, memo: dict[int, object]) -> Friction: ...
     @overload
-    def __call__(self, theta: float) -> float: ...
+    def __call__(self, theta: float, current_a: float | None = None) -> float: ...
     @overload
-    def __call__(self, theta: _ArrayLike) -> np.ndarray: ...
+    def __call__(self, theta: _ArrayLike, current_a: _ArrayLike | float | None = None) -> np.ndarray: ...
+    @property
+    def gain_per_a(self) -> float: ...
+    def __copy__(self) -> Self: ...
+    def __deepcopy__(self, memo: object) -> Self: ...
+    def __reduce__(self) -> tuple[type, tuple[float, list[float], list[float], float]]: ...
     @property
     def c0(self) -> float: ...
     @property
@@ -257,6 +272,13 @@ class Friction:
     @property
     def order(self) -> int: ...
     def amplitude_phase(self) -> tuple[np.ndarray, np.ndarray]: ...
+
+FRICTION_MAX_ORDER: int
+"""Most harmonics a ``Friction`` holds."""
+
+def friction_series(theta_rad: _ArrayLike, c0: float, a: Sequence[float], b: Sequence[float]) -> np.ndarray:
+    """The friction series c0 + Σ a_k sin kθ + b_k cos kθ (N·mm) of any order: the one evaluator of every friction
+    model."""
 
 # --- identification (least squares, faer) ---
 # --- reversal points (dead-band extrema), streaming in Rust ---
@@ -270,8 +292,32 @@ def reversal_order(
     """Reversal order (int64) of every sample: 0 after the input came within ``saturation_tol`` (default 0.2 % of
     ``hi - lo``) of ``lo`` or ``hi``, +1 at every later reversal beyond ``deadband`` (default 1 % of ``hi - lo``)."""
 
-def fit_friction_order(theta_rad: np.ndarray, torque_nmm: np.ndarray, order: int) -> dict:
-    """Friction c0 + Σ a_k sin kθ + b_k cos kθ of one order: c0, a, b, *_stderr, covariance, rss, n, order."""
+@final
+class FrictionOrderFit:
+    """Friction ``c0 + Σ a_k sin kθ + b_k cos kθ`` (N·mm) of one harmonic order with its uncertainties."""
+    @property
+    def order(self) -> int: ...
+    @property
+    def c0(self) -> float: ...
+    @property
+    def a(self) -> np.ndarray: ...
+    @property
+    def b(self) -> np.ndarray: ...
+    @property
+    def c0_stderr(self) -> float: ...
+    @property
+    def a_stderr(self) -> np.ndarray: ...
+    @property
+    def b_stderr(self) -> np.ndarray: ...
+    @property
+    def covariance(self) -> np.ndarray: ...
+    @property
+    def rss(self) -> float: ...
+    @property
+    def n(self) -> int: ...
+
+def fit_friction_order(theta_rad: _ArrayLike, torque_nmm: _ArrayLike, order: int) -> FrictionOrderFit:
+    """Least-squares friction series of one order (BmrError on bad input or rank deficiency)."""
 
 @final
 class EverettModel:
@@ -315,9 +361,27 @@ def fit_everett(
     smoothing: float = 1e-4,
     ridge: float = 1e-9,
     max_iter: int = 500,
-) -> dict:
-    """Regularised NNLS Everett table from runs ``(u, y, weight, offset_col[, history[, gain]])``: model, offsets,
-    rss, rms, n_rows, iterations, passive."""
+) -> EverettFit:
+    """Regularised NNLS Everett table from runs ``(u, y, weight, offset_col[, history[, gain]])``."""
+
+@final
+class EverettFit:
+    """Result of ``fit_everett`` / ``EverettRegression.fit``: the model (offset column 0 is its offset), every
+    offset, the data term's residual and the solver's passive set (a warm start)."""
+    @property
+    def model(self) -> EverettModel: ...
+    @property
+    def offsets(self) -> np.ndarray: ...
+    @property
+    def rss(self) -> float: ...
+    @property
+    def rms(self) -> float: ...
+    @property
+    def n_rows(self) -> int: ...
+    @property
+    def iterations(self) -> int: ...
+    @property
+    def passive(self) -> np.ndarray: ...
 
 @final
 class EverettRegression:
@@ -335,7 +399,7 @@ class EverettRegression:
     ) -> Self: ...
     @property
     def n_rows(self) -> int: ...
-    def fit(self, outputs: Sequence[_ArrayLike], warm_start: Sequence[bool] | np.ndarray | None = None) -> dict: ...
+    def fit(self, outputs: Sequence[_ArrayLike], warm_start: Sequence[bool] | np.ndarray | None = None) -> EverettFit: ...
 EFFECTS: tuple[str, ...]
 """Names of the virtual actuator's switchable effects (the diagnosis vocabulary)."""
 PRESETS: tuple[str, ...]
@@ -343,8 +407,27 @@ PRESETS: tuple[str, ...]
 ACTUATOR_PARAMETERS: tuple[str, ...]
 """Dotted names of the physical parameters ``VirtualActuator(overrides=...)`` can change."""
 
-def effect_parameters() -> dict[str, dict[str, object]]:
-    """Every effect: ``{name: {"doc": str, "params": {param: {"unit", "default", "min", "max", "doc"}}}}``."""
+MODEL_EXTENSIONS: tuple[str, ...]
+"""Names a model file's ``extensions`` may hold: the effects plus ``core_tables``, ``table_resolution``,
+``offset``."""
+
+def effect_parameters(*, model_entries: bool = False) -> dict[str, dict[str, object]]:
+    """Every effect: ``{name: {"doc": str, "acts": str, "params": {param: {"unit", "default", "min", "max",
+    "whole", "doc"}}}}``; ``model_entries=True`` adds the model-file entries that are not effects."""
+
+def lag(x: _ArrayLike, tau_s: float, dt_s: float, *, initial: float | None = None) -> np.ndarray:
+    """Exact first-order lag (zero-order hold): ``y[n] = p·y[n−1] + (1 − p)·x[n]``, ``p = exp(−dt/τ)``, at rest
+    at ``initial`` (default ``x[0]``)."""
+
+def lead(y: _ArrayLike, tau_s: float, dt_s: float, *, initial: float | None = None) -> np.ndarray:
+    """Exact inverse of :func:`lag` (``y[−1] = initial``, default ``y[0]``)."""
+
+def delay(x: _ArrayLike, delay_s: float, dt_s: float, *, fill: float | None = None) -> np.ndarray:
+    """``x`` delayed by ``round(delay_s/dt_s)`` samples, ``fill`` (default ``x[0]``) before the start."""
+
+def heating_state(current_a: _ArrayLike, tau_s: float, dt_s: float, full_current_a: float, *,
+                  initial: float = 0.0) -> np.ndarray:
+    """Coil heating state (1 = steady full current) driven by ``(I/I_full)²`` with time constant ``tau_s``."""
 
 _EffectsSpec = Union[None, dict[str, Union[dict[str, float], None]], Sequence[str], str]
 
@@ -394,7 +477,9 @@ class VirtualActuator:
     def converter_gain_a_per_v(self) -> float: ...
 @final
 class Command:
-    """One control-period command."""
+    """One control-period command: nominal current (A, negative drives coil 1), coil currents (A), converter
+    voltages (V); ``saturated``: the torque asked for was not reachable; ``fault``: a non-finite input or
+    intermediate, zero current commanded."""
     current_a: float
     coil1_a: float
     coil2_a: float
@@ -402,18 +487,40 @@ class Command:
     volt2_v: float
     saturated: bool
     fault: bool
-    def __copy__(self) -> Command: ...
-    def __deepcopy__(self, memo: dict[int, object]) -> Command: ...
+    def __new__(
+        cls, current_a: float, coil1_a: float, coil2_a: float, volt1_v: float, volt2_v: float, saturated: bool,
+        fault: bool
+    ) -> Self: ...
+    def __copy__(self) -> Self: ...
+    def __deepcopy__(self, memo: object) -> Self: ...
+    def __reduce__(self) -> tuple[type, tuple[float, float, float, float, float, bool, bool]]: ...
 
 @final
 class CompensatorState:
-    """Opaque snapshot of a Compensator's memory."""
-    def __copy__(self) -> CompensatorState: ...
-    def __deepcopy__(self, memo: dict[int, object]) -> CompensatorState: ...
+    """Opaque snapshot of a Compensator's memory and stage states."""
+    def __copy__(self) -> Self: ...
+    def __deepcopy__(self, memo: object) -> Self: ...
+    def __reduce__(self) -> tuple[object, tuple[bytes]]: ...
+
+def _rebuild_compensator_state(state: bytes) -> CompensatorState: ...
+def _rebuild_compensator(
+    hysteresis: Hysteresis,
+    friction: Friction,
+    inverse: str,
+    converter_gain: float,
+    current_limit: float,
+    extensions: _Extensions,
+    dt_s: float | None,
+    full_torque_nmm: float,
+    state: bytes,
+) -> Compensator: ...
+
+_Extensions = Sequence[Union[dict[str, object], Tuple[str, dict[str, float]]]]
 
 @final
 class Compensator:
-    """Open-loop torque compensator: I = H⁻¹[T_ref − T_f(θ)], coil split, current limit, converter voltages."""
+    """Open-loop torque compensator: I = H⁻¹[T_ref − T_f(θ)], coil split, current limit, converter voltages;
+    optionally extended by a model's stages (``extensions`` at control period ``dt_s``)."""
     def __new__(
         cls,
         hysteresis: Hysteresis,
@@ -423,14 +530,30 @@ class Compensator:
         converter_gain: float = 0.125,
         current_limit: float = 1.25,
         initial: _Initial | None = None,
+        extensions: _Extensions | None = None,
+        dt_s: float | None = None,
+        full_torque_nmm: float | None = None,
     ) -> Self: ...
+    @staticmethod
+    def from_model(model: object, *, dt_s: float, **kwargs: object) -> "Compensator":
+        """The full extended compensator of a ``bmr.Model`` or model file (``Model.compensator``)."""
     def step(self, torque_ref_nmm: float, theta_rad: float) -> Command: ...
-    def run(self, torque_ref_nmm: _ArrayLike, theta_rad: _ArrayLike) -> dict[str, np.ndarray]: ...
+    def step_ahead(self, torque_ref_ahead_nmm: float, theta_ahead_rad: float) -> Command: ...
+    def step_into(self, torque_ref_nmm: float, theta_rad: float, out: np.ndarray) -> float: ...
+    def run(
+        self,
+        torque_ref_nmm: _ArrayLike,
+        theta_rad: _ArrayLike,
+        *,
+        columns: Sequence[str] | None = None,
+        out: dict[str, np.ndarray] | None = None,
+    ) -> dict[str, np.ndarray]: ...
     def reset(self, initial: _Initial | None = None) -> None: ...
     def snapshot(self) -> CompensatorState: ...
     def restore(self, state: CompensatorState) -> None: ...
-    def __copy__(self) -> Compensator: ...
-    def __deepcopy__(self, memo: dict[int, object]) -> Compensator: ...
+    def __copy__(self) -> Self: ...
+    def __deepcopy__(self, memo: object) -> Self: ...
+    def __reduce__(self) -> tuple[object, tuple[object, ...]]: ...
     @property
     def inverse(self) -> str: ...
     @property
@@ -438,8 +561,55 @@ class Compensator:
     @property
     def current_limit(self) -> float: ...
     @property
+    def dt_s(self) -> float | None: ...
+    @property
     def predicted_torque_nmm(self) -> float: ...
+    @property
+    def preview_samples(self) -> int: ...
+    @property
+    def extensions(self) -> list[dict[str, object]]: ...
+    @property
+    def stages(self) -> list[str]: ...
     @property
     def hysteresis(self) -> Hysteresis: ...
     @property
     def friction(self) -> Friction: ...
+
+@final
+class ExtendedSimulation:
+    """The forward chain of a model with its extensions: commanded current (A) and rotor angle (rad) → torque
+    (N·mm), through the very stages the extended Compensator inverts."""
+    def __new__(
+        cls,
+        hysteresis: Hysteresis,
+        friction: Friction | None = None,
+        *,
+        extensions: _Extensions | None = None,
+        dt_s: float,
+        full_current_a: float,
+        full_torque_nmm: float | None = None,
+    ) -> Self: ...
+    def run(
+        self,
+        current_a: _ArrayLike,
+        theta_rad: _ArrayLike,
+        *,
+        initial: _Initial | None = None,
+        heating: float = 0.0,
+        t0_s: float = 0.0,
+    ) -> dict[str, np.ndarray]: ...
+
+def check_extensions(extensions: _Extensions) -> list[dict[str, object]]:
+    """Validate a model's extensions against the vocabulary (names, parameters, ranges); the entries with every
+    parameter filled in."""
+
+def output_map(core_nmm: _ArrayLike, curvature: float, scale_nmm: float) -> np.ndarray:
+    """The non_congruent output map (the compensator's table) of core torques (N·mm)."""
+
+def output_map_inverse(field_nmm: _ArrayLike, curvature: float, scale_nmm: float) -> np.ndarray:
+    """Core torques (N·mm) giving field torques ``field_nmm`` through :func:`output_map`."""
+
+def export_source(compensator: Compensator, language: str, *, title: str = "bmr compensator",
+                  prefix: str = "bmr") -> str:
+    """Firmware source of an exact-inverse compensator: ``"rust"`` (static tables and ``compensator(dt_s)`` for
+    the no_std crate) or ``"c"`` (arrays and ``<prefix>_model`` for ``bmr_compensator_init``)."""

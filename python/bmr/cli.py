@@ -1,4 +1,4 @@
-"""The ``bmr`` command line: ``bmr demo | simulate | import | identify | predict | diagnose``.
+"""The ``bmr`` command line: ``bmr demo | simulate | import | identify | predict | diagnose | export``.
 
 Each subcommand's work lives in the module that owns the capability; this file only parses arguments.
 """
@@ -100,11 +100,15 @@ def _parser() -> argparse.ArgumentParser:
     g.add_argument("--seed", type=int, default=0, help="seed of the bootstrap interval of the fold gains (default: 0)")
     g.add_argument("--json", dest="json_out", help="write the bmr-diagnosis/1 JSON here")
     g.add_argument("--report", help="write an HTML report here (one bundle)")
+    g.add_argument("--model-out", metavar="OUT.json", help="write the extended model file here (one bundle): the "
+                   "model with what the diagnosis found and each stage's closed-loop verdict, for "
+                   "bmr.Compensator.from_model and bmr export")
     g.add_argument("--out", help="several bundles: the Parquet table of results (default: bmr-diagnoses.parquet)")
     g.add_argument("--scheduler", help="several bundles: address of a running Dask scheduler (tcp://host:8786); "
                                        "default: a local cluster on this machine")
     g.add_argument("--workers", type=int, help="several bundles: worker processes of the local cluster (default: "
                                                "one per core; 0: no Dask, one after the other here)")
+
     r = sub.add_parser("predict", help="predict a bundle's held-out runs with a model: RMS and max error per run")
     r.add_argument("model", help="model file (bmr-model JSON, from `bmr identify`)")
     r.add_argument("bundle", help=BUNDLE_HELP)
@@ -128,6 +132,17 @@ def _parser() -> argparse.ArgumentParser:
                         "(default: clamp)")
     r.add_argument("--json", dest="json_out", help="write the bmr-prediction/1 JSON here")
     r.add_argument("--figure", help="write a PNG figure (measured vs predicted vs input; residual) here")
+
+    x = sub.add_parser("export", help="write a model's compensator as firmware source (Rust no_std or C)")
+    x.add_argument("model", help="model file (bmr-model JSON, e.g. from `bmr diagnose --model-out`)")
+    lang = x.add_mutually_exclusive_group(required=True)
+    lang.add_argument("--rust", metavar="OUT.rs", help="write static tables and model::compensator(dt_s) for the "
+                      "no_std crate")
+    lang.add_argument("--c", metavar="OUT.h", help="write C arrays and <prefix>_model for bmr_compensator_init "
+                      "(include/bmr.h, cargo feature ffi)")
+    x.add_argument("--stages", default=None, help="extensions to compensate: 'all' or a comma-separated list "
+                   "(default: those the closed-loop check did not find harmful)")
+    x.add_argument("--prefix", default="bmr", help="C name prefix of the exported model (default: bmr)")
     return p
 
 
@@ -146,9 +161,12 @@ def main(argv: Sequence[str] | None = None) -> int:
             from bmr.identification.procedure import run_cli
         elif args.command == "predict":
             from bmr.identification.prediction import run_cli
+        elif args.command == "export":
+            from bmr.identification.model import run_export_cli as run_cli
         elif len(args.bundle) > 1 or args.out or args.scheduler or args.workers is not None:
-            if args.json_out or args.report:
-                raise BmrError("--json and --report describe one bundle; for several, the table goes to --out")
+            if args.json_out or args.report or args.model_out:
+                raise BmrError("--json, --report and --model-out describe one bundle; for several, the table goes "
+                               "to --out")
             from bmr.diagnosis.many import run_cli
         else:
             args.bundle = args.bundle[0]

@@ -51,14 +51,11 @@ impl FrictionFit {
         (self.rss / self.n as f64).sqrt()
     }
 
-    /// Friction torque at angle `theta_rad` (N·mm).
+    /// Friction torque at angle `theta_rad` (N·mm): the core's friction series
+    /// ([`crate::friction::harmonic_series`]).
     pub fn eval(&self, theta_rad: f64) -> f64 {
-        let mut y = self.c0;
-        for k in 0..self.order {
-            let kt = (k + 1) as f64 * theta_rad;
-            y += self.a[k] * kt.sin() + self.b[k] * kt.cos();
-        }
-        y
+        let (s, c) = crate::trig::sincos(theta_rad);
+        self.c0 + crate::friction::harmonic_series(&self.a, &self.b, s, c)
     }
 }
 

@@ -4,7 +4,8 @@
 //! amperes (0.125 A/V on the paper's rig), clamped to `[0, limit_a]`, optionally through a first-order
 //! bandwidth. Nominal current `I > 0` excites coil 2, `I < 0` excites coil 1 with `|I|`; the other is off.
 
-use super::{PlantError, check_range, lag_factor};
+use super::{PlantError, check_range};
+use crate::filters::Lag;
 
 /// Parameters of one voltage→current converter.
 #[derive(Clone, Debug, PartialEq)]
@@ -51,20 +52,19 @@ pub fn coil_split(nominal_a: f64) -> (f64, f64) {
 #[derive(Clone, Debug)]
 pub struct Converter {
     params: ConverterParams,
-    pole: f64,
-    current_a: f64,
+    /// The bandwidth limit (pass-through without one).
+    lag: Lag,
 }
 
 impl Converter {
     pub fn new(params: ConverterParams, dt_s: f64) -> Self {
-        let pole = match params.bandwidth_hz {
-            Some(bw) => lag_factor(dt_s, 1.0 / (2.0 * core::f64::consts::PI * bw)),
+        let tau_s = match params.bandwidth_hz {
+            Some(bw) => 1.0 / (2.0 * core::f64::consts::PI * bw),
             None => 0.0,
         };
         Converter {
             params,
-            pole,
-            current_a: 0.0,
+            lag: Lag::new(tau_s, dt_s, 0.0),
         }
     }
 
@@ -76,20 +76,19 @@ impl Converter {
     /// Advance one sample with control voltage `u_v`; returns the coil current (A).
     pub fn step(&mut self, u_v: f64) -> f64 {
         let target = (self.params.gain_a_per_v * u_v).clamp(0.0, self.params.limit_a);
-        self.current_a = self.pole * self.current_a + (1.0 - self.pole) * target;
-        self.current_a
+        self.lag.step(target)
     }
 
     pub fn reset(&mut self) {
-        self.current_a = 0.0;
+        self.lag.set_output(0.0);
     }
 
     pub(crate) fn save_state(&self, out: &mut Vec<u64>) {
-        out.push(self.current_a.to_bits());
+        out.push(self.lag.output().to_bits());
     }
 
     pub(crate) fn load_state(&mut self, r: &mut super::StateReader<'_>) -> Result<(), PlantError> {
-        self.current_a = r.float()?;
+        self.lag.set_output(r.float()?);
         Ok(())
     }
 }

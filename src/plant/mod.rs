@@ -113,12 +113,3 @@ pub(crate) fn check_range(what: &str, value: f64, lo: f64, hi: f64) -> Result<f6
         )))
     }
 }
-
-/// Exact discretisation factor of a first-order lag: `exp(-dt/tau)` (0 when `tau` is 0: no lag).
-pub(crate) fn lag_factor(dt_s: f64, tau_s: f64) -> f64 {
-    if tau_s > 0.0 {
-        libm::exp(-dt_s / tau_s)
-    } else {
-        0.0
-    }
-}

@@ -15,8 +15,8 @@ use super::rotor_geometry::RotorGeometry;
 use super::seal_friction::SealFriction;
 use super::steel_preisach::{PreisachSteel, SteelParams};
 use super::torque_sensor::SensorParams;
-use super::{PlantError, StateReader, check_range, lag_factor};
-use std::collections::VecDeque;
+use super::{PlantError, StateReader, check_range};
+use crate::filters::{DelayLine, Heating, Lag};
 
 /// Everything that defines a virtual actuator (a preset is one of these).
 #[derive(Clone, Debug, PartialEq)]
@@ -253,36 +253,39 @@ impl Trace {
 /// Effect parameters flattened for the per-sample loop (neutral values when an effect is off).
 #[derive(Clone, Debug)]
 struct ActiveEffects {
-    lag_pole: f64,
+    lag_tau_s: f64,
     thermal_loss: f64,
-    thermal_pole: f64,
+    thermal_tau_s: f64,
     friction_gain_per_a: f64,
     harmonic: Option<(f64, f64, f64)>,
     ripple: Option<(f64, f64)>,
     drift_nmm_per_s: f64,
     delay_samples: usize,
     curvature: f64,
+    /// Full-scale torque of the output map (0: the configuration's `full_torque_nmm`).
+    curvature_scale_nmm: f64,
 }
 
 impl ActiveEffects {
     fn from_set(set: &EffectSet, dt_s: f64) -> Self {
         let mut a = ActiveEffects {
-            lag_pole: 0.0,
+            lag_tau_s: 0.0,
             thermal_loss: 0.0,
-            thermal_pole: 1.0,
+            thermal_tau_s: 0.0,
             friction_gain_per_a: 0.0,
             harmonic: None,
             ripple: None,
             drift_nmm_per_s: 0.0,
             delay_samples: 0,
             curvature: 0.0,
+            curvature_scale_nmm: 0.0,
         };
         for e in set.iter() {
             match *e {
-                Effect::CoilLag { tau_s } => a.lag_pole = lag_factor(dt_s, tau_s),
+                Effect::CoilLag { tau_s } => a.lag_tau_s = tau_s,
                 Effect::ThermalDrift { gain_loss, tau_s } => {
                     a.thermal_loss = gain_loss;
-                    a.thermal_pole = lag_factor(dt_s, tau_s);
+                    a.thermal_tau_s = tau_s;
                 }
                 Effect::FrictionCurrent { gain_per_a } => a.friction_gain_per_a = gain_per_a,
                 Effect::FrictionHarmonics {
@@ -295,7 +298,13 @@ impl ActiveEffects {
                 Effect::TimeDelay { delay_s } => {
                     a.delay_samples = libm::round(delay_s / dt_s) as usize
                 }
-                Effect::NonCongruent { curvature } => a.curvature = curvature,
+                Effect::NonCongruent {
+                    curvature,
+                    scale_nmm,
+                } => {
+                    a.curvature = curvature;
+                    a.curvature_scale_nmm = scale_nmm;
+                }
             }
         }
         a
@@ -313,14 +322,15 @@ pub struct VirtualActuator {
     dt_s: f64,
     fx: ActiveEffects,
     torque_per_kpa: f64,
-    delay_line: VecDeque<f64>,
+    delay_line: DelayLine<Vec<f64>>,
     converter1: Converter,
     converter2: Converter,
-    field1_a: f64,
-    field2_a: f64,
+    /// Each coil's magnetising (field) current: the coil lag of its converter current.
+    field1: Lag,
+    field2: Lag,
     steel1: PreisachSteel,
     steel2: PreisachSteel,
-    thermal_state: f64,
+    heating: Heating,
     drive: RotorDrive,
     rng: Rng,
     index: u64,
@@ -336,14 +346,15 @@ impl VirtualActuator {
         let steel2 = PreisachSteel::new(config.steel2.clone())?;
         Ok(VirtualActuator {
             torque_per_kpa: config.geometry.yield_torque_per_kpa(),
-            delay_line: std::iter::repeat_n(0.0, fx.delay_samples).collect(),
+            delay_line: DelayLine::new(vec![0.0; fx.delay_samples], fx.delay_samples, 0.0)
+                .expect("sized to the delay"),
             converter1: Converter::new(config.converter.clone(), dt_s),
             converter2: Converter::new(config.converter.clone(), dt_s),
-            field1_a: 0.0,
-            field2_a: 0.0,
+            field1: Lag::new(fx.lag_tau_s, dt_s, 0.0),
+            field2: Lag::new(fx.lag_tau_s, dt_s, 0.0),
             steel1,
             steel2,
-            thermal_state: 0.0,
+            heating: Heating::new(fx.thermal_tau_s, dt_s, config.full_current_a, 0.0),
             drive: RotorDrive::new(config.drive.clone(), dt_s),
             rng: Rng::new(seed),
             index: 0,
@@ -388,14 +399,14 @@ impl VirtualActuator {
 
     /// Back to the state right after construction (demagnetised steel, cold coils, same noise stream).
     pub fn reset(&mut self) {
-        self.delay_line.iter_mut().for_each(|v| *v = 0.0);
+        self.delay_line.fill(0.0);
         self.converter1.reset();
         self.converter2.reset();
-        self.field1_a = 0.0;
-        self.field2_a = 0.0;
+        self.field1.set_output(0.0);
+        self.field2.set_output(0.0);
         self.steel1.demagnetise();
         self.steel2.demagnetise();
-        self.thermal_state = 0.0;
+        self.heating.set_state(0.0);
         self.drive.reset();
         self.rng = Rng::new(self.seed);
         self.index = 0;
@@ -404,11 +415,22 @@ impl VirtualActuator {
     /// Everything that evolves (memories, filter states, angle, noise stream, time) as plain words, for pickling.
     /// [`Self::load_state`] on an actuator built from the same configuration and seed continues bit for bit.
     pub fn save_state(&self) -> Vec<u64> {
-        let mut w = vec![PLANT_STATE_TAG, self.index, self.delay_line.len() as u64];
-        w.extend(self.delay_line.iter().map(|v| v.to_bits()));
+        let mut w = vec![
+            PLANT_STATE_TAG,
+            self.index,
+            self.delay_line.samples() as u64,
+        ];
+        w.extend(self.delay_line.values().map(f64::to_bits));
         self.converter1.save_state(&mut w);
         self.converter2.save_state(&mut w);
-        w.extend([self.field1_a, self.field2_a, self.thermal_state].map(f64::to_bits));
+        w.extend(
+            [
+                self.field1.output(),
+                self.field2.output(),
+                self.heating.state(),
+            ]
+            .map(f64::to_bits),
+        );
         self.drive.save_state(&mut w);
         self.rng.save_state(&mut w);
         self.steel1.save_state(&mut w);
@@ -433,14 +455,16 @@ impl VirtualActuator {
                 "delay line length differs from this configuration's",
             ));
         }
-        for slot in next.delay_line.iter_mut() {
-            *slot = r.float()?;
+        let mut delayed = Vec::with_capacity(self.fx.delay_samples);
+        for _ in 0..self.fx.delay_samples {
+            delayed.push(r.float()?);
         }
+        next.delay_line.set_values(delayed);
         next.converter1.load_state(&mut r)?;
         next.converter2.load_state(&mut r)?;
-        next.field1_a = r.float()?;
-        next.field2_a = r.float()?;
-        next.thermal_state = r.float()?;
+        next.field1.set_output(r.float()?);
+        next.field2.set_output(r.float()?);
+        next.heating.set_state(r.float()?);
         next.drive.load_state(&mut r)?;
         next.rng.load_state(&mut r)?;
         next.steel1.load_state(&mut r)?;
@@ -488,7 +512,11 @@ impl VirtualActuator {
         if c == 0.0 {
             return torque_nmm;
         }
-        let full = self.config.full_torque_nmm;
+        let full = if self.fx.curvature_scale_nmm > 0.0 {
+            self.fx.curvature_scale_nmm
+        } else {
+            self.config.full_torque_nmm
+        };
         let n = torque_nmm / full;
         full * n * (1.0 + c * n.abs()) / (1.0 + c)
     }
@@ -499,20 +527,14 @@ impl VirtualActuator {
         let valid = current_cmd_a.is_finite();
         let cmd = if valid { current_cmd_a } else { 0.0 };
         let t_s = self.time_s();
-        let applied = if self.fx.delay_samples > 0 {
-            self.delay_line.push_back(cmd);
-            self.delay_line.pop_front().unwrap_or(0.0)
-        } else {
-            cmd
-        };
+        let applied = self.delay_line.step(cmd);
         let (c1, c2) = coil_split(applied);
         let coil1_a = self.converter1.step(self.converter1.voltage_for(c1));
         let coil2_a = self.converter2.step(self.converter2.voltage_for(c2));
-        let p = self.fx.lag_pole;
-        self.field1_a = p * self.field1_a + (1.0 - p) * coil1_a;
-        self.field2_a = p * self.field2_a + (1.0 - p) * coil2_a;
-        let b1_t = self.steel1.apply(self.field1_a);
-        let b2_t = self.steel2.apply(self.field2_a);
+        let field1_a = self.field1.step(coil1_a);
+        let field2_a = self.field2.step(coil2_a);
+        let b1_t = self.steel1.apply(field1_a);
+        let b2_t = self.steel2.apply(field2_a);
 
         let theta_rad = self.drive.theta_rad();
         let speed_rad_s = self.drive.speed_rad_s();
@@ -526,16 +548,15 @@ impl VirtualActuator {
         // Both rotors turn at the same speed in opposite directions: their viscous drags oppose.
         let mut field = (yield2 + viscous_nmm) - (yield1 + viscous_nmm);
 
-        if self.fx.thermal_loss > 0.0 {
+        if self.fx.thermal_loss != 0.0 {
             let full = self.config.full_current_a;
             let heat = (coil1_a * coil1_a + coil2_a * coil2_a) / (full * full);
-            self.thermal_state += (1.0 - self.fx.thermal_pole) * (heat - self.thermal_state);
-            field *= 1.0 - self.fx.thermal_loss * self.thermal_state;
+            field *= 1.0 - self.fx.thermal_loss * self.heating.step_heat(heat);
         }
         if let Some((eps, phase)) = self.fx.ripple {
             field *= 1.0 + eps * libm::cos(theta_rad + phase);
         }
-        let friction_nmm = self.friction_nmm(theta_rad, self.field1_a + self.field2_a);
+        let friction_nmm = self.friction_nmm(theta_rad, field1_a + field2_a);
         let torque_true_nmm = field + friction_nmm;
         let drift = self.fx.drift_nmm_per_s * t_s;
         let torque_nmm = self

@@ -2,7 +2,7 @@
 //! `EverettRegression`.
 use numpy::{PyArray1, PyArray2, PyArrayMethods};
 use pyo3::prelude::*;
-use pyo3::types::{PyDict, PyTuple};
+use pyo3::types::PyTuple;
 
 use crate::cbh::Initial;
 use crate::identification::{
@@ -49,37 +49,94 @@ impl RunArrays<'_> {
     }
 }
 
-/// Least-squares friction fit of one harmonic order: returns a dict with c0, a, b, their standard errors,
-/// covariance (p × p), rss, n and order. Raises BmrError on bad input or rank deficiency.
+/// Result of `fit_friction_order`: the harmonic series `c0 + Σ a_k sin(kθ) + b_k cos(kθ)` (N·mm) of one order
+/// with the standard errors and covariance of its coefficients.
+#[pyclass(name = "FrictionOrderFit", module = "bmr", frozen)]
+pub struct PyFrictionOrderFit {
+    inner: crate::identification::FrictionFit,
+}
+
+#[pymethods]
+impl PyFrictionOrderFit {
+    /// Harmonic order `K`.
+    #[getter]
+    fn order(&self) -> usize {
+        self.inner.order
+    }
+    /// Constant term `c0` (N·mm).
+    #[getter]
+    fn c0(&self) -> f64 {
+        self.inner.c0
+    }
+    /// Sine coefficients `a_1..a_K` (N·mm).
+    #[getter]
+    fn a<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
+        PyArray1::from_slice(py, &self.inner.a)
+    }
+    /// Cosine coefficients `b_1..b_K` (N·mm).
+    #[getter]
+    fn b<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
+        PyArray1::from_slice(py, &self.inner.b)
+    }
+    /// Standard error of `c0` (N·mm).
+    #[getter]
+    fn c0_stderr(&self) -> f64 {
+        self.inner.c0_stderr
+    }
+    /// Standard errors of `a_k` (N·mm).
+    #[getter]
+    fn a_stderr<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
+        PyArray1::from_slice(py, &self.inner.a_stderr)
+    }
+    /// Standard errors of `b_k` (N·mm).
+    #[getter]
+    fn b_stderr<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
+        PyArray1::from_slice(py, &self.inner.b_stderr)
+    }
+    /// Covariance of `[c0, a_1, b_1, …, a_K, b_K]` (`(2K+1) × (2K+1)`, N·mm²).
+    #[getter]
+    fn covariance<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<f64>>> {
+        let p = self.inner.n_params();
+        PyArray1::from_slice(py, &self.inner.covariance).reshape([p, p])
+    }
+    /// Residual sum of squares (N·mm²).
+    #[getter]
+    fn rss(&self) -> f64 {
+        self.inner.rss
+    }
+    /// Number of samples used.
+    #[getter]
+    fn n(&self) -> usize {
+        self.inner.n
+    }
+
+    fn __repr__(&self) -> String {
+        format!(
+            "FrictionOrderFit(order={}, c0={:.6} N·mm, residual RMS {:.4e} N·mm over {} samples)",
+            self.inner.order,
+            self.inner.c0,
+            self.inner.residual_rms(),
+            self.inner.n
+        )
+    }
+}
+
+/// Least-squares friction fit of one harmonic order (a `FrictionOrderFit`). Raises BmrError on bad input or
+/// rank deficiency.
 #[pyfunction]
 #[pyo3(signature = (theta_rad, torque_nmm, order))]
-fn fit_friction_order<'py>(
-    py: Python<'py>,
-    theta_rad: Array<'py>,
-    torque_nmm: Array<'py>,
+fn fit_friction_order(
+    py: Python<'_>,
+    theta_rad: Array<'_>,
+    torque_nmm: Array<'_>,
     order: usize,
-) -> PyResult<Bound<'py, PyDict>> {
+) -> PyResult<PyFrictionOrderFit> {
     let theta = extract_f64_array(&theta_rad, "theta_rad")?;
     let torque = extract_f64_array(&torque_nmm, "torque_nmm")?;
-    let fit = py
+    let inner = py
         .detach(|| fit_friction(&theta, &torque, order))
         .map_err(|e| identification_err("friction fit", e))?;
-    let p = fit.n_params();
-    let d = PyDict::new(py);
-    d.set_item("order", fit.order)?;
-    d.set_item("c0", fit.c0)?;
-    d.set_item("a", PyArray1::from_slice(py, &fit.a))?;
-    d.set_item("b", PyArray1::from_slice(py, &fit.b))?;
-    d.set_item("c0_stderr", fit.c0_stderr)?;
-    d.set_item("a_stderr", PyArray1::from_slice(py, &fit.a_stderr))?;
-    d.set_item("b_stderr", PyArray1::from_slice(py, &fit.b_stderr))?;
-    d.set_item(
-        "covariance",
-        PyArray1::from_slice(py, &fit.covariance).reshape([p, p])?,
-    )?;
-    d.set_item("rss", fit.rss)?;
-    d.set_item("n", fit.n)?;
-    Ok(d)
+    Ok(PyFrictionOrderFit { inner })
 }
 
 /// A Preisach model with a tabulated Everett function `E(β, α)` on an input grid (see the Rust docs of
@@ -295,8 +352,7 @@ impl PyEverettModel {
 /// Regularised nonnegative least squares for an Everett table on `grid` from `runs`, a list of
 /// `(u, y, weight, offset_col[, history[, gain]])` (weight 0 keeps a sample out of the fit while it drives the
 /// memory; `history`: inputs after negative saturation that set the run's initial state; `gain`: the run's
-/// calibration gain on the model output). Returns a dict: model (EverettModel), offsets, rss, rms, n_rows,
-/// iterations.
+/// calibration gain on the model output). Returns an `EverettFit`.
 #[pyfunction]
 #[pyo3(signature = (grid, runs, n_offsets=1, *, smoothing=1e-4, ridge=1e-9, max_iter=500))]
 fn fit_everett<'py>(
@@ -307,7 +363,7 @@ fn fit_everett<'py>(
     smoothing: f64,
     ridge: f64,
     max_iter: usize,
-) -> PyResult<Bound<'py, PyDict>> {
+) -> PyResult<PyEverettFit> {
     let grid = EverettGrid::new(extract_f64_array(&grid, "grid")?)
         .map_err(|e| identification_err("Everett table fit", e))?;
     let data: Vec<RunData> = runs
@@ -336,20 +392,81 @@ fn fit_everett<'py>(
             fit_everett_rs(&grid, &views, n_offsets, options)
         })
         .map_err(|e| identification_err("Everett table fit", e))?;
-    fit_dict(py, fit)
+    fit_result(py, fit)
 }
 
-/// The result dict of `fit_everett` and `EverettRegression.fit`.
-fn fit_dict(py: Python<'_>, fit: EverettFit) -> PyResult<Bound<'_, PyDict>> {
-    let d = PyDict::new(py);
-    d.set_item("offsets", PyArray1::from_slice(py, &fit.offsets))?;
-    d.set_item("rss", fit.rss)?;
-    d.set_item("rms", fit.rms)?;
-    d.set_item("n_rows", fit.n_rows)?;
-    d.set_item("iterations", fit.iterations)?;
-    d.set_item("passive", PyArray1::from_slice(py, &fit.passive))?;
-    d.set_item("model", Py::new(py, PyEverettModel { inner: fit.model })?)?;
-    Ok(d)
+/// Result of `fit_everett` and `EverettRegression.fit`: the identified `EverettModel` (its offset is offset
+/// column 0), every fitted offset, the data term's residual and the solver's passive set (a warm start).
+#[pyclass(name = "EverettFit", module = "bmr", frozen)]
+pub struct PyEverettFit {
+    model: Py<PyEverettModel>,
+    offsets: Vec<f64>,
+    rss: f64,
+    rms: f64,
+    n_rows: usize,
+    iterations: usize,
+    passive: Vec<bool>,
+}
+
+#[pymethods]
+impl PyEverettFit {
+    /// The identified Preisach model.
+    #[getter]
+    fn model(&self, py: Python<'_>) -> Py<PyEverettModel> {
+        self.model.clone_ref(py)
+    }
+    /// Every fitted output offset (one per offset column, output units).
+    #[getter]
+    fn offsets<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
+        PyArray1::from_slice(py, &self.offsets)
+    }
+    /// Weighted residual sum of squares of the data term.
+    #[getter]
+    fn rss(&self) -> f64 {
+        self.rss
+    }
+    /// Weighted RMS residual (output units).
+    #[getter]
+    fn rms(&self) -> f64 {
+        self.rms
+    }
+    /// Number of regression rows.
+    #[getter]
+    fn n_rows(&self) -> usize {
+        self.n_rows
+    }
+    /// Pivoting iterations of the nonnegative solver.
+    #[getter]
+    fn iterations(&self) -> usize {
+        self.iterations
+    }
+    /// The solver's passive set (unknowns off their bound): a warm start for `EverettRegression.fit`.
+    #[getter]
+    fn passive<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<bool>> {
+        PyArray1::from_slice(py, &self.passive)
+    }
+
+    fn __repr__(&self) -> String {
+        format!(
+            "EverettFit(rms={:.4e} on {} rows, {} offset(s), {} solver iterations)",
+            self.rms,
+            self.n_rows,
+            self.offsets.len(),
+            self.iterations
+        )
+    }
+}
+
+fn fit_result(py: Python<'_>, fit: EverettFit) -> PyResult<PyEverettFit> {
+    Ok(PyEverettFit {
+        model: Py::new(py, PyEverettModel { inner: fit.model })?,
+        offsets: fit.offsets,
+        rss: fit.rss,
+        rms: fit.rms,
+        n_rows: fit.n_rows,
+        iterations: fit.iterations,
+        passive: fit.passive,
+    })
 }
 
 /// The Everett-table least squares of `fit_everett` prepared for one input history: `inputs` is a list of
@@ -415,14 +532,14 @@ impl PyEverettRegression {
         self.inner.n_rows()
     }
 
-    /// Identify the table for `outputs` (one array per run); returns the dict of `fit_everett`.
+    /// Identify the table for `outputs` (one array per run); returns an `EverettFit`.
     #[pyo3(signature = (outputs, warm_start=None))]
     fn fit<'py>(
         &self,
         py: Python<'py>,
         outputs: Vec<Array<'py>>,
         warm_start: Option<Vec<bool>>,
-    ) -> PyResult<Bound<'py, PyDict>> {
+    ) -> PyResult<PyEverettFit> {
         let ys: Vec<Vec<f64>> = outputs
             .iter()
             .enumerate()
@@ -434,7 +551,7 @@ impl PyEverettRegression {
                 self.inner.fit(&views, warm_start.as_deref())
             })
             .map_err(|e| identification_err("Everett table fit", e))?;
-        fit_dict(py, fit)
+        fit_result(py, fit)
     }
 
     fn __repr__(&self) -> String {
@@ -447,5 +564,7 @@ pub(crate) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(fit_everett, m)?)?;
     m.add_class::<PyEverettModel>()?;
     m.add_class::<PyEverettRegression>()?;
+    m.add_class::<PyEverettFit>()?;
+    m.add_class::<PyFrictionOrderFit>()?;
     Ok(())
 }

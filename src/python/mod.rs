@@ -6,6 +6,7 @@ use pyo3::{PyClass, PyTypeInfo};
 mod arrays;
 mod compensator;
 mod curve_fit;
+mod filters;
 mod friction;
 mod hysteresis;
 mod identification;
@@ -202,5 +203,6 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     curve_fit::register(m)?;
     virtual_actuator::register(m)?;
     compensator::register(m)?;
+    filters::register(m)?;
     Ok(())
 }

@@ -1,12 +1,13 @@
 //! Python binding of the virtual BMR actuator (`bmr.VirtualActuator`, `bmr.EFFECTS`, `bmr.effect_parameters`).
 use crate::limits::{MAX_GENERATED_SAMPLES, check};
-use crate::plant::effects::{Effect, EffectKind, EffectSet};
+use crate::plant::effects::{Effect, EffectKind, EffectSet, kind_named};
 use crate::plant::mr_fluid::YieldStress;
 use crate::plant::presets::{DEFAULT_SAMPLE_RATE_HZ, PRESETS, preset as preset_config};
 use crate::plant::{ActuatorConfig, SETTABLE, VirtualActuator};
 use crate::python::arrays::{extract_f64_array, to_numpy};
 use crate::python::errors::InUseError;
 use crate::python::{BmrError, bmr_err, bytes_to_words, limit_err, words_to_bytes};
+use crate::vocabulary::{EffectSpec, MODEL_ENTRIES, SPECS};
 use numpy::PyArray1;
 use pyo3::exceptions::PyTypeError;
 use pyo3::prelude::*;
@@ -24,7 +25,7 @@ fn apply_effects(set: &mut EffectSet, spec: &Bound<'_, PyAny>) -> PyResult<()> {
             let name: String = name.extract().map_err(|_| {
                 PyTypeError::new_err(format!("effects: effect names must be strings, got {name}"))
             })?;
-            let kind = EffectKind::from_name(&name).map_err(bmr_err)?;
+            let kind = kind_named(&name).map_err(bmr_err)?;
             if params.is_none() {
                 set.remove(kind);
                 continue;
@@ -67,7 +68,7 @@ fn apply_effects(set: &mut EffectSet, spec: &Bound<'_, PyAny>) -> PyResult<()> {
     for item in items {
         match item.split_once(':') {
             Some((name, rest)) if rest.trim() == "off" => {
-                set.remove(EffectKind::from_name(name.trim()).map_err(bmr_err)?)
+                set.remove(kind_named(name.trim()).map_err(bmr_err)?)
             }
             _ => set.insert(Effect::parse(&item).map_err(bmr_err)?),
         }
@@ -488,26 +489,31 @@ impl PyVirtualActuator {
     }
 }
 
-/// Every effect's documentation and parameters: ``{name: {"doc": str, "params": {param: {"unit", "default",
-/// "min", "max", "doc"}}}}``.
+/// Every effect's documentation and parameters: ``{name: {"doc": str, "acts": str, "params": {param: {"unit",
+/// "default", "min", "max", "whole", "doc"}}}}``; ``model_entries=True`` adds the model-file entries that are not
+/// physical effects (``core_tables``, ``table_resolution``, ``offset``).
 #[pyfunction]
-fn effect_parameters(py: Python<'_>) -> PyResult<Bound<'_, PyDict>> {
+#[pyo3(signature = (*, model_entries=false))]
+fn effect_parameters(py: Python<'_>, model_entries: bool) -> PyResult<Bound<'_, PyDict>> {
     let out = PyDict::new(py);
-    for kind in EffectKind::ALL {
+    let extra: &[EffectSpec] = if model_entries { MODEL_ENTRIES } else { &[] };
+    for spec in SPECS.iter().chain(extra) {
         let entry = PyDict::new(py);
-        entry.set_item("doc", kind.doc())?;
+        entry.set_item("doc", spec.doc)?;
+        entry.set_item("acts", spec.acts.name())?;
         let params = PyDict::new(py);
-        for s in kind.params() {
+        for s in spec.params {
             let p = PyDict::new(py);
             p.set_item("unit", s.unit)?;
             p.set_item("default", s.default)?;
             p.set_item("min", s.min)?;
             p.set_item("max", s.max)?;
+            p.set_item("whole", s.whole)?;
             p.set_item("doc", s.doc)?;
             params.set_item(s.name, p)?;
         }
         entry.set_item("params", params)?;
-        out.set_item(kind.name(), entry)?;
+        out.set_item(spec.name, entry)?;
     }
     Ok(out)
 }
@@ -519,6 +525,17 @@ pub(crate) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add(
         "EFFECTS",
         PyTuple::new(m.py(), EffectKind::ALL.map(|k| k.name()))?,
+    )?;
+    m.add(
+        "MODEL_EXTENSIONS",
+        PyTuple::new(
+            m.py(),
+            SPECS
+                .iter()
+                .chain(MODEL_ENTRIES)
+                .map(|s| s.name)
+                .collect::<Vec<_>>(),
+        )?,
     )?;
     m.add("PRESETS", PyTuple::new(m.py(), PRESETS)?)?;
     m.add("ACTUATOR_PARAMETERS", PyTuple::new(m.py(), SETTABLE)?)?;

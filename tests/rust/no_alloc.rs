@@ -88,3 +88,65 @@ fn compensator_step_does_not_allocate() {
         after - before
     );
 }
+
+#[test]
+fn extended_compensator_step_does_not_allocate() {
+    use bmr::vocabulary::{EffectKind, Params};
+    let (asc, desc) = common::measure_first_order(60, 13);
+    let fwd = Hysteresis::<Vec<f64>, 8>::from_curve_data(
+        &asc,
+        &desc,
+        &BuildOptions::default(),
+        Initial::Negative,
+    )
+    .unwrap();
+    let p = |k: EffectKind, v: &[(&'static str, f64)]| Params::new(k.spec(), v).unwrap();
+    // Every stage the compensator has.
+    let effects = [
+        p(EffectKind::CoilLag, &[("tau_s", 0.02)]),
+        p(EffectKind::TimeDelay, &[("delay_s", 0.01)]),
+        p(
+            EffectKind::ThermalDrift,
+            &[("gain_loss", 0.1), ("tau_s", 30.0)],
+        ),
+        p(EffectKind::TorqueRipple, &[("eps", 0.05)]),
+        p(EffectKind::NonCongruent, &[("curvature", 1.5)]),
+        p(EffectKind::FrictionCurrent, &[("gain_per_a", 0.4)]),
+        p(EffectKind::FrictionHarmonics, &[("order", 7.0)]),
+    ];
+    let f =
+        bmr::Friction::<24>::from_coefficients(5.0, &[10.0, 3.0, 1.0], &[2.0, 1.0, 0.5]).unwrap();
+    let paper = bmr::InverseKind::Paper(fwd.paper_inverse().unwrap());
+    let mut exact = bmr::Compensator::new(fwd.clone(), bmr::InverseKind::Exact, f, 0.125, 1.25)
+        .unwrap()
+        .with_extensions(&effects, 0.002, 300.0)
+        .unwrap();
+    let mut paper = bmr::Compensator::new(fwd, paper, f, 0.125, 1.25)
+        .unwrap()
+        .with_extensions(&effects, 0.002, 300.0)
+        .unwrap();
+    let refs = common::random_history(&mut common::Rng(9), 2000, 9);
+    let thetas: Vec<f64> = (0..refs.len()).map(|i| 0.01 * i as f64).collect();
+    let scaled: Vec<f64> = refs.iter().map(|r| 280.0 * r).collect();
+    WATCHED.with(|w| w.set(true));
+    let before = ALLOCS.load(Ordering::SeqCst);
+    let mut acc = 0.0;
+    for (i, &r) in scaled.iter().enumerate() {
+        let th = thetas[i];
+        acc += exact.step(r, th).current_a + paper.step(r, th).current_a;
+        acc += exact.step_ahead(r, th).current_a;
+        acc += exact.step(f64::NAN, th).current_a;
+    }
+    let snap = exact.snapshot();
+    exact.restore(&snap).unwrap();
+    exact.run_with(&scaled, &thetas, |_, c, _| acc += c.current_a);
+    let after = ALLOCS.load(Ordering::SeqCst);
+    WATCHED.with(|w| w.set(false));
+    assert!(acc.is_finite());
+    assert_eq!(
+        after - before,
+        0,
+        "extended Compensator::step allocated {} times",
+        after - before
+    );
+}

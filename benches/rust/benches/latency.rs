@@ -1,4 +1,5 @@
-//! Per-step latency distribution of `Compensator::step` (exact inverse) over 10⁶ steps of a random multi-peak
+//! Per-step latency distribution of `Compensator::step` (exact and paper inverse, and with every extension stage)
+//! over 10⁶ steps of a random multi-peak
 //! reference: median, p99, p99.9 and max, each step timed alone (timer overhead measured and subtracted).
 //! Run: `cargo bench --bench latency`.
 use bmr_bench as workload;
@@ -25,13 +26,22 @@ fn main() {
         .collect();
     overhead.sort_unstable();
     let timer = percentile(&overhead, 0.5);
-    for paper in [false, true] {
+    for (name, paper, extended) in [
+        ("exact inverse", false, false),
+        ("paper inverse", true, false),
+        ("exact inverse, every extension stage", false, true),
+    ] {
         let inv = if paper {
             InverseKind::Paper(h.paper_inverse().unwrap())
         } else {
             InverseKind::Exact
         };
         let mut c = Compensator::new(h.clone(), inv, f, 0.125, 1.25).unwrap();
+        if extended {
+            c = c
+                .with_extensions(&workload::every_stage(), 0.001, 300.0)
+                .unwrap();
+        }
         for (i, &r) in refs.iter().take(10_000).enumerate() {
             black_box(c.step(r, i as f64 * 0.002)); // warm up
         }
@@ -43,11 +53,6 @@ fn main() {
             ns.push((t.elapsed().as_nanos() as u64).saturating_sub(timer));
         }
         ns.sort_unstable();
-        let name = if paper {
-            "paper inverse"
-        } else {
-            "exact inverse"
-        };
         println!(
             "Compensator::step ({name}), {N} steps, timer overhead {timer} ns subtracted: median {} ns, p99 {} ns, p99.9 {} ns, max {} ns",
             percentile(&ns, 0.5),

@@ -1,5 +1,6 @@
 //! Runs `N` compensator steps (exact inverse) on a random multi-peak reference: a fixed workload for counting
-//! instructions per step with callgrind (`benches/callgrind.sh`). Usage: `step_count N [hysteresis|compensator]`.
+//! instructions per step with callgrind (`benches/callgrind.sh`). Usage: `step_count N [hysteresis|compensator|
+//! extended]` (`extended`: every extension stage on).
 use bmr_bench as workload;
 
 use bmr::{Compensator, InverseKind};
@@ -13,18 +14,28 @@ fn main() {
     let refs = workload::multipeak_reference(200_000, 3);
     let f = workload::friction();
     let mut acc = 0.0;
-    if what == "hysteresis" {
-        let mut op = h;
-        for i in 0..n {
-            acc += op.step(black_box(refs[i % refs.len()] / 240.0));
+    match what.as_str() {
+        "hysteresis" => {
+            let mut op = h;
+            for i in 0..n {
+                acc += op.step(black_box(refs[i % refs.len()] / 240.0));
+            }
         }
-    } else {
-        let mut c = Compensator::new(h, InverseKind::Exact, f, 0.125, 1.25).unwrap();
-        for i in 0..n {
-            acc += c
-                .step(black_box(refs[i % refs.len()]), black_box(i as f64 * 0.002))
-                .current_a;
+        "compensator" | "extended" => {
+            let c = Compensator::new(h, InverseKind::Exact, f, 0.125, 1.25).unwrap();
+            let mut c = if what == "extended" {
+                c.with_extensions(&workload::every_stage(), 0.001, 300.0)
+                    .unwrap()
+            } else {
+                c
+            };
+            for i in 0..n {
+                acc += c
+                    .step(black_box(refs[i % refs.len()]), black_box(i as f64 * 0.002))
+                    .current_a;
+            }
         }
+        other => panic!("unknown workload {other:?}"),
     }
     println!("{acc}");
 }

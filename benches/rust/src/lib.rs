@@ -36,6 +36,30 @@ pub fn multipeak_reference(n: usize, seed: u64) -> Vec<f64> {
 }
 
 /// The paper's 3-harmonic friction (N·mm).
-pub fn friction() -> Friction<12> {
+pub fn friction() -> Friction<{ bmr::friction::MAX_ORDER }> {
     Friction::from_amplitude_phase(12.0, &[25.0, 8.0, 4.0], &[0.3, 1.1, -0.7]).unwrap()
+}
+
+/// Every extension stage the compensator has, at sizes the diagnosis finds on the virtual actuator (1 kHz).
+pub fn every_stage() -> Vec<bmr::vocabulary::Params> {
+    use bmr::vocabulary::{EffectKind, Params};
+    let p = |k: EffectKind, v: &[(&'static str, f64)]| Params::new(k.spec(), v).unwrap();
+    vec![
+        p(EffectKind::TimeDelay, &[("delay_s", 0.01)]),
+        p(EffectKind::CoilLag, &[("tau_s", 0.02)]),
+        p(EffectKind::NonCongruent, &[("curvature", 1.5)]),
+        p(
+            EffectKind::ThermalDrift,
+            &[("gain_loss", 0.1), ("tau_s", 60.0)],
+        ),
+        p(
+            EffectKind::TorqueRipple,
+            &[("eps", 0.05), ("phase_rad", 0.4)],
+        ),
+        p(
+            EffectKind::FrictionHarmonics,
+            &[("order", 6.0), ("amplitude_nmm", 5.0)],
+        ),
+        p(EffectKind::FrictionCurrent, &[("gain_per_a", 0.5)]),
+    ]
 }

@@ -15,15 +15,16 @@ from bmr._core import BmrError
 __all__ = ["check_output_file", "check_output_folder", "contained", "read_json", "write_atomic", "write_text"]
 
 
-def write_atomic(path: str | Path, write: Callable[[IO[bytes]], None], *, error: type[BmrError] = BmrError) -> Path:
+def write_atomic(path: str | Path, write: Callable[[IO[bytes]], None], *, what: str = "file",
+                 error: type[BmrError] = BmrError) -> Path:
     """Call ``write(fh)`` on a temporary file in ``path``'s folder, flush and fsync it, then rename it over
     ``path``. On any failure the temporary file is removed, the previous ``path`` (if any) is untouched, and an
-    ``OSError`` becomes ``error`` naming the file."""
+    ``OSError`` becomes ``error`` naming ``what`` and the file."""
     p = Path(path)
     try:
         fd, tmp = tempfile.mkstemp(prefix=f".{p.name}.", suffix=".tmp", dir=p.parent if str(p.parent) else ".")
     except OSError as exc:
-        raise error(f"cannot write {str(p)!r}: {exc.strerror or exc}") from None
+        raise error(f"cannot write {what} {str(p)!r}: {exc.strerror or exc}") from None
     try:
         with os.fdopen(fd, "wb") as fh:
             write(fh)
@@ -32,17 +33,17 @@ def write_atomic(path: str | Path, write: Callable[[IO[bytes]], None], *, error:
         os.replace(tmp, p)
     except OSError as exc:
         Path(tmp).unlink(missing_ok=True)
-        raise error(f"cannot write {str(p)!r}: {exc.strerror or exc}") from None
+        raise error(f"cannot write {what} {str(p)!r}: {exc.strerror or exc}") from None
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise
     return p
 
 
-def write_text(path: str | Path, text: str, *, error: type[BmrError] = BmrError) -> Path:
+def write_text(path: str | Path, text: str, *, what: str = "file", error: type[BmrError] = BmrError) -> Path:
     """Write ``text`` (UTF-8) to ``path`` atomically (see :func:`write_atomic`)."""
     data = text.encode("utf-8")
-    return write_atomic(path, lambda fh: fh.write(data), error=error)
+    return write_atomic(path, lambda fh: fh.write(data), what=what, error=error)
 
 
 def _writable_folder(folder: Path, shown: Path, what: str, error: type[BmrError]) -> None:

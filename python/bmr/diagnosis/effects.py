@@ -27,6 +27,7 @@ from typing import Any
 
 import numpy as np
 
+from bmr import _core
 from bmr._core import BmrError
 from bmr.diagnosis.field import REIDENTIFY_INTERVALS, FieldPath
 from bmr.diagnosis.residuals import EvalData
@@ -151,23 +152,16 @@ class TableResolution(Effect):
 
 
 # ----------------------------------------------------------------------------------------------- linear effects
-def _heating(x_in: np.ndarray, tau_s: float, dt_s: float, x0: float) -> np.ndarray:
-    from scipy.signal import lfilter
-
-    p = math.exp(-dt_s / tau_s)
-    x, _ = lfilter([1.0 - p], [1.0, -p], x_in, zi=[p * x0])
-    return x
-
-
 def bundle_thermal_state(data: EvalData, tau_s: float) -> list[np.ndarray]:
     """Coil heating state (1 = steady full current) of every run of the bundle, in bundle order:
-    ``x' = ((I/I_full)² − x)/tau`` integrated over the runs in order (the actuator's state carries over)."""
+    ``x' = ((I/I_full)² − x)/tau`` integrated over the runs in order (the actuator's state carries over); the
+    core's heating filter (``bmr._core.heating_state``), the one the plant and the compensator step."""
 
     def make() -> list[np.ndarray]:
         states = []
         x0 = 0.0
         for u, dt in zip(data.bundle_currents, data.bundle_dt_s):
-            x = _heating((np.asarray(u, float) / data.full_current_a) ** 2, tau_s, dt, x0)
+            x = _core.heating_state(np.asarray(u, float), tau_s, dt, data.full_current_a, initial=x0)
             states.append(x)
             x0 = float(x[-1]) if x.size else x0
         return states

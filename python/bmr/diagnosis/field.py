@@ -16,7 +16,6 @@ history. Its caches are bounded; nothing is kept between diagnoses.
 """
 from __future__ import annotations
 
-import math
 from collections import OrderedDict
 from dataclasses import dataclass, field, replace
 from typing import Any, Sequence
@@ -37,15 +36,12 @@ Curves = tuple[list[tuple[np.ndarray, np.ndarray]], list[tuple[np.ndarray, np.nd
 
 
 def lag(x: np.ndarray, tau_s: float, dt_s: float) -> np.ndarray:
-    """First-order lag ``y' = (x − y)/tau`` sampled exactly for a held input, starting at rest at ``x[0]``."""
+    """First-order lag ``y' = (x − y)/tau`` sampled exactly for a held input, starting at rest at ``x[0]`` (the
+    core's filter, ``bmr._core.lag``)."""
     x = np.asarray(x, dtype=float)
     if tau_s <= 0.0 or x.size == 0:
         return x.copy()
-    from scipy.signal import lfilter
-
-    p = math.exp(-dt_s / tau_s)
-    y, _ = lfilter([1.0 - p], [1.0, -p], x, zi=[p * x[0]])
-    return y
+    return _core.lag(x, tau_s, dt_s)
 
 
 def lead(x: np.ndarray, tau_s: float, dt_s: float) -> np.ndarray:
@@ -53,41 +49,31 @@ def lead(x: np.ndarray, tau_s: float, dt_s: float) -> np.ndarray:
     x = np.asarray(x, dtype=float)
     if tau_s <= 0.0 or x.size == 0:
         return x.copy()
-    p = math.exp(-dt_s / tau_s)
-    prev = np.concatenate([[x[0]], x[:-1]])
-    return (x - p * prev) / (1.0 - p)
+    return _core.lead(x, tau_s, dt_s)
 
 
 def delay(x: np.ndarray, delay_s: float, dt_s: float) -> np.ndarray:
     """``x`` delayed by ``round(delay_s/dt_s)`` samples (the first value held before the start)."""
     x = np.asarray(x, dtype=float)
-    d = int(round(delay_s / dt_s))
-    if d <= 0 or x.size == 0:
+    if x.size == 0:
         return x.copy()
-    d = min(d, x.size)
-    return np.concatenate([np.full(d, x[0]), x[: x.size - d]])
+    return _core.delay(x, delay_s, dt_s)
 
 
 def output_map(y: np.ndarray, curvature: float, scale_nmm: float) -> np.ndarray:
-    """``g(T) = S·n(1 + c|n|)/(1 + c)`` with ``n = T/S`` (identity for ``c = 0``)."""
+    """``g(T) = S·n(1 + c|n|)/(1 + c)`` with ``n = T/S`` (identity for ``c = 0``), as the core tabulates it."""
     y = np.asarray(y, dtype=float)
     if curvature == 0.0:
         return y.copy()
-    n = y / scale_nmm
-    return scale_nmm * n * (1.0 + curvature * np.abs(n)) / (1.0 + curvature)
+    return _core.output_map(y, curvature, scale_nmm)
 
 
 def output_map_inverse(t: np.ndarray, curvature: float, scale_nmm: float) -> np.ndarray:
-    """``g⁻¹``: solves ``|n| + c n² = |m|(1 + c)`` for ``|n|`` (``m = T/S``), sign kept; clipped where ``g``
-    stops being monotone (concave maps beyond their turning point)."""
+    """``g⁻¹`` of :func:`output_map` (a concave map only up to its turning point)."""
     t = np.asarray(t, dtype=float)
-    c = curvature
-    if c == 0.0:
+    if curvature == 0.0:
         return t.copy()
-    m = np.abs(t) / scale_nmm
-    disc = np.maximum(1.0 + 4.0 * c * (1.0 + c) * m, 0.0)
-    n = (np.sqrt(disc) - 1.0) / (2.0 * c)
-    return np.sign(t) * scale_nmm * n
+    return _core.output_map_inverse(t, curvature, scale_nmm)
 
 
 def _monotone(u: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -202,9 +188,9 @@ class Reidentifier:
                 y = effect.remove(y, value, np.asarray(beta), pr)
             outputs.append(np.ascontiguousarray(output_map_inverse(y, path.curvature, path.scale_nmm)))
         res = reg.fit(outputs, self._passive)
-        self._passive = res["passive"]
+        self._passive = res.passive
         self.fits += 1
-        asc, desc = res["model"].first_order_curves()
+        asc, desc = res.model.first_order_curves()
         return ([(np.asarray(u), np.asarray(y)) for u, y in asc], [(np.asarray(u), np.asarray(y)) for u, y in desc])
 
 

@@ -25,12 +25,13 @@ import json
 import math
 import sys
 import time
+import warnings
 from pathlib import Path
-from typing import Any
+from typing import Any, Callable
 
 import numpy as np
 
-from bmr._core import BmrError, VirtualActuator
+from bmr._core import BmrError, ModelFileError, VirtualActuator
 from bmr.data.files import check_output_file, write_text
 from bmr.data.bundle import Bundle, read_bundle
 from bmr.diagnosis.effects import PHYSICAL
@@ -39,7 +40,7 @@ from bmr.diagnosis.extended_model import ExtendedModel, extensions_from_selectio
 from bmr.diagnosis.residuals import prepare, structure
 from bmr.diagnosis.selection import Fitter, forward_selection
 from bmr.identification.procedure import identify
-from bmr.identification.model import Model
+from bmr.identification.model import LOOP_STAGES, Model
 from bmr.report.diagnosis import figures, html_page, html_section
 from bmr.simulation.experiments import MULTIPEAK_SEED, reference_multipeak, tracking
 
@@ -124,11 +125,11 @@ class Diagnosis:
 
     def write_report(self, path: str | Path) -> Path:
         """Write the HTML report (atomically)."""
-        return write_text(path, html_page(self))
+        return write_text(path, html_page(self), what="report")
 
     def write_json(self, path: str | Path) -> Path:
         """Write the ``bmr-diagnosis/1`` JSON (atomically)."""
-        return write_text(path, json.dumps(self.to_dict(), indent=1, allow_nan=False) + "\n")
+        return write_text(path, json.dumps(self.to_dict(), indent=1, allow_nan=False) + "\n", what="diagnosis")
 
     def __repr__(self) -> str:
         return (f"Diagnosis(cause={self.cause!r}, effects={[e['name'] for e in self.effects]}, "
@@ -218,45 +219,143 @@ def diagnose(bundle: Bundle | str | Path, model: Any = None, *, folds: int = 5, 
                   nominal_heldout_rms_nmm=sel["nominal_heldout_rms_nmm"], unexplained=unexplained,
                   structure_nominal=struct_nom, structure_extended=struct_ext, per_run_rms=per_run, folds=folds,
                   seed=seed, wall_time_s=0.0, model=model, extended_model=ext_model, signals=signals)
-    sim = bundle.meta.get("simulator") if isinstance(bundle.meta, dict) else None
-    if closed_loop and isinstance(sim, dict) and accepted and "preset" in sim:
+    # What each extension does: held-out prediction for all, closed-loop tracking for those the compensator undoes.
+    rows = {e["name"]: e for e in accepted}
+    for entry in ext_model.extensions:
+        row = rows.get(entry["name"])
+        if row is not None:
+            entry["heldout"] = {"gain": float(row["gain"]), "rms_before_nmm": float(row["heldout_rms_before_nmm"]),
+                                "rms_after_nmm": float(row["heldout_rms_after_nmm"])}
+    if closed_loop and any(e["name"] in LOOP_STAGES for e in ext_model.extensions):
+        sim = bundle.meta.get("simulator") if isinstance(bundle.meta, dict) else None
+        plant = _simulator_plant(sim, bundle.sample_rate_hz) if isinstance(sim, dict) and "preset" in sim else None
         try:
-            d.closed_loop = closed_loop_gain(d, sim["preset"], effects=sim.get("effects") or {},
-                                             seed=int(sim.get("seed", 0)), sample_rate_hz=bundle.sample_rate_hz)
+            d.closed_loop = closed_loop_gain(d, plant=plant, sample_rate_hz=bundle.sample_rate_hz,
+                                             speed_rad_s=_rotor_speed(bundle))
         except BmrError as exc:
             d.closed_loop = {"error": str(exc)}
     d.wall_time_s = time.perf_counter() - t0
     return d
 
 
-def closed_loop_gain(d: Diagnosis, preset: str, *, effects: Any = None, seed: int = 0,
-                     sample_rate_hz: float = 500.0, duration_s: float = 20.0) -> dict[str, Any]:
-    """Tracking error (RMS of measured − reference torque, N·mm, after the opening) of the nominal and the
-    extended compensator on the same simulated plant (``preset`` with ``effects``, same seed) tracking the
-    multi-peak torque reference; ``ratio`` = extended / nominal."""
-    ref = reference_multipeak(MULTIPEAK_SEED, sample_rate_hz=sample_rate_hz, duration_s=duration_s)
-    out: dict[str, Any] = {"preset": preset, "reference": "multipeak", "duration_s": duration_s}
-    dt = 1.0 / sample_rate_hz
-    comps = {"nominal": d.model.compensator(),
-             "extended": d.extended.compensator(dt_s=dt)}
-    for name, comp in comps.items():
-        act = VirtualActuator(preset, seed=seed, sample_rate_hz=sample_rate_hz, effects=effects)
-        run = tracking(act, comp, ref, opening_duration_s=2.0)
-        k = int(run.meta.get("opening_end_s", 0.0) * sample_rate_hz) if "opening_end_s" in run.meta else 0
-        e = run.torque[k:] - run.column("reference_nmm")[k:]
-        out[f"{name}_rms_nmm"] = _rms(e)
-    out["ratio"] = out["extended_rms_nmm"] / out["nominal_rms_nmm"] if out["nominal_rms_nmm"] > 0 else float("nan")
-    return out
+class _ModelPlant:
+    """The diagnosed extended model as the plant of a closed-loop check (the virtual actuator's interface that
+    :func:`bmr.simulation.experiments.tracking` uses): rotor at constant speed, no sensor noise."""
+
+    def __init__(self, model: Any, sample_rate_hz: float, speed_rad_s: float) -> None:
+        self.sample_rate_hz = float(sample_rate_hz)
+        self.time_s = 0.0
+        self._speed = float(speed_rad_s)
+        self._sim = ExtendedModel(model).simulation(1.0 / self.sample_rate_hz)
+
+    def theta_ahead(self, n: int) -> np.ndarray:
+        return np.mod(self._speed * np.arange(n) / self.sample_rate_hz, 2.0 * np.pi)
+
+    def run(self, current_a: np.ndarray) -> dict[str, np.ndarray]:
+        th = self.theta_ahead(len(current_a))
+        out = self._sim.run(current_a, th)
+        i = np.asarray(current_a, dtype=float)
+        return {"current_a": i, "theta_rad": th, "torque_nmm": out["torque_nmm"], "coil1_a": np.maximum(-i, 0.0),
+                "coil2_a": np.maximum(i, 0.0)}
+
+
+def _simulator_plant(sim: dict[str, Any], sample_rate_hz: float) -> Callable[[], Any]:
+    preset, effects, seed = sim["preset"], sim.get("effects") or {}, int(sim.get("seed", 0))
+    overrides = sim.get("overrides") or None
+
+    def make() -> Any:
+        return VirtualActuator(preset, seed=seed, sample_rate_hz=sample_rate_hz, effects=effects,
+                               **({"overrides": overrides} if overrides else {}))
+
+    return make
+
+
+def _rotor_speed(bundle: Bundle) -> float:
+    """Median rotor speed (rad/s) of the bundle's runs (1 rad/s when it cannot be told)."""
+    speeds = []
+    for r in bundle.runs:
+        th = np.unwrap(np.asarray(r.theta, dtype=float))
+        if th.size > 1:
+            speeds.append(abs(th[-1] - th[0]) / max(float(r.t[-1] - r.t[0]), 1e-12))
+    v = float(np.median(speeds)) if speeds else 0.0
+    return v if math.isfinite(v) and v > 0 else 1.0
+
+
+def _tracking_rms(make_plant: Callable[[], Any], comp: Any, ref: np.ndarray, fs: float) -> float:
+    run = tracking(make_plant(), comp, ref, opening_duration_s=2.0)
+    k = int(run.meta.get("opening_end_s", 0.0) * fs)
+    return _rms(run.torque[k:] - run.column("reference_nmm")[k:])
+
+
+def closed_loop_gain(d: Diagnosis, plant: Callable[[], Any] | None = None, *, sample_rate_hz: float = 500.0,
+                     duration_s: float = 20.0, speed_rad_s: float = 1.0) -> dict[str, Any]:
+    """Closed-loop check of the extended compensator: tracking error (RMS of measured − reference torque, N·mm,
+    after the opening) on the multi-peak torque reference, nominal compensator against extended ones, on
+    ``plant()`` (a fresh virtual actuator per run: the simulator that made the bundle) or, without one, on the
+    diagnosed extended model itself (rotor at ``speed_rad_s``).
+
+    Every extension the compensator can undo is judged in the company of the others: starting from all of them,
+    the one whose removal cuts the error most is removed while any removal does, so each stage left in helps
+    (``ratio`` = error with it / error without it, below 1) and each stage taken out hurt. The model's extension
+    entries get ``tracking`` and ``in_loop``; ``ratio`` = the extended compensator (the stages left in) /
+    nominal."""
+    fs = float(sample_rate_hz)
+    dt = 1.0 / fs
+    ref = reference_multipeak(MULTIPEAK_SEED, sample_rate_hz=fs, duration_s=duration_s)
+    ext = d.extended_model
+    if plant is None:
+        model_plant = ext
+
+        def plant() -> Any:
+            return _ModelPlant(model_plant, fs, speed_rad_s)
+
+        where = "model"
+    else:
+        where = "simulator"
+    stages = [n for n in LOOP_STAGES if ext.extension(n) is not None]
+
+    def rms_with(names: list[str]) -> float:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            comp = ext.compensator(dt, stages=names)
+        return _tracking_rms(plant, comp, ref, fs)
+
+    nominal = _tracking_rms(plant, d.model.compensator(), ref, fs)
+    kept = list(stages)
+    err = rms_with(kept)
+    all_err = err
+    verdict: dict[str, dict[str, Any]] = {}
+    while kept:
+        without = {n: rms_with([k for k in kept if k != n]) for n in kept}
+        worst = min(without, key=lambda n: without[n])
+        if without[worst] < err:
+            verdict[worst] = {"ratio": err / without[worst], "in_loop": False}
+            kept.remove(worst)
+            err = without[worst]
+            continue
+        for n in kept:
+            verdict[n] = {"ratio": err / without[n] if without[n] > 0 else float("nan"), "in_loop": True}
+        break
+    for entry in ext.extensions:
+        v = verdict.get(entry["name"])
+        if v is not None:
+            entry["tracking"] = {"ratio": float(v["ratio"]), "plant": where, "reference": "multipeak"}
+            entry["in_loop"] = bool(v["in_loop"])
+    return {"plant": where, "reference": "multipeak", "duration_s": duration_s, "nominal_rms_nmm": nominal,
+            "extended_rms_nmm": err, "all_stages_rms_nmm": all_err, "stages_on": kept,
+            "stages": {n: verdict[n] for n in stages}, "ratio": err / nominal if nominal > 0 else float("nan")}
 
 
 def run_cli(args: Any) -> int:
-    """``bmr diagnose BUNDLE [--model M] [--json OUT] [--report OUT.html]``: print the named cause and the
-    selection, write the JSON and the HTML report on request."""
+    """``bmr diagnose BUNDLE [--model M] [--json OUT] [--report OUT.html] [--model-out OUT.json]``: print the
+    named cause and the selection, write the JSON, the HTML report and the extended model file on request."""
     # Outputs that cannot be written fail now, not after the whole diagnosis.
     if args.json_out:
         check_output_file(args.json_out, "diagnosis JSON")
     if args.report:
         check_output_file(args.report, "report")
+    if args.model_out:
+        check_output_file(args.model_out, "model file", error=ModelFileError)
     d = diagnose(args.bundle, args.model, folds=args.folds, seed=args.seed)
     print(f"bmr diagnose: {d.actuator}: cause {d.cause}; held-out RMS {d.nominal_heldout_rms_nmm:.3f} -> "
           f"{d.residual_rms_nmm:.3f} N·mm (noise floor {d.noise_floor_nmm:.3f}), {d.wall_time_s:.1f} s")
@@ -268,15 +367,28 @@ def run_cli(args: Any) -> int:
         print(f"  rejected {r['name']}: gain {100 * r['gain']:.1f} % ({r['folds_positive']}/{d.folds} folds)")
     for u in d.unexplained:
         print(f"  unexplained structure against {u['signal']}: {u['strength']:.3f} N·mm RMS")
-    if d.closed_loop and "ratio" in d.closed_loop:
-        c = d.closed_loop
-        print(f"  closed loop: tracking RMS {c['nominal_rms_nmm']:.2f} (nominal) -> {c['extended_rms_nmm']:.2f} "
-              f"N·mm (extended), ratio {c['ratio']:.2f}")
+    c = d.closed_loop or {}
+    if "ratio" in c:
+        print(f"  closed loop on the {c['plant']}: tracking RMS {c['nominal_rms_nmm']:.2f} (nominal) -> "
+              f"{c['extended_rms_nmm']:.2f} N·mm (extended), ratio {c['ratio']:.2f}; all stages "
+              f"{c['all_stages_rms_nmm']:.2f} N·mm")
+        for name, v in c["stages"].items():
+            state = "on " if v["in_loop"] else "OFF"
+            print(f"    stage {state} {name}: tracking ratio {v['ratio']:.2f} (with / without it)")
+        for name, v in c["stages"].items():
+            if not v["in_loop"]:
+                print(f"  warning: {name} made closed-loop tracking worse (ratio {v['ratio']:.2f}): the compensator "
+                      "leaves it off (Model.compensator(stages='all') to use it anyway)", file=sys.stderr)
+    elif "error" in c:
+        print(f"  closed loop: not measured ({c['error']})")
     if args.json_out:
         d.write_json(args.json_out)
         print(f"  wrote {args.json_out}")
     if args.report:
         d.write_report(args.report)
         print(f"  wrote {args.report}")
+    if args.model_out:
+        d.extended_model.save(args.model_out)
+        print(f"  wrote {args.model_out} (bmr.Compensator.from_model, bmr export)")
     return 0
 

@@ -39,12 +39,11 @@ class FrictionFit:
     scores: dict[int, float] = field(default_factory=dict)
 
     def __call__(self, theta_rad: np.ndarray | float) -> np.ndarray:
-        """Friction torque (N·mm) at rotor angle(s) ``theta_rad``."""
+        """Friction torque (N·mm) at rotor angle(s) ``theta_rad`` (the core's friction series)."""
         theta = np.asarray(theta_rad, dtype=float)
-        y = np.full(theta.shape, float(self.c0))
-        for k in range(self.order):
-            y += self.a[k] * np.sin((k + 1) * theta) + self.b[k] * np.cos((k + 1) * theta)
-        return y
+        a = [float(x) for x in self.a[: self.order]]
+        b = [float(x) for x in self.b[: self.order]]
+        return _core.friction_series(theta.reshape(-1), float(self.c0), a, b).reshape(theta.shape)
 
     def to_friction(self) -> Any:
         """The core ``bmr.Friction`` with these coefficients."""
@@ -141,7 +140,7 @@ def fit_friction(
     # extra harmonic that fits the rounding error.
     rss_floor = n * (1e-9 * max(float(np.max(np.abs(torque))), 1e-12)) ** 2
     scores: dict[int, float] = {}
-    fits: dict[int, dict[str, Any]] = {}
+    fits: dict[int, _core.FrictionOrderFit] = {}
     for k in range(int(max_order) + 1):
         try:
             fit = _core.fit_friction_order(theta, torque, k)
@@ -149,7 +148,7 @@ def fit_friction(
             break  # higher orders are not determined by this angle coverage either
         fits[k] = fit
         if criterion == "bic":
-            rss = max(fit["rss"], rss_floor)
+            rss = max(fit.rss, rss_floor)
             scores[k] = n * math.log(rss / n) + (2 * k + 1) * math.log(n)
         else:
             scores[k] = _holdout_rms(theta, torque, k, folds)
@@ -157,10 +156,9 @@ def fit_friction(
         raise BmrError(f"friction fit failed: {n} off-state samples do not determine even the constant term")
     best = min(scores, key=lambda k: scores[k])
     f = fits[best]
-    return FrictionFit(order=best, c0=float(f["c0"]), a=np.asarray(f["a"]), b=np.asarray(f["b"]),
-                       c0_stderr=float(f["c0_stderr"]), a_stderr=np.asarray(f["a_stderr"]),
-                       b_stderr=np.asarray(f["b_stderr"]), covariance=np.asarray(f["covariance"]),
-                       residual_rms_nmm=math.sqrt(f["rss"] / n), n=n, criterion=criterion, scores=scores)
+    return FrictionFit(order=best, c0=f.c0, a=f.a, b=f.b, c0_stderr=f.c0_stderr, a_stderr=f.a_stderr,
+                       b_stderr=f.b_stderr, covariance=f.covariance, residual_rms_nmm=math.sqrt(f.rss / n), n=n,
+                       criterion=criterion, scores=scores)
 
 
 def _holdout_rms(theta: np.ndarray, torque: np.ndarray, order: int, folds: int) -> float:
@@ -175,8 +173,7 @@ def _holdout_rms(theta: np.ndarray, torque: np.ndarray, order: int, folds: int) 
                                          order)
         except BmrError:
             return float("inf")
-        fit = FrictionFit(order, f["c0"], np.asarray(f["a"]), np.asarray(f["b"]), 0.0, f["a_stderr"],
-                          f["b_stderr"], f["covariance"], 0.0, 0)
+        fit = FrictionFit(order, f.c0, f.a, f.b, 0.0, f.a_stderr, f.b_stderr, f.covariance, 0.0, 0)
         e = torque[lo:hi] - fit(theta[lo:hi])
         sse += float(e @ e)
         count += e.size

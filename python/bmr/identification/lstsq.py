@@ -127,7 +127,7 @@ class LstsqTables:
                 f"{self.samples.used} of {self.samples.total} samples used)")
 
 
-def _fit(grid: np.ndarray, packed: list[tuple], n_offsets: int, smoothing: float, ridge: float) -> dict[str, Any]:
+def _fit(grid: np.ndarray, packed: list[tuple], n_offsets: int, smoothing: float, ridge: float) -> _core.EverettFit:
     return _core.fit_everett(grid, packed, n_offsets, smoothing=smoothing, ridge=ridge)
 
 
@@ -250,8 +250,8 @@ def fit_tables_lstsq(
 
     rounds = iterations if (initial_state == "estimate" or gains) else 0
     for _ in range(rounds):
-        model = res["model"]
-        offs = np.asarray(res["offsets"])
+        model = res.model
+        offs = res.offsets
         if initial_state == "estimate":
             for k, (u, y, w) in enumerate(zip(us, ys, weights)):
                 h, _, _ = model.best_initial_state(u, y, w, free_offset=per_run, gain=run_gains[k])
@@ -260,8 +260,8 @@ def fit_tables_lstsq(
             run_gains = _fit_gains(model, us, ys, weights, histories, offs, per_run, gain_prior)
         res = _fit(grid, pack(), n_off, smoothing, ridge)
 
-    model = res["model"]
-    offs = np.asarray(res["offsets"], dtype=float)
+    model = res.model
+    offs = res.offsets
     run_offsets = offs if per_run else np.full(len(runs), offs[0])
     common = float(np.mean(run_offsets))
     everett = _core.EverettModel(model.grid, model.masses, common)
@@ -283,7 +283,7 @@ def fit_tables_lstsq(
                 "max_rows": max_rows, "curve_subdivisions": curve_subdivisions}
     return LstsqTables(everett=everett, ascending=[(np.asarray(u), np.asarray(y)) for u, y in asc],
                        descending=[(np.asarray(u), np.asarray(y)) for u, y in desc], input_range=(lo, hi),
-                       rms=float(res["rms"]), n_rows=int(res["n_rows"]), iterations=int(res["iterations"]),
+                       rms=res.rms, n_rows=res.n_rows, iterations=res.iterations,
                        runs=calib, samples=account, n_intervals=int(n_intervals), settings=settings)
 
 

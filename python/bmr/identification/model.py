@@ -11,7 +11,7 @@ File layout (JSON)::
                     "initial": "negative", "build": {"subdivisions": 4, "node_tolerance": 1e-4}},
      "limits": {"<input column>": [lo, hi], "<output column>": [lo, hi]},
      "converter_gain_a_per_v": 0.125,
-     "extensions": [{"name": ..., "params": {...}}, ...],
+     "extensions": [{"name": ..., "params": {...}, "tracking": {...}, "in_loop": true}, ...],
      "meta": {...},
      "sha256": "..."}
 
@@ -23,6 +23,12 @@ found; every other problem is a ``bmr.ModelFileError`` naming the field. Non-fin
 (a friction score that could not be computed reads back as infinity). Files are written atomically, and a model
 that cannot be read back is refused before anything is written: every model that saves, loads, and saves again to
 the same bytes.
+
+``extensions`` are the effects a diagnosis added (names and parameters from the effect vocabulary,
+``bmr.effect_parameters(model_entries=True)``; an unknown name or an out-of-range parameter is an error at load
+time). An entry may carry ``tables`` (``core_tables``: the hysteretic core's own curves), ``tracking`` (its
+measured effect on closed-loop tracking) and ``in_loop`` (false: the closed-loop check found that it hurts, so
+the compensator leaves it off unless asked).
 """
 from __future__ import annotations
 
@@ -32,17 +38,23 @@ import json
 import math
 import numbers
 import re
+import warnings
 from pathlib import Path
 from typing import Any, Sequence
 
 import numpy as np
 
+from bmr import _core
 from bmr._core import BmrError, Compensator, Hysteresis, ModelFileError, ResourceLimitError
 from bmr.data.files import read_json, write_text
 from bmr.data.quantities import ACTUATOR, Quantities
 from bmr.identification.friction import FrictionFit
 
-__all__ = ["FORMAT", "Model"]
+__all__ = ["FORMAT", "LOOP_STAGES", "Model"]
+
+# Extensions the compensator can undo, in the order the physics acts (the others are measurement-only or notes).
+LOOP_STAGES = ("core_tables", "time_delay", "coil_lag", "non_congruent", "thermal_drift", "torque_ripple",
+               "friction_harmonics", "friction_current")
 
 FORMAT = "bmr-model/2"
 FORMATS = ("bmr-model/1", FORMAT)
@@ -89,6 +101,7 @@ class Model:
         self._source_curves = curves
         self.converter_gain_a_per_v = float(converter_gain_a_per_v)
         self.extensions = [dict(e) for e in (extensions or [])]
+        _core.check_extensions(self.extensions)
         self.meta = dict(meta or {})
         self.quantities = quantities
         lo, hi = hysteresis.input_range
@@ -193,14 +206,136 @@ class Model:
         excess[excess <= 1e-9 * (hi - lo)] = 0.0  # round-off at the ends is not beyond them
         return int(np.count_nonzero(excess)), float(excess.max()) if excess.size else 0.0
 
-    def compensator(self, **kwargs: Any) -> Any:
-        """A ``bmr.Compensator`` for this model (friction and converter gain filled in; ``kwargs`` pass through,
-        e.g. ``inverse="paper"``)."""
+    def extension(self, name: str) -> dict[str, Any] | None:
+        """The extension entry ``name`` (None if the model has none)."""
+        return next((e for e in self.extensions if e.get("name") == name), None)
+
+    def extension_params(self, name: str) -> dict[str, float]:
+        """Parameters of extension ``name`` with the vocabulary's defaults filled in ({} if absent)."""
+        e = self.extension(name)
+        if e is None:
+            return {}
+        (full,) = _core.check_extensions([{"name": name, "params": e.get("params") or {}}])
+        return dict(full["params"])  # type: ignore[call-overload]
+
+    @property
+    def full_torque_nmm(self) -> float:
+        """Full-scale torque of the model's tables (N·mm): the largest |torque| they reach."""
+        lo, hi = self.hysteresis.output_range
+        return float(max(abs(lo), abs(hi), 1e-9))
+
+    @property
+    def full_current_a(self) -> float:
+        """The current limit (input unit; A for the actuator): the largest |input| the model was identified on,
+        the thermal model's unit heating."""
+        lo, hi = self.input_limits
+        return float(max(abs(lo), abs(hi)))
+
+    def core_hysteresis(self, *, refined: bool = True) -> Any:
+        """The hysteretic core of the extended model: the ``core_tables`` entry's curves when the model has them
+        (and ``refined``), else the model's tables, mapped through the inverse of a ``non_congruent`` output
+        map."""
+        tr = self.extension("core_tables")
+        if refined and tr is not None and tr.get("tables"):
+            t = tr["tables"]
+            try:
+                return Hysteresis.from_curves(_curves(t["ascending"], "core_tables.ascending"),
+                                              _curves(t["descending"], "core_tables.descending"))
+            except (KeyError, TypeError) as exc:
+                raise BmrError(f"core_tables entry: expected 'ascending' and 'descending' curves ({exc})") from None
+        p = self.extension_params("non_congruent")
+        if not p or p["curvature"] == 0.0:
+            return copy.copy(self.hysteresis)
+        scale = p["scale_nmm"] or self.full_torque_nmm
+
+        def fam(curves: Any) -> list[tuple[np.ndarray, np.ndarray]]:
+            out = []
+            for u, y in curves:
+                core = _core.output_map_inverse(np.asarray(y, float), p["curvature"], scale)
+                # The mapped curves stay monotone up to round-off; clamp the round-off.
+                core = np.maximum.accumulate(core) if core[-1] >= core[0] else np.minimum.accumulate(core)
+                out.append((np.asarray(u, float), core))
+            return out
+
+        asc, desc = self._source_curves if self._source_curves is not None else self.hysteresis.curves()
+        return Hysteresis.from_curves(fam(asc), fam(desc), **self._build)
+
+    def stage_plan(self, stages: Any = None) -> list[dict[str, Any]]:
+        """Which extensions the compensator undoes, and why: ``[{"name", "on", "reason", "tracking"}]`` for every
+        extension it could undo (measurement-only ones are not listed). ``stages``: None (every extension the
+        closed-loop check did not find harmful), ``"all"``, or a list of names."""
+        available = [e for e in self.extensions if e.get("name") in LOOP_STAGES]
+        names = [e["name"] for e in available]
+        if isinstance(stages, str) and stages != "all":
+            raise BmrError(f"stages={stages!r}: expected None, 'all' or a list of extension names")
+        if stages is not None and not isinstance(stages, str):
+            wanted = list(stages)
+            for n in wanted:
+                if n not in names:
+                    raise BmrError(f"stage {n!r} is not among this model's extensions that can be compensated "
+                                   f"({', '.join(names) or 'none'})")
+        plan = []
+        for e in available:
+            tracking = e.get("tracking") if isinstance(e.get("tracking"), dict) else None
+            ratio = tracking.get("ratio") if tracking else None
+            measured = (f"closed-loop tracking ratio {ratio:.2f} on the {tracking.get('plant', 'model')}"
+                        if isinstance(ratio, (int, float)) else "no closed-loop measurement")
+            if stages == "all":
+                on, why = True, f"all stages asked for ({measured})"
+            elif stages is not None:
+                on = e["name"] in wanted
+                why = f"{'asked for' if on else 'not asked for'} ({measured})"
+            elif e.get("in_loop", True) is False:
+                on, why = False, f"left off: it made tracking worse ({measured})"
+            else:
+                on, why = True, f"on: {measured}" if ratio is not None else "on: " + measured
+            plan.append({"name": e["name"], "on": on, "reason": why, "tracking": tracking})
+        return plan
+
+    def compensator(self, dt_s: float | None = None, *, stages: Any = None, **kwargs: Any) -> Any:
+        """The full compensator of this model, built in the core: friction and converter gain filled in, the
+        extensions made into stages at control period ``dt_s`` (s; needed when the model has extensions).
+        ``stages``: see :meth:`stage_plan` (default: every extension the closed-loop check did not find
+        harmful; the ones left off, or asked for although they hurt, are named in a warning). ``kwargs`` pass
+        through to ``bmr.Compensator`` (e.g. ``inverse="paper"``, ``initial``)."""
         friction = self.friction.to_friction() if self.friction is not None else None
         kwargs.setdefault("converter_gain", self.converter_gain_a_per_v)
-        lo, hi = self.input_limits
-        kwargs.setdefault("current_limit", max(abs(lo), abs(hi)))
-        return Compensator(self.hysteresis, friction, **kwargs)
+        kwargs.setdefault("current_limit", self.full_current_a)
+        plan = self.stage_plan(stages)
+        for row in plan:
+            ratio = (row["tracking"] or {}).get("ratio")
+            hurts = isinstance(ratio, (int, float)) and ratio > 1.0
+            if hurts and row["on"]:
+                warnings.warn(f"extension {row['name']} is in the loop although it made closed-loop tracking "
+                              f"worse (ratio {ratio:.2f})", stacklevel=2)
+            elif not row["on"] and stages is None:
+                warnings.warn(f"extension {row['name']} {row['reason']}; pass stages='all' or a list to use it",
+                              stacklevel=2)
+        on = [row["name"] for row in plan if row["on"]]
+        if not on:
+            return Compensator(self.hysteresis, friction, **kwargs)
+        effects = [e for e in self.extensions if e["name"] in on and e["name"] != "core_tables"]
+        needs_dt = any(e["name"] in ("time_delay", "coil_lag", "thermal_drift", "friction_current") for e in effects)
+        if needs_dt and dt_s is None:
+            raise BmrError(f"this model's extensions ({', '.join(on)}) need the control period: pass dt_s")
+        core = self.core_hysteresis(refined="core_tables" in on)
+        return Compensator(core, friction, extensions=effects, dt_s=dt_s, full_torque_nmm=self.full_torque_nmm,
+                           **kwargs)
+
+    def export(self, path: str | Path, language: str, *, stages: Any = None, prefix: str = "bmr") -> Path:
+        """Write the compensator (:meth:`compensator` with ``stages``) as firmware source: ``language`` "rust"
+        (static tables and ``model::compensator(dt_s)`` for the no_std crate) or "c" (arrays and
+        ``<prefix>_model`` for ``bmr_compensator_init`` of the C ABI, ``include/bmr.h``). The control period is
+        the firmware's: it is given when the compensator is built there."""
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            # Any valid period builds the stages here; the source carries their parameters, not the period.
+            comp = self.compensator(1e-3, stages=stages)
+        names = ", ".join(comp.stages) or "none"
+        digest = _digest(self.to_dict())[:16]
+        title = f"bmr compensator of model {digest} (stages: {names})"
+        text = _core.export_source(comp, language, title=title, prefix=prefix)
+        return write_text(path, text, what=f"{language} source")
 
     def current_curves(self) -> tuple[list[tuple[np.ndarray, np.ndarray]], list[tuple[np.ndarray, np.ndarray]]]:
         """The paper's current curves (torque → current) from the stored torque curves."""
@@ -241,7 +376,7 @@ class Model:
             Model.from_dict(json.loads(text), source="model to save")
         except BmrError as exc:
             raise ModelFileError(f"cannot save the model to {str(path)!r}: it would not load back ({exc})") from None
-        return write_text(path, _compact_number_lists(text) + "\n", error=ModelFileError)
+        return write_text(path, _compact_number_lists(text) + "\n", what="model file", error=ModelFileError)
 
     @classmethod
     def from_dict(cls, content: Any, *, source: str = "model") -> "Model":
@@ -314,6 +449,10 @@ class Model:
             raise err(f"{source}: 'meta' must be an object")
         build = _build_options(hyst.get("build") or {}, f"{source}: hysteresis.build")
         try:
+            _core.check_extensions(ext)
+        except BmrError as exc:
+            raise err(f"{source}: extensions: {exc}") from None
+        try:
             h = Hysteresis.from_curves(asc, desc, initial=initial, **build)
         except ResourceLimitError as exc:
             raise ResourceLimitError(f"{source}: hysteresis tables: {exc}") from None
@@ -360,6 +499,20 @@ def _build_options(value: Any, where: str) -> dict[str, Any]:
             raise BmrError(f"{where}.{k} must be {'an integer' if kind is int else 'a number'}, got {v!r}")
         out[k] = kind(v)
     return out
+
+
+def run_export_cli(args: Any) -> int:
+    """``bmr export MODEL (--rust OUT.rs | --c OUT.h) [--stages all|a,b] [--prefix P]``."""
+    model = Model.load(args.model)
+    stages: Any = args.stages
+    if stages is not None and stages != "all":
+        stages = [s.strip() for s in stages.split(",") if s.strip()]
+    language, out = ("rust", args.rust) if args.rust else ("c", args.c)
+    for row in model.stage_plan(stages):
+        print(f"  {row['name']}: {'on' if row['on'] else 'off'} ({row['reason']})")
+    p = model.export(out, language, stages=stages, prefix=args.prefix)
+    print(f"bmr export: wrote {p} ({language})")
+    return 0
 
 
 def _curves(value: Any, where: str) -> list[tuple[np.ndarray, np.ndarray]]:

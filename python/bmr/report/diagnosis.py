@@ -115,10 +115,13 @@ def html_section(d: Any) -> str:
                                                                      "extended RMS (N·mm)"]))
     if d.closed_loop and "ratio" in d.closed_loop:
         c = d.closed_loop
-        parts.append(f"<p><b>Closed loop</b> on the simulated plant ({html.escape(str(c['preset']))}, "
-                     f"{html.escape(str(c['reference']))} reference, {c['duration_s']:g} s): tracking RMS "
-                     f"{c['nominal_rms_nmm']:.2f} N·mm (nominal compensator) → {c['extended_rms_nmm']:.2f} N·mm "
-                     f"(extended), ratio {c['ratio']:.2f}.</p>")
+        plant = "the simulator that made the bundle" if c["plant"] == "simulator" else "the diagnosed model"
+        parts.append(f"<p><b>Closed loop</b> on {plant} ({html.escape(str(c['reference']))} reference, "
+                     f"{c['duration_s']:g} s): tracking RMS {c['nominal_rms_nmm']:.2f} N·mm (nominal compensator) "
+                     f"→ {c['extended_rms_nmm']:.2f} N·mm (extended), ratio {c['ratio']:.2f}.</p>")
+        rows = [[name, "on" if v["in_loop"] else "off (made tracking worse)", f"{v['ratio']:.2f}"]
+                for name, v in c["stages"].items()]
+        parts.append(_table(rows, ["stage", "in the compensator", "tracking with / without it"]))
     if d.unexplained:
         rows = [[u["signal"], f"{u['strength']:.3f}"] for u in d.unexplained]
         parts.append("<h3>Structure no effect explains</h3>" + _table(rows, ["signal", "strength (N·mm RMS)"]))

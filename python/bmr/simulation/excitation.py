@@ -14,7 +14,21 @@ from bmr._core import ExcitationError
 from bmr.data.bundle import Bundle, Run
 from bmr.simulation.experiments import FULL_CURRENT_A, OPENING_RATE_A_PER_S, custom, ramp_path, simulate_bundle
 
-__all__ = ["minor_loop_vertices", "minor_loops", "diagnosis_bundle"]
+__all__ = ["minor_loop_vertices", "minor_loops", "diagnosis_bundle", "MEDIUM_EFFECTS"]
+
+# A medium size of every physical effect of the vocabulary on the ``rig_preisach`` actuator: large enough for a
+# quick diagnosis bundle to show it, small enough to be realistic. What the calibration and the closed-loop checks
+# hide in a bundle (sizes are multiples of these).
+MEDIUM_EFFECTS: dict[str, dict[str, float]] = {
+    "coil_lag": {"tau_s": 0.02},
+    "thermal_drift": {"gain_loss": 0.1, "tau_s": 60.0},
+    "friction_current": {"gain_per_a": 0.6},
+    "friction_harmonics": {"order": 7.0, "amplitude_nmm": 5.0, "phase_rad": 0.5},
+    "torque_ripple": {"eps": 0.05, "phase_rad": 1.0},
+    "sensor_drift": {"rate_nmm_per_s": 0.06},
+    "time_delay": {"delay_s": 0.02},
+    "non_congruent": {"curvature": 2.0},
+}
 
 
 def minor_loop_vertices(full_a: float = FULL_CURRENT_A, *, centres: int = 7, depth: int = 3,

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import math
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -16,6 +17,7 @@ from bmr.diagnosis.effects import PHYSICAL
 from bmr.simulation.excitation import diagnosis_bundle
 
 PRESET = "rig_preisach"
+ROOT = Path(__file__).resolve().parents[3]
 
 
 def _draw(name: str, rng: np.random.Generator) -> dict[str, float]:
@@ -98,10 +100,23 @@ def lag_diagnosis() -> Diagnosis:
     return diagnose(diagnosis_bundle(PRESET, effects={"coil_lag": {"tau_s": 0.03}}, seed=5), progress=False)
 
 
-def test_extended_compensator_tracks_better_on_the_plant(lag_diagnosis: Diagnosis) -> None:
+def test_extended_compensator_tracks_better_on_the_plant(lag_diagnosis: Diagnosis, tmp_path: Path) -> None:
     c = lag_diagnosis.closed_loop
     assert c is not None and "ratio" in c, c
     assert c["extended_rms_nmm"] < 0.6 * c["nominal_rms_nmm"], c
+    assert c["plant"] == "simulator" and c["stages"]["coil_lag"]["in_loop"] and c["stages"]["coil_lag"]["ratio"] < 1
+    # The model file carries the verdict, and the compensator built from the file is the one the check measured.
+    path = lag_diagnosis.extended_model.save(tmp_path / "m.json")
+    loaded = bmr.Model.load(path)
+    lag = loaded.extension("coil_lag")
+    assert lag["in_loop"] is True and lag["tracking"]["ratio"] == c["stages"]["coil_lag"]["ratio"]
+    from bmr.simulation.experiments import MULTIPEAK_SEED, reference_multipeak
+
+    ref = reference_multipeak(MULTIPEAK_SEED, sample_rate_hz=500.0, duration_s=5.0)
+    th = np.linspace(0.0, 10.0, ref.size)
+    a = bmr.Compensator.from_model(path, dt_s=0.002).run(ref, th)["current_a"]
+    b = lag_diagnosis.extended_model.compensator(0.002, stages=c["stages_on"]).run(ref, th)["current_a"]
+    np.testing.assert_array_equal(a, b)
     # The same measurement by hand with a harder reference: the lead on the command matters more at speed.
     from bmr.simulation.experiments import reference_triangle, tracking
 
@@ -180,13 +195,24 @@ def test_cli_writes_json_and_report(tmp_path: Path, capsys: pytest.CaptureFixtur
     bundle = diagnosis_bundle(PRESET, effects={"friction_harmonics": {"order": 6.0, "amplitude_nmm": 6.0}}, seed=3)
     write_bundle(bundle, tmp_path / "b")
     rc = main(["diagnose", str(tmp_path / "b"), "--json", str(tmp_path / "d.json"), "--report",
-               str(tmp_path / "r.html"), "--folds", "4"])
+               str(tmp_path / "r.html"), "--folds", "4", "--model-out", str(tmp_path / "extended.json")])
     assert rc == 0
     out = capsys.readouterr().out
     assert "cause friction_harmonics" in out
     doc = json.loads((tmp_path / "d.json").read_text())
     assert doc["cause"] == "friction_harmonics" and doc["folds"] == 4
     assert (tmp_path / "r.html").read_text().count("data:image/png;base64,") >= 3
+    # The extended model file carries the named effect into the compensator built from it.
+    model = bmr.Model.load(tmp_path / "extended.json")
+    assert model.extension("friction_harmonics") is not None
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        comp = bmr.Compensator.from_model(tmp_path / "extended.json", dt_s=1.0 / bundle.sample_rate_hz)
+    assert ("friction_harmonics" in comp.stages) == bool(model.extension("friction_harmonics").get("in_loop", True))
+    assert not list(tmp_path.glob(".*.tmp"))  # written atomically: no temporary file left
+    # Several bundles have no single extended model.
+    assert main(["diagnose", str(tmp_path / "b"), str(tmp_path / "b"), "--model-out", str(tmp_path / "x.json")]) == 2
+    assert "--model-out describe one bundle" in capsys.readouterr().err
 
 
 def test_bad_input_is_a_clear_error(tmp_path: Path) -> None:
@@ -221,12 +247,9 @@ def test_rig_preisach_preset_is_the_ideal_field_path_with_the_rig_friction_and_s
 
 
 def test_unknown_extension_in_a_model_file_is_a_clear_error(lag_diagnosis: Diagnosis) -> None:
-    from bmr.diagnosis.extended_model import ExtendedModel
-
     m = lag_diagnosis.extended_model
-    bad = bmr.Model.from_dict({**m.to_dict(), "extensions": [{"name": "flux_capacitor", "params": {}}]})
     with pytest.raises(bmr.BmrError, match="flux_capacitor"):
-        ExtendedModel(bad)
+        bmr.Model.from_dict({**m.to_dict(), "extensions": [{"name": "flux_capacitor", "params": {}}]})
 
 
 def test_consecutive_bundles_with_the_same_run_names_do_not_share_state() -> None:
@@ -239,3 +262,23 @@ def test_consecutive_bundles_with_the_same_run_names_do_not_share_state() -> Non
     second = diagnose(half, folds=2, progress=False, closed_loop=False)
     assert "thermal_drift" in [e["name"] for e in first.to_dict()["effects"]]
     assert second.to_dict()["residual_rms_nmm"] > 0
+
+
+def test_the_example_control_loop_steps_the_model_files_compensator_at_1_khz(lag_diagnosis: Diagnosis,
+                                                                              tmp_path: Path) -> None:
+    """examples/control_loop.py (the README's 1 kHz Python loop): the diagnosed model file's compensator, one
+    step() per tick, tracks better on the plant that made the bundle than the nominal one of the same file."""
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("control_loop", ROOT / "examples" / "control_loop.py")
+    example = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(example)
+    path = lag_diagnosis.extended_model.save(tmp_path / "extended.json")
+    plant = {"preset": PRESET, "effects": {"coil_lag": {"tau_s": 0.03}}, "seed": 5, "seconds": 2.0}
+    ext = example.control_loop(path, **plant)
+    nom = example.control_loop(path, stages=[], paced=False, **plant)
+    assert "coil_lag" in ext["stages"] and nom["stages"] == []
+    assert ext["steps"] == nom["steps"] == 2000 and ext["elapsed_s"] >= 2.0 - 1e-3  # paced at 1 kHz
+    assert ext["tracking_rms_nmm"] < 0.7 * nom["tracking_rms_nmm"], (ext["tracking_rms_nmm"], nom["tracking_rms_nmm"])
+    assert 0.0 < ext["step_us"]["median"] <= ext["step_us"]["max"]
+    assert example.main([str(path), "--preset", PRESET, "--effect", "coil_lag:tau_s=0.03", "--seconds", "0.05"]) == 0

@@ -150,3 +150,21 @@ def test_cli_identify_writes_model_and_summary(tmp_path, capsys):
     content = json.loads(out.read_text())
     assert content["format"] == "bmr-model/2"
     assert main(["identify", str(tmp_path / "missing"), "-o", str(out)]) == 2
+
+
+def test_least_squares_results_are_typed() -> None:
+    # The identification bindings return result classes (attributes with units in their docs), not dicts.
+    g = np.linspace(-1.0, 1.0, 9)
+    u = np.r_[np.linspace(-1, 1, 80), np.linspace(1, -0.2, 60), np.linspace(-0.2, 1, 60)]
+    truth = bmr.EverettModel(g, np.full(36, 0.05), -0.4)
+    y = truth.simulate(u)
+    fit = bmr.fit_everett(g, [(u, y, np.ones(u.size), 0)])
+    assert isinstance(fit, bmr.EverettFit) and isinstance(fit.model, bmr.EverettModel)
+    assert fit.n_rows == u.size and fit.offsets.shape == (1,) and fit.passive.dtype == bool
+    assert fit.rms < 1e-3 and repr(fit).startswith("EverettFit(rms=")
+    theta = np.linspace(0, 4 * np.pi, 400)
+    f = bmr._core.fit_friction_order(theta, 3.0 + 0.5 * np.sin(theta) - 0.2 * np.cos(2 * theta), 2)
+    assert isinstance(f, bmr.FrictionOrderFit) and f.order == 2 and f.covariance.shape == (5, 5)
+    np.testing.assert_allclose([f.c0, *f.a, *f.b], [3.0, 0.5, 0.0, 0.0, -0.2], atol=1e-9)
+    with pytest.raises(TypeError):
+        fit["model"]  # type: ignore[index]

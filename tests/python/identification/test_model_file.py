@@ -99,3 +99,22 @@ def test_model_with_given_friction_round_trips(model, tmp_path):
     theta = np.linspace(0, 7, 50)
     np.testing.assert_allclose(back.friction_torque(theta), given(theta))
     np.testing.assert_allclose(back.friction.to_friction()(theta), given(theta), atol=1e-12)
+
+
+def test_model_files_are_written_atomically(model, tmp_path, monkeypatch):
+    path = model.save(tmp_path / "m.json")
+    before = path.read_bytes()
+    # A write that fails half-way leaves the previous file as it was and no temporary file behind.
+    import os
+
+    def broken_fsync(fd):
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(os, "fsync", broken_fsync)
+    with pytest.raises(bmr.BmrError, match="cannot write model file .*No space left"):
+        model.save(path)
+    monkeypatch.undo()
+    assert path.read_bytes() == before
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["m.json"]
+    with pytest.raises(bmr.BmrError, match="cannot write model file"):
+        model.save(tmp_path / "missing-folder" / "m.json")

@@ -40,7 +40,7 @@ def test_vocabulary_and_parameter_listing():
     expected = {"coil_lag": {"tau_s"}, "thermal_drift": {"gain_loss", "tau_s"}, "friction_current": {"gain_per_a"},
                 "friction_harmonics": {"order", "amplitude_nmm", "phase_rad"},
                 "torque_ripple": {"eps", "phase_rad"}, "sensor_drift": {"rate_nmm_per_s"},
-                "time_delay": {"delay_s"}, "non_congruent": {"curvature"}}
+                "time_delay": {"delay_s"}, "non_congruent": {"curvature", "scale_nmm"}}
     for name, keys in expected.items():
         assert set(params[name]["params"]) == keys
         assert "Signature" in params[name]["doc"]

@@ -60,7 +60,11 @@ SANE: dict[str, object] = {
     "torque_ref_nmm": 100 * U, "c0": 1.0, "a": [0.5], "b": [0.2], "amplitude": [1.0], "phase": [0.3],
     "inputs": [(U, np.ones_like(U), 0)], "outputs": [10 * U], "warm_start": None, "deadband": 0.05, "lo": -1.0,
     "hi": 1.0, "saturation_tol": None, "y": 10 * U, "weight": None, "free_offset": True, "gain": 1.0,
-    "tolerance": 1e-3, "direction": "ascending", "pilot": 16,
+    "tolerance": 1e-3, "direction": "ascending", "pilot": 16, "gain_per_a": 0.0, "extensions": None,
+    "dt_s": 1e-3, "full_torque_nmm": None, "full_current_a": 1.25, "columns": None, "out": None, "heating": 0.0,
+    "t0_s": 0.0, "x": U, "delay_s": 3e-3, "fill": None, "tau_s": 0.01, "model_entries": False, "language": "c",
+    "title": "bmr compensator", "prefix": "bmr", "core_nmm": 100 * U, "field_nmm": 100 * U, "curvature": 0.2,
+    "scale_nmm": 300.0, "torque_ref_ahead_nmm": 50.0, "theta_ahead_rad": 0.3,
 }
 SANE["subdivisions"] = 2
 # Per-callable values where the generic ones do not fit (scalars for single steps, objects for methods).
@@ -70,6 +74,12 @@ SPECIFIC: dict[str, dict[str, object]] = {
     "EverettModel.simulate": {"offset": None},
     "VirtualActuator.true_friction": {"theta_rad": TH},
 }
+
+
+def _model() -> object:
+    import bmr
+
+    return bmr.Model.from_curves(_family(1.0), _family(-1.0))
 
 
 def _reduce_args(obj: object) -> tuple:
@@ -86,8 +96,9 @@ def _targets() -> list[tuple[str, object, dict[str, object]]]:
     vargs = _reduce_args(va)
     paper = core.Compensator(_hysteresis(), core.Friction(1.0, [0.5], [0.2]), inverse="paper")
     paper.run(100 * U, TH)
-    chys, cfric, cinv, cgain, climit, cpaper = _reduce_args(paper)
-    sforward, spaper = _reduce_args(paper.snapshot())
+    comp_args = dict(zip(("hysteresis", "friction", "inverse", "converter_gain", "current_limit", "extensions",
+                          "dt_s", "full_torque_nmm", "state"), _reduce_args(paper)))
+    (comp_state,) = _reduce_args(paper.snapshot())
     command = _reduce_args(comp.step(50.0, 0.3))
     targets: list[tuple[str, object, dict[str, object]]] = [
         ("Hysteresis.from_curves", core.Hysteresis.from_curves, {}),
@@ -119,6 +130,21 @@ def _targets() -> list[tuple[str, object, dict[str, object]]]:
         ("Friction.from_amplitude_phase", core.Friction.from_amplitude_phase, {}),
         ("Compensator", core.Compensator, {"hysteresis": _hysteresis()}),
         ("Compensator.step", comp.step, {}),
+        ("Compensator.step_ahead", comp.step_ahead, {}),
+        ("Compensator.step_into", comp.step_into, {"torque_ref_nmm": 50.0, "theta_rad": 0.3, "out": np.zeros(7)}),
+        ("Compensator.from_model", core.Compensator.from_model, {"model": _model()}),
+        ("ExtendedSimulation", core.ExtendedSimulation, {"hysteresis": _hysteresis()}),
+        ("ExtendedSimulation.run", core.ExtendedSimulation(_hysteresis(), dt_s=1e-3, full_current_a=1.25).run, {}),
+        ("check_extensions", core.check_extensions, {"extensions": [{"name": "coil_lag", "params": {"tau_s": 0.01}}]}),
+        ("delay", core.delay, {}),
+        ("effect_parameters", core.effect_parameters, {}),
+        ("export_source", core.export_source, {"compensator": comp}),
+        ("friction_series", core.friction_series, {}),
+        ("heating_state", core.heating_state, {"current_a": U, "tau_s": 0.1, "initial": 0.0}),
+        ("lag", core.lag, {}),
+        ("lead", core.lead, {}),
+        ("output_map", core.output_map, {}),
+        ("output_map_inverse", core.output_map_inverse, {}),
         ("Compensator.run", comp.run, {}),
         ("Compensator.reset", comp.reset, {}),
         ("Compensator.restore", comp.restore, {"state": comp.snapshot()}),
@@ -126,11 +152,9 @@ def _targets() -> list[tuple[str, object, dict[str, object]]]:
          dict(asc=asc, asc_nodes=an, asc_curves=ac, desc=desc, desc_nodes=dn, desc_curves=dc, y_lo=ylo, y_hi=yhi,
               state=state)),
         ("_rebuild_hysteresis_state", core._rebuild_hysteresis_state, {"state": state}),
-        ("_rebuild_compensator", core._rebuild_compensator,
-         dict(hysteresis=chys, friction=cfric, inverse=cinv, converter_gain=cgain, current_limit=climit,
-              paper_state=cpaper)),
-        ("_rebuild_compensator_state", core._rebuild_compensator_state, {"forward": sforward, "paper": spaper}),
-        ("_rebuild_command", core._rebuild_command,
+        ("_rebuild_compensator", core._rebuild_compensator, comp_args),
+        ("_rebuild_compensator_state", core._rebuild_compensator_state, {"state": comp_state}),
+        ("Command", core.Command,
          dict(zip(("current_a", "coil1_a", "coil2_a", "volt1_v", "volt2_v", "saturated", "fault"), command))),
         ("_rebuild_virtual_actuator", core._rebuild_virtual_actuator,
          dict(zip(("preset", "seed", "sample_rate_hz", "effects", "overrides", "state"), vargs))),
@@ -143,7 +167,8 @@ def _params(fn: object) -> list[inspect.Parameter]:
         sig = inspect.signature(fn)
     except (TypeError, ValueError):
         return []
-    return [p for p in sig.parameters.values() if p.name not in ("self", "$self")]
+    return [p for p in sig.parameters.values()
+            if p.name not in ("self", "$self") and p.kind not in (p.VAR_POSITIONAL, p.VAR_KEYWORD)]
 
 
 def _call(fn: object, params: list[inspect.Parameter], values: dict[str, object]) -> None:

@@ -1,0 +1,413 @@
+//! The effect vocabulary: every physical effect the virtual actuator can switch on, the diagnosis can name and the
+//! compensator can undo — name, where it acts, documentation and parameters (unit, default, valid range).
+//!
+//! This is the one definition: the plant (`crate::plant::effects`), the compensator stages
+//! (`crate::stages`), the model file and the Python diagnosis (through `bmr.EFFECTS` and
+//! `bmr.effect_parameters()`) all read it. Static data, `no_std`. A new effect is one entry in the
+//! `vocabulary!` list below (plus its physics where it acts).
+
+use core::fmt;
+
+/// A parameter of an effect: name, unit, default and valid range (inclusive).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ParamSpec {
+    pub name: &'static str,
+    pub unit: &'static str,
+    pub default: f64,
+    pub min: f64,
+    pub max: f64,
+    /// The value must be a whole number (a harmonic order, say).
+    pub whole: bool,
+    pub doc: &'static str,
+}
+
+impl ParamSpec {
+    /// Whether `value` is a valid setting of this parameter.
+    pub fn accepts(&self, value: f64) -> bool {
+        value.is_finite()
+            && value >= self.min
+            && value <= self.max
+            && (!self.whole || libm::trunc(value) == value)
+    }
+}
+
+/// Where in the physical chain an effect acts (and so which compensator stage, if any, undoes it).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Acts {
+    /// On the current between the command and the field (delay, coil lag): undone after the CBH inverse.
+    Current,
+    /// On the field torque after the hysteretic core (output map, thermal gain, ripple): undone before the CBH
+    /// inverse.
+    Field,
+    /// On the seal friction: part of the friction feedforward.
+    Friction,
+    /// On the measurement only (sensor drift): never compensated.
+    Sensor,
+}
+
+impl Acts {
+    pub fn name(self) -> &'static str {
+        match self {
+            Acts::Current => "current",
+            Acts::Field => "field",
+            Acts::Friction => "friction",
+            Acts::Sensor => "sensor",
+        }
+    }
+}
+
+/// Everything the vocabulary says about one effect.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct EffectSpec {
+    pub name: &'static str,
+    pub acts: Acts,
+    /// The physics and the signature it leaves in the data.
+    pub doc: &'static str,
+    pub params: &'static [ParamSpec],
+}
+
+impl EffectSpec {
+    /// Index of parameter `name` in [`EffectSpec::params`].
+    pub fn param_index(&self, name: &str) -> Option<usize> {
+        self.params.iter().position(|p| p.name == name)
+    }
+}
+
+const fn p(
+    name: &'static str,
+    unit: &'static str,
+    default: f64,
+    min: f64,
+    max: f64,
+    doc: &'static str,
+) -> ParamSpec {
+    ParamSpec {
+        name,
+        unit,
+        default,
+        min,
+        max,
+        whole: false,
+        doc,
+    }
+}
+
+const fn whole(spec: ParamSpec) -> ParamSpec {
+    ParamSpec {
+        whole: true,
+        ..spec
+    }
+}
+
+/// Highest harmonic order the friction model (and so the `friction_harmonics` effect) supports.
+pub const MAX_HARMONIC: usize = 24;
+
+/// Most parameters any effect has.
+pub const MAX_PARAMS: usize = 4;
+
+macro_rules! vocabulary {
+    ($($kind:ident = $name:literal, $acts:ident, $doc:expr, [$($param:expr),* $(,)?];)*) => {
+        /// The names of the effect vocabulary, in vocabulary order.
+        #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+        pub enum EffectKind {
+            $($kind,)*
+        }
+
+        /// Every effect, in vocabulary order (`SPECS[kind as usize]` describes `kind`).
+        pub static SPECS: &[EffectSpec] = &[
+            $(EffectSpec { name: $name, acts: Acts::$acts, doc: $doc, params: &[$($param),*] },)*
+        ];
+
+        impl EffectKind {
+            pub const ALL: [EffectKind; [$($name),*].len()] = [$(EffectKind::$kind,)*];
+        }
+    };
+}
+
+vocabulary! {
+    CoilLag = "coil_lag", Current,
+        "The field lags the coil current (coil L/R, eddy currents): each coil's magnetising current is a \
+         first-order lag of the converter current with time constant tau_s. Signature: residual proportional to \
+         the current rate; loops widen with frequency.",
+        [p("tau_s", "s", 0.02, 0.0, 10.0, "first-order field time constant")];
+    ThermalDrift = "thermal_drift", Field,
+        "Coil heating lowers the torque gain: a thermal state driven by (I/I_full)^2 with time constant tau_s \
+         scales the field torque by (1 - gain_loss * state). Signature: slow multiplicative drift.",
+        [p("gain_loss", "1", 0.08, -0.9, 0.9,
+           "fractional torque-gain loss at steady full current (negative: the gain rises)"),
+         p("tau_s", "s", 120.0, 1e-3, 1e6, "thermal time constant")];
+    FrictionCurrent = "friction_current", Friction,
+        "Seal friction grows with current (magnetic pull on the seals): the angle-dependent friction is scaled \
+         by (1 + gain_per_a * |I|). Signature: angle ripple whose size grows with |current|.",
+        [p("gain_per_a", "1/A", 0.6, -0.5, 100.0,
+           "relative growth of the angle-dependent friction per ampere of |I|")];
+    FrictionHarmonics = "friction_harmonics", Friction,
+        "A friction harmonic above the 3rd (gear mesh, seal lobes): amplitude_nmm * sin(order * theta + \
+         phase_rad). Signature: a periodogram line at order cycles/rev.",
+        [whole(p("order", "cycles/rev", 5.0, 4.0, MAX_HARMONIC as f64, "harmonic number k (a whole number)")),
+         p("amplitude_nmm", "N·mm", 6.0, -1e4, 1e4, "amplitude"),
+         p("phase_rad", "rad", 0.0, -1e3, 1e3, "phase")];
+    TorqueRipple = "torque_ripple", Field,
+        "Eccentric gap: the field torque is multiplied by (1 + eps * cos(theta + phase_rad)). Signature: angle \
+         ripple proportional to |torque|.",
+        [p("eps", "1", 0.05, 0.0, 0.9, "relative field-torque modulation"),
+         p("phase_rad", "rad", 0.0, -1e3, 1e3, "phase of the once-per-revolution modulation")];
+    SensorDrift = "sensor_drift", Sensor,
+        "The torque sensor offset drifts linearly with time at rate_nmm_per_s (from the actuator's start). \
+         Signature: a trend in zero-torque segments.",
+        [p("rate_nmm_per_s", "N·mm/s", 0.02, -1e3, 1e3, "offset drift rate")];
+    TimeDelay = "time_delay", Current,
+        "Pure delay of delay_s (rounded to whole samples) between the commanded current and the coils. \
+         Signature: residual proportional to rate, no loop widening with amplitude.",
+        [p("delay_s", "s", 0.01, 0.0, 1.0, "command-to-coil delay")];
+    NonCongruent = "non_congruent", Field,
+        "Extra output nonlinearity after the Preisach core: the field torque T becomes S * n (1 + curvature \
+         |n|) / (1 + curvature) with n = T / S and S the full-scale torque. Signature: error only after \
+         higher-order reversals (minor loops scale with the local slope).",
+        [p("curvature", "1", 1.0, -0.45, 5.0,
+           "output nonlinearity strength (0 = off; >0 convex, <0 concave)"),
+         p("scale_nmm", "N·mm", 0.0, 0.0, 1e9,
+           "full-scale torque S (0: the actuator's own — the plant's full_torque_nmm per rotor, a model's \
+            largest |torque|)")];
+}
+
+/// Entries of a model file's `extensions` list that are not physical effects.
+pub static MODEL_ENTRIES: &[EffectSpec] = &[
+    EffectSpec {
+        name: "core_tables",
+        acts: Acts::Field,
+        doc: "The hysteretic core's own first-order curve tables (refined by least squares, or identified \
+              again under the field effects); they replace the model's tables.",
+        params: &[],
+    },
+    EffectSpec {
+        name: "table_resolution",
+        acts: Acts::Field,
+        doc: "Not physics: the first-order curve tables were too coarse or noisy and were refined (the refined \
+              tables are the core_tables entry).",
+        params: &[p(
+            "n_intervals",
+            "1",
+            40.0,
+            1.0,
+            1e4,
+            "input intervals of the refined tables",
+        )],
+    },
+    EffectSpec {
+        name: "offset",
+        acts: Acts::Sensor,
+        doc: "Constant torque-sensor offset fitted by the diagnosis (measurement only).",
+        params: &[p("offset_nmm", "N·mm", 0.0, -1e6, 1e6, "sensor offset")],
+    },
+];
+
+impl EffectKind {
+    pub fn spec(self) -> &'static EffectSpec {
+        &SPECS[self as usize]
+    }
+    pub fn name(self) -> &'static str {
+        self.spec().name
+    }
+    pub fn doc(self) -> &'static str {
+        self.spec().doc
+    }
+    pub fn params(self) -> &'static [ParamSpec] {
+        self.spec().params
+    }
+    pub fn acts(self) -> Acts {
+        self.spec().acts
+    }
+    /// The effect named `name`, if the vocabulary has one.
+    pub fn from_name(name: &str) -> Option<EffectKind> {
+        EffectKind::ALL.into_iter().find(|k| k.name() == name)
+    }
+}
+
+impl fmt::Display for EffectKind {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+/// The spec of a model-file extension entry: an effect or one of [`MODEL_ENTRIES`].
+pub fn extension_spec(name: &str) -> Option<&'static EffectSpec> {
+    SPECS.iter().chain(MODEL_ENTRIES).find(|s| s.name == name)
+}
+
+/// Writes `names` separated by ", ".
+pub struct NameList<'a>(pub &'a [EffectSpec]);
+
+impl fmt::Display for NameList<'_> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        for (i, s) in self.0.iter().enumerate() {
+            if i > 0 {
+                f.write_str(", ")?;
+            }
+            f.write_str(s.name)?;
+        }
+        Ok(())
+    }
+}
+
+/// Why a set of parameter values was refused. The message names the effect, the parameter and the valid ones.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum ParamError<'a> {
+    /// The effect has no parameter of this name.
+    Unknown {
+        effect: &'static EffectSpec,
+        key: &'a str,
+    },
+    /// The value is outside the documented range (or not a whole number where one is needed).
+    OutOfRange {
+        effect: &'static EffectSpec,
+        param: &'static ParamSpec,
+        value: f64,
+    },
+}
+
+impl fmt::Display for ParamError<'_> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match *self {
+            ParamError::Unknown { effect, key } => {
+                write!(
+                    f,
+                    "effect {} has no parameter {key:?}; its parameters: ",
+                    effect.name
+                )?;
+                for (i, s) in effect.params.iter().enumerate() {
+                    write!(f, "{}{}", if i == 0 { "" } else { ", " }, s.name)?;
+                }
+                Ok(())
+            }
+            ParamError::OutOfRange {
+                effect,
+                param,
+                value,
+            } => {
+                if param.whole && value.is_finite() && value >= param.min && value <= param.max {
+                    write!(
+                        f,
+                        "effect {}: {} = {value} must be a whole number in {}..{}",
+                        effect.name, param.name, param.min, param.max
+                    )
+                } else {
+                    write!(
+                        f,
+                        "effect {}: {} = {value} {} is outside [{}, {}]",
+                        effect.name, param.name, param.unit, param.min, param.max
+                    )
+                }
+            }
+        }
+    }
+}
+
+/// Validated parameter values of one effect (or model entry), in the order of its spec; a plain copy.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Params {
+    pub spec: &'static EffectSpec,
+    values: [f64; MAX_PARAMS],
+}
+
+impl Params {
+    /// The defaults of `spec` overridden by `(key, value)` pairs; unknown keys and values outside the
+    /// documented range are errors.
+    pub fn new<'a>(
+        spec: &'static EffectSpec,
+        given: &[(&'a str, f64)],
+    ) -> Result<Params, ParamError<'a>> {
+        let mut values = [0.0; MAX_PARAMS];
+        for (v, s) in values.iter_mut().zip(spec.params) {
+            *v = s.default;
+        }
+        for &(key, value) in given {
+            let Some(i) = spec.param_index(key) else {
+                return Err(ParamError::Unknown { effect: spec, key });
+            };
+            let param = &spec.params[i];
+            if !param.accepts(value) {
+                return Err(ParamError::OutOfRange {
+                    effect: spec,
+                    param,
+                    value,
+                });
+            }
+            values[i] = value;
+        }
+        Ok(Params { spec, values })
+    }
+
+    /// The defaults of `spec`.
+    pub fn defaults(spec: &'static EffectSpec) -> Params {
+        match Params::new(spec, &[]) {
+            Ok(p) => p,
+            Err(_) => unreachable!("the vocabulary's defaults are in range"),
+        }
+    }
+
+    /// Values in the order of `spec.params`.
+    pub fn values(&self) -> &[f64] {
+        &self.values[..self.spec.params.len()]
+    }
+
+    /// The value of parameter `name` (None if the effect has no such parameter).
+    pub fn get(&self, name: &str) -> Option<f64> {
+        self.spec.param_index(name).map(|i| self.values[i])
+    }
+
+    /// `(name, value)` pairs in spec order.
+    pub fn iter(&self) -> impl Iterator<Item = (&'static str, f64)> + '_ {
+        self.spec
+            .params
+            .iter()
+            .map(|s| s.name)
+            .zip(self.values())
+            .map(|(n, &v)| (n, v))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn every_default_is_in_range_and_names_are_unique() {
+        assert!(SPECS.len() == EffectKind::ALL.len());
+        for (i, k) in EffectKind::ALL.into_iter().enumerate() {
+            assert_eq!(k as usize, i);
+            assert_eq!(EffectKind::from_name(k.name()), Some(k));
+            assert!(k.params().len() <= MAX_PARAMS);
+            for s in k.params() {
+                assert!(s.accepts(s.default), "{}.{}", k.name(), s.name);
+            }
+        }
+        let names: Vec<&str> = SPECS.iter().chain(MODEL_ENTRIES).map(|s| s.name).collect();
+        for (i, n) in names.iter().enumerate() {
+            assert!(!names[i + 1..].contains(n), "{n} twice");
+        }
+        for s in MODEL_ENTRIES {
+            assert!(s.params.len() <= MAX_PARAMS);
+            Params::defaults(s);
+        }
+    }
+
+    #[test]
+    fn params_validate_and_name_the_problem() {
+        let lag = EffectKind::CoilLag.spec();
+        let p = Params::new(lag, &[("tau_s", 0.05)]).unwrap();
+        assert_eq!(p.get("tau_s"), Some(0.05));
+        let e = Params::new(lag, &[("tau", 1.0)]).unwrap_err().to_string();
+        assert!(e.contains("its parameters: tau_s"), "{e}");
+        let e = Params::new(lag, &[("tau_s", -1.0)])
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("outside"), "{e}");
+        let h = EffectKind::FrictionHarmonics.spec();
+        let e = Params::new(h, &[("order", 4.5)]).unwrap_err().to_string();
+        assert!(e.contains("whole number"), "{e}");
+        assert!(Params::new(h, &[("order", f64::NAN)]).is_err());
+        assert_eq!(extension_spec("offset").unwrap().name, "offset");
+        assert!(extension_spec("nope").is_none());
+    }
+}

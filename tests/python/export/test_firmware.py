@@ -1,0 +1,102 @@
+"""Model file → firmware: `bmr export` writes the compensator as static Rust (built by nostd-check) and as C
+tables for the C ABI; a C program compiled with the system compiler runs an exported extended model and matches
+Python's `Compensator.run` bit for bit."""
+from __future__ import annotations
+
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import bmr
+from bmr.cli import main
+
+REPO = Path(__file__).resolve().parents[3]
+MODEL = REPO / "tests" / "data" / "extended_model.json"
+DT_S = 0.002
+
+
+def reference(n: int = 6000) -> tuple[np.ndarray, np.ndarray]:
+    """An opening beyond reach both ways, then a two-tone torque reference; the rotor at 2 rad/s."""
+    t = np.arange(n) * DT_S
+    opening = np.concatenate([np.linspace(0, 1500, 300), np.linspace(1500, -1500, 600), np.linspace(-1500, 0, 300)])
+    ref = np.concatenate([opening, 150 * np.sin(1.3 * t) + 30 * np.sin(3.1 * t)])[:n]
+    return ref, np.mod(2.0 * t, 2 * np.pi)
+
+
+def test_test_model_is_the_one_its_script_makes():
+    sys.path.insert(0, str(REPO / "tests" / "data"))
+    try:
+        from make_extended_model import build
+    finally:
+        sys.path.pop(0)
+    assert build().to_dict() == bmr.Model.load(MODEL).to_dict()
+
+
+def test_nostd_check_builds_the_current_export_of_the_extended_model(tmp_path, capsys):
+    out = tmp_path / "model.rs"
+    assert main(["export", str(MODEL), "--rust", str(out)]) == 0
+    printed = capsys.readouterr().out
+    for stage in ("time_delay", "coil_lag", "non_congruent", "thermal_drift", "torque_ripple", "friction_current"):
+        assert f"{stage}: on" in printed
+    committed = (REPO / "nostd-check" / "src" / "model.rs").read_text()
+    assert out.read_text() == committed, "re-export: bmr export tests/data/extended_model.json --rust " \
+                                         "nostd-check/src/model.rs"
+    assert "EffectValues { kind: 0, values: [0.015, 0.0, 0.0, 0.0] }" in committed  # coil_lag, vocabulary #0
+
+
+def test_export_errors_are_clear(tmp_path):
+    m = bmr.Model.load(MODEL)
+    with pytest.raises(bmr.BmrError, match="expected 'rust' or 'c'"):
+        m.export(tmp_path / "x", "go")
+    with pytest.raises(bmr.BmrError, match="C identifier"):
+        m.export(tmp_path / "x.h", "c", prefix="1bad")
+    comp = m.compensator(DT_S, inverse="paper")
+    with pytest.raises(bmr.BmrError, match="exact inverse"):
+        bmr._core.export_source(comp, "c")
+    assert main(["export", str(tmp_path / "missing.json"), "--c", str(tmp_path / "m.h")]) == 2
+
+
+def _tool(name: str) -> str:
+    path = shutil.which(name) or (str(Path.home() / ".cargo" / "bin" / name)
+                                  if (Path.home() / ".cargo" / "bin" / name).exists() else None)
+    if path is None:
+        pytest.skip(f"needs {name} on PATH")
+    return path
+
+
+def test_c_header_is_the_one_cbindgen_writes(tmp_path):
+    cbindgen = _tool("cbindgen")
+    out = tmp_path / "bmr.h"
+    subprocess.run([cbindgen, "--quiet", "--config", "cbindgen.toml", "--output", str(out), "src/ffi.rs"],
+                   cwd=REPO, check=True)
+    assert out.read_text() == (REPO / "include" / "bmr.h").read_text(), \
+        "regenerate: cbindgen --config cbindgen.toml --output include/bmr.h src/ffi.rs"
+
+
+@pytest.mark.slow
+def test_c_program_matches_python_run_bit_for_bit(tmp_path):
+    cc, cargo = _tool("cc"), _tool("cargo")
+    env = dict(os.environ, CARGO_TERM_COLOR="never")
+    subprocess.run([cargo, "build", "--release", "--quiet", "--manifest-path", "nostd-check/Cargo.toml"],
+                   cwd=REPO, check=True, env=env)
+    lib = REPO / "nostd-check" / "target" / "release" / "libbmr_nostd_check.a"
+    assert main(["export", str(MODEL), "--c", str(tmp_path / "model.h")]) == 0
+    exe = tmp_path / "run_model"
+    subprocess.run([cc, "-std=c99", "-O2", "-Wall", "-Wextra", "-Werror", "-I", str(REPO / "include"), "-I",
+                    str(tmp_path), str(REPO / "tests" / "c" / "run_model.c"), str(lib), "-Wl,--gc-sections",
+                    "-o", str(exe)], check=True)
+    ref, theta = reference()
+    python = bmr.Model.load(MODEL).compensator(DT_S).run(ref, theta)["current_a"]
+    text = f"{ref.size}\n" + "".join(f"{r.hex()} {a.hex()}\n" for r, a in zip(ref, theta))
+    out = subprocess.run([str(exe), repr(DT_S)], input=text, capture_output=True, text=True, check=True)
+    c = np.array([float.fromhex(v) for v in out.stdout.split()])
+    assert c.size == ref.size
+    assert np.array_equal(c.view(np.uint64), python.view(np.uint64)), np.flatnonzero(c != python)[:5]
+    # Every stage did something: the extended commands differ from the nominal model's.
+    nominal = bmr.Model.load(MODEL).compensator(stages=[]).run(ref, theta)["current_a"]
+    assert np.max(np.abs(c - nominal)) > 0.05
