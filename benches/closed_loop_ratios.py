@@ -5,7 +5,8 @@ size, ``bmr.simulation.excitation.MEDIUM_EFFECTS``), diagnosed blind; the diagno
 loaded, and ``bmr.Compensator.from_model`` builds the compensator from it. Both it and the nominal compensator
 (the paper's model) track the multi-peak torque reference on the very plant that made the bundle (same preset,
 effect and seed); the ratio is the extended tracking RMS over the nominal one (below 1: the extended compensator
-tracks better). Each row also keeps what the diagnosis's closed-loop check stored in the model file for every
+tracks better). The reference is as long as the diagnosis's closed-loop check makes it
+(``bmr.diagnosis.procedure.check_duration_s``: 20 s, longer for a slow stage such as the heating). Each row also keeps what the diagnosis's closed-loop check stored in the model file for every
 stage (tracking with / without it, judged with the other stages in).
 
     python benches/closed_loop_ratios.py [--effects a,b] [--seed 0] [--json out.json] [--record]
@@ -28,7 +29,7 @@ import numpy as np
 
 import bmr
 from bmr.diagnosis.effects import PHYSICAL
-from bmr.diagnosis.procedure import diagnose
+from bmr.diagnosis.procedure import CHECK_MIN_S, check_duration_s, diagnose
 from bmr.simulation.excitation import MEDIUM_EFFECTS, diagnosis_bundle
 from bmr.simulation.experiments import MULTIPEAK_SEED, reference_multipeak, tracking
 
@@ -36,10 +37,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from measurements import record  # noqa: E402
 
 PRESET = "rig_preisach"
-DURATION_S = 20.0
 
 
-def tracking_rms(effects: dict, seed: int, comp: Any, fs: float, duration_s: float = DURATION_S) -> float:
+def tracking_rms(effects: dict, seed: int, comp: Any, fs: float, duration_s: float = CHECK_MIN_S) -> float:
     """RMS (N·mm) of measured − reference torque after the opening, ``comp`` driving a fresh virtual actuator."""
     ref = reference_multipeak(MULTIPEAK_SEED, sample_rate_hz=fs, duration_s=duration_s)
     act = bmr.VirtualActuator(PRESET, seed=seed, sample_rate_hz=fs, effects=effects)
@@ -61,12 +61,13 @@ def one(name: str, seed: int, model_dir: Path) -> dict[str, Any]:
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         comp = bmr.Compensator.from_model(path, dt_s=1.0 / fs)
-    nominal = tracking_rms(effects, seed, d.model.compensator(), fs)
-    extended = tracking_rms(effects, seed, comp, fs)
+    duration = check_duration_s(d.extended_model)
+    nominal = tracking_rms(effects, seed, d.model.compensator(), fs, duration)
+    extended = tracking_rms(effects, seed, comp, fs, duration)
     check = d.closed_loop or {}
     on = [s["name"] for s in bmr.Model.load(path).stage_plan() if s["on"]]
     return {"effect": name, "params": dict(effects[name]), "named": [e["name"] for e in d.effects],
-            "stages_on": on, "nominal_rms_nmm": nominal, "extended_rms_nmm": extended,
+            "stages_on": on, "duration_s": duration, "nominal_rms_nmm": nominal, "extended_rms_nmm": extended,
             "ratio": extended / nominal,
             "stages": {k: {"ratio": float(v["ratio"]), "in_loop": bool(v["in_loop"])}
                        for k, v in (check.get("stages") or {}).items()},
@@ -93,7 +94,7 @@ def main(argv: list[str] | None = None) -> int:
         Path(args.json).write_text(json.dumps(rows, indent=1, default=float) + "\n")
     if args.record:
         record("closed_loop", "python benches/closed_loop_ratios.py --record",
-               {"preset": PRESET, "seed": args.seed, "duration_s": DURATION_S, "rows": rows})
+               {"preset": PRESET, "seed": args.seed, "duration_s": CHECK_MIN_S, "rows": rows})
     return 0
 
 

@@ -175,11 +175,14 @@ def render_performance(rec: dict[str, Any]) -> str:
 
 def render_closed_loop(rec: dict[str, Any]) -> str:
     v = rec["values"]
-    rows = [f"Seed {v['seed']}, `{v['preset']}`, multi-peak reference ({v['duration_s']:g} s); ratio = extended / "
-            "nominal tracking RMS; the last two columns are the closed-loop check's verdicts stored in the model "
-            "file (tracking with / without the stage, the other stages in; above 1: left off).", "",
-            "| effect (medium size) | named | stages on | nominal RMS (N·mm) | extended RMS (N·mm) | ratio | "
-            "its stage, with / without | refined tables, with / without |", "|---|---|---|---|---|---|---|---|"]
+    rows = [f"Seed {v['seed']}, `{v['preset']}`, multi-peak reference of {v['duration_s']:g} s, or two thermal time "
+            "constants when the heating stage is diagnosed (its state builds up no faster; the closed-loop check "
+            "uses the same length); ratio = extended / nominal tracking RMS; the last two columns are the "
+            "closed-loop check's verdicts stored in the model file (tracking with / without the stage, the other "
+            "stages in; above 1: left off).", "",
+            "| effect (medium size) | named | stages on | reference (s) | nominal RMS (N·mm) | extended RMS (N·mm) | "
+            "ratio | its stage, with / without | refined tables, with / without |",
+            "|---|---|---|---|---|---|---|---|---|"]
 
     def verdict(r: dict[str, Any], stage: str) -> str:
         s = r["stages"].get(stage)
@@ -192,7 +195,7 @@ def render_closed_loop(rec: dict[str, Any]) -> str:
         params = ", ".join(f"{k}={x:g}" for k, x in r["params"].items())
         ratios.append(r["ratio"])
         rows.append(f"| {r['effect']} ({params}) | {', '.join(r['named'])} | {', '.join(r['stages_on']) or '—'} | "
-                    f"{r['nominal_rms_nmm']:.2f} | {r['extended_rms_nmm']:.2f} | {r['ratio']:.2f} | "
+                    f"{r.get('duration_s', v['duration_s']):.0f} | {r['nominal_rms_nmm']:.2f} | {r['extended_rms_nmm']:.2f} | {r['ratio']:.2f} | "
                     f"{verdict(r, r['effect'])} | {verdict(r, 'core_tables')} |")
     rows += ["", f"Ratios {min(ratios):.2f}-{max(ratios):.2f} over {len(ratios)} effects."]
     return "\n".join(rows)

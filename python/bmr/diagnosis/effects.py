@@ -208,10 +208,17 @@ class ThermalDrift(Effect):
         if run.context is None or run.bundle_index is None:
             raise BmrError(f"protocol run {run.name!r}: the heating state needs the bundle's evaluation data")
         x = bundle_thermal_state(run.context, float(value))[run.bundle_index]
-        return y / np.maximum(1.0 + beta[1] - beta[0] * x, 1e-3)
+        # Only the heating is undone, relative to cold coils: the fitted field gain ``1 + beta[1]`` is the
+        # tables' own error (identified warm) and belongs in the re-identified tables, which are cold.
+        return y / np.maximum(1.0 - ThermalDrift._gain_loss(beta) * x, 1e-3)
+
+    @staticmethod
+    def _gain_loss(beta: Any) -> float:
+        """Fractional gain loss at unit heating from the fitted ``field × (1 + beta[1] − beta[0]·x)``."""
+        return float(beta[0] / (1.0 + beta[1]))
 
     def params(self, value, beta, path):
-        return {"gain_loss": float(beta[0] / (1.0 + beta[1])), "tau_s": float(value)}
+        return {"gain_loss": self._gain_loss(beta), "tau_s": float(value)}
 
     def refine(self) -> bool:
         return True

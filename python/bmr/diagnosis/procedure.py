@@ -44,7 +44,7 @@ from bmr.identification.model import LOOP_STAGES, Model
 from bmr.report.diagnosis import figures, html_page, html_section
 from bmr.simulation.experiments import MULTIPEAK_SEED, reference_multipeak, tracking
 
-__all__ = ["FORMAT", "Diagnosis", "diagnose", "closed_loop_gain", "run_cli", "PHYSICAL"]
+__all__ = ["FORMAT", "Diagnosis", "diagnose", "closed_loop_gain", "check_duration_s", "run_cli", "PHYSICAL"]
 
 FORMAT = "bmr-diagnosis/1"
 # Nominal friction: the paper's 3 harmonics (eq 21-22); higher ones are the friction_harmonics effect.
@@ -287,12 +287,28 @@ def _tracking_rms(make_plant: Callable[[], Any], comp: Any, ref: np.ndarray, fs:
     return _rms(run.torque[k:] - run.column("reference_nmm")[k:])
 
 
+# The closed-loop check's multi-peak reference: at least this long (s), and long enough for the slowest stage state
+# to matter (CHECK_TIME_CONSTANTS of its time constant), but at most CHECK_MAX_S.
+CHECK_MIN_S = 20.0
+CHECK_TIME_CONSTANTS = 2.0
+CHECK_MAX_S = 300.0
+
+
+def check_duration_s(model: Any) -> float:
+    """Length (s) of the closed-loop check's reference for ``model``'s stages. A stage with a slow state (the
+    ``thermal_drift`` heating, time constant ``tau_s``) changes nothing in a run much shorter than its time
+    constant: from cold coils a 20 s run heats to a few per cent of the steady state, so the check would judge the
+    stage on the tables' error instead of on the heating it undoes."""
+    slowest = model.extension_params("thermal_drift").get("tau_s", 0.0)
+    return float(min(max(CHECK_MIN_S, CHECK_TIME_CONSTANTS * slowest), CHECK_MAX_S))
+
+
 def closed_loop_gain(d: Diagnosis, plant: Callable[[], Any] | None = None, *, sample_rate_hz: float = 500.0,
-                     duration_s: float = 20.0, speed_rad_s: float = 1.0) -> dict[str, Any]:
+                     duration_s: float | None = None, speed_rad_s: float = 1.0) -> dict[str, Any]:
     """Closed-loop check of the extended compensator: tracking error (RMS of measured − reference torque, N·mm,
-    after the opening) on the multi-peak torque reference, nominal compensator against extended ones, on
-    ``plant()`` (a fresh virtual actuator per run: the simulator that made the bundle) or, without one, on the
-    diagnosed extended model itself (rotor at ``speed_rad_s``).
+    after the opening) on the multi-peak torque reference (``duration_s``, default :func:`check_duration_s`),
+    nominal compensator against extended ones, on ``plant()`` (a fresh virtual actuator per run: the simulator
+    that made the bundle) or, without one, on the diagnosed extended model itself (rotor at ``speed_rad_s``).
 
     Every extension the compensator can undo is judged in the company of the others: starting from all of them,
     the one whose removal cuts the error most is removed while any removal does, so each stage left in helps
@@ -301,8 +317,10 @@ def closed_loop_gain(d: Diagnosis, plant: Callable[[], Any] | None = None, *, sa
     nominal."""
     fs = float(sample_rate_hz)
     dt = 1.0 / fs
-    ref = reference_multipeak(MULTIPEAK_SEED, sample_rate_hz=fs, duration_s=duration_s)
     ext = d.extended_model
+    if duration_s is None:
+        duration_s = check_duration_s(ext)
+    ref = reference_multipeak(MULTIPEAK_SEED, sample_rate_hz=fs, duration_s=duration_s)
     if plant is None:
         model_plant = ext
 
@@ -369,7 +387,8 @@ def run_cli(args: Any) -> int:
         print(f"  unexplained structure against {u['signal']}: {u['strength']:.3f} N·mm RMS")
     c = d.closed_loop or {}
     if "ratio" in c:
-        print(f"  closed loop on the {c['plant']}: tracking RMS {c['nominal_rms_nmm']:.2f} (nominal) -> "
+        print(f"  closed loop on the {c['plant']} ({c['duration_s']:g} s multi-peak): tracking RMS "
+              f"{c['nominal_rms_nmm']:.2f} (nominal) -> "
               f"{c['extended_rms_nmm']:.2f} N·mm (extended), ratio {c['ratio']:.2f}; all stages "
               f"{c['all_stages_rms_nmm']:.2f} N·mm")
         for name, v in c["stages"].items():

@@ -1,7 +1,8 @@
 """For every effect the diagnosis names: the compensator built in the core from the diagnosed model file
 (`Compensator.from_model`) tracks the multi-peak torque reference better than the nominal one on the very plant
-that made the bundle, and every stage it keeps helps. Each case is a whole blind diagnosis (slow tier; the fast
-representative is the coil-lag case in test_diagnosis.py). The measurement is the README's
+that made the bundle, the effect's own stage is kept, and every stage it keeps helps. Each case is a whole blind
+diagnosis (slow tier; the fast representatives are the coil-lag case in test_diagnosis.py and the heating stage in
+test_thermal_stage.py). The measurement is the README's
 (``benches/closed_loop_ratios.py``), so the figures it prints are the ones checked here."""
 from __future__ import annotations
 
@@ -12,6 +13,7 @@ import pytest
 
 import bmr
 from bmr.diagnosis.effects import PHYSICAL
+from bmr.identification.model import LOOP_STAGES
 
 ROOT = Path(__file__).resolve().parents[3]
 
@@ -23,20 +25,18 @@ def _bench():
     return mod
 
 
-# The heating stage makes tracking worse on this plant (its with / without ratio is above 1, so the closed-loop
-# check leaves it off): what remains is the refined tables' gain, which is not enough. Strict: it is reported the
-# day the stage helps.
-_CASES = [pytest.param(n, marks=pytest.mark.xfail(strict=True, reason="thermal_drift: the heating stage does not "
-                                                  "help on rig_preisach; ratio from the refined tables alone"))
-          if n == "thermal_drift" else n for n in PHYSICAL]
-
-
 @pytest.mark.slow
-@pytest.mark.parametrize("name", _CASES)
+@pytest.mark.parametrize("name", PHYSICAL)
 def test_the_compensator_from_the_diagnosed_model_file_tracks_better(name: str, tmp_path: Path) -> None:
     row = _bench().one(name, 0, tmp_path)
     assert name in row["named"]
     assert row["ratio"] < 0.6, row
+    # The effect's own stage is in the loop and helps (a slow one, the heating, over a reference long enough for
+    # its state to build up).
+    if name in LOOP_STAGES:
+        own = row["stages"][name]
+        assert own["in_loop"] and own["ratio"] < 1.0, (name, own)
+        assert name in row["stages_on"]
     # Every stage left in helps (with it / without it < 1) and the file says so.
     model = bmr.Model.load(row["model_file"])
     for stage, verdict in row["stages"].items():

@@ -252,6 +252,27 @@ def test_unknown_extension_in_a_model_file_is_a_clear_error(lag_diagnosis: Diagn
         bmr.Model.from_dict({**m.to_dict(), "extensions": [{"name": "flux_capacitor", "params": {}}]})
 
 
+def test_heating_is_removed_from_the_tables_down_to_cold_coils() -> None:
+    """The protocol runs were logged with warm coils; the diagnosed core tables are those of cold coils (what the
+    heating stage divides by its gain), not the warm bundle's average gain: their saturation torque is the cold
+    plant's. The closed-loop check then runs long enough for the heating to build up."""
+    from bmr.diagnosis.procedure import check_duration_s
+
+    heating = {"gain_loss": 0.1, "tau_s": 60.0}
+    d = diagnose(diagnosis_bundle(PRESET, effects={"thermal_drift": heating}, seed=0), progress=False,
+                 closed_loop=False)
+    assert "thermal_drift" in [e["name"] for e in d.effects]
+    cold = bmr.VirtualActuator(PRESET, seed=0, sample_rate_hz=500.0)
+    sweep = np.r_[np.linspace(0.0, -1.25, 500), np.linspace(-1.25, 1.25, 1000), np.full(100, 1.25)]
+    saturation = float(cold.run(sweep)["field_torque_nmm"][-1])
+    core = d.extended_model.core_hysteresis().output_range[1]
+    # Warm tables are low by gain_loss × the bundle's mean heating state (~0.2): 2 %.
+    assert abs(core / saturation - 1.0) < 0.006, (core, saturation)
+    tau = d.extended_model.extension_params("thermal_drift")["tau_s"]
+    assert check_duration_s(d.extended_model) == pytest.approx(2.0 * tau)
+    assert check_duration_s(d.model) == 20.0
+
+
 def test_consecutive_bundles_with_the_same_run_names_do_not_share_state() -> None:
     # Thermal drift keeps per-run heating states between calls: a second bundle whose runs carry the same names
     # but other lengths (here: the same bundle at half the rate) must be diagnosed from its own runs.
