@@ -420,3 +420,30 @@ fn a_curve_leaving_the_major_loop_is_refused() {
     let (a, d) = h.curves();
     outcome(build(&a, &d)).unwrap();
 }
+
+#[test]
+fn an_actuator_started_just_below_angle_zero_saves_a_state_it_can_load() {
+    // Found by fuzzing (plant_config): `drive.theta0_rad` of -1e-17 wrapped to exactly 2π, outside the state's
+    // [0, 2π), so the actuator's own saved state (and its pickle) was refused.
+    for theta0 in [
+        -1e-17,
+        -5e-324,
+        -0.0,
+        core::f64::consts::TAU,
+        -core::f64::consts::TAU,
+    ] {
+        let mut config = preset("bmr2013").unwrap();
+        config.set("drive.theta0_rad", theta0).unwrap();
+        let mut act = VirtualActuator::new(config, 3).unwrap();
+        let saved = act.save_state();
+        act.load_state(&saved).unwrap();
+        let s = act.step(0.2);
+        assert!(
+            (0.0..core::f64::consts::TAU).contains(&s.theta_rad),
+            "{theta0}: {}",
+            s.theta_rad
+        );
+        act.reset();
+        act.load_state(&act.save_state()).unwrap();
+    }
+}
