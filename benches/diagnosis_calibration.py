@@ -1,66 +1,149 @@
-"""Calibration of ``bmr.diagnose`` on the virtual actuator: detection, wrong-name and false-alarm rates and
-parameter error per effect and size, plus held-out gains and wall time per bundle.
+"""Calibration of ``bmr.diagnose`` on simulated bundles: detection, wrong-name and false-alarm rates, parameter
+error and held-out gain per effect, size and plant, for single effects and pairs.
 
-For each effect of the vocabulary and each size (a multiple of the effect's "medium" size), many seeds: a
-diagnosis bundle (``bmr.diagnosis.excitation.diagnosis_bundle``: the quick experiment set plus a minor-loop run)
-from the ``rig_preisach`` virtual actuator with that effect is diagnosed blind.
+Plants (so that detection is not tuned to one generator):
 
-* detection: the effect is among the accepted ones;
-* wrong name: another *physical* effect is accepted (``table_resolution`` is not physics and not counted);
-* false alarm (clean bundles, no effect): any physical effect accepted;
-* parameter error: relative error of the effect's main parameter.
+* ``rig_preisach``: the virtual actuator with an exactly Preisach field path, the rig's seal friction and sensor
+  (1.5 N·mm noise); the quick experiment set plus a minor-loop and a repeated-loop run, 500 Hz, 11 first-order
+  curves per family (``bmr.simulation.excitation.diagnosis_bundle``);
+* ``rig_soft``: the same actuator structure with another Preisach density (harder, narrower steel with less
+  reversible share) and protocol: 7 first-order curves per family at 250 Hz;
+* ``piezo``: the virtual hysteretic device (``bmr.VirtualDevice``: voltage → displacement, no angle) with its own
+  protocol (first-order families, steps with dwells, rate sweeps, repeated loops, random reversals,
+  ``bmr.simulation.device.device_bundle``); only effects that need no angle.
 
-Usage: ``python benches/diagnosis_calibration.py [--seeds 10] [--sizes 0.5,1,2] [--effects a,b] [--closed-loop]``
+For each plant, each effect of the vocabulary at 0.5×, 1× and 2× a medium size and several seeds, pairs of effects
+at medium size, and clean bundles are diagnosed blind:
+
+* detection: the effect is among the accepted ones (pairs: both are);
+* wrong name: another *physical* effect is accepted (``table_resolution`` is not physics and not counted; a learned
+  discrepancy is not a name);
+* false alarm (clean bundles): any physical effect accepted;
+* parameter error: relative error of the effect's main parameter;
+* held-out RMS of the nominal and the extended model (output units) and the noise floor.
+
+Usage::
+
+    python benches/diagnosis_calibration.py [--seeds 2] [--sizes 0.5,1,2] [--plants rig_preisach,rig_soft,piezo]
+        [--effects a,b] [--no-pairs] [--workers 2] [--json OUT] [--record]
+
+``--record`` stores the table for the README (``docs/measurements.json``, section ``calibration``; rendered by
+``python benches/readme_figures.py render``).
+
+Bundles are made and diagnosed on Dask workers (``bmr.diagnose_many``; ``--workers 0``: one after the other in
+this process).
 """
 from __future__ import annotations
 
 import argparse
+import functools
+import json
 import math
 import sys
 import time
-from typing import Any
+from pathlib import Path
+from typing import Any, Callable
 
 import numpy as np
 
-from bmr.diagnosis.procedure import diagnose
 from bmr.diagnosis.effects import PHYSICAL
+from bmr.simulation.device import device_bundle
 from bmr.simulation.excitation import MEDIUM_EFFECTS, diagnosis_bundle
 
-# The parameters scaled with the size (the first is the one whose relative error is reported).
-SCALED = {"coil_lag": ["tau_s"], "thermal_drift": ["gain_loss"], "friction_current": ["gain_per_a"],
-          "friction_harmonics": ["amplitude_nmm"], "torque_ripple": ["eps"], "sensor_drift": ["rate_nmm_per_s"],
-          "time_delay": ["delay_s"], "non_congruent": ["curvature"]}
+ANGLE_EFFECTS = ("friction_current", "friction_harmonics", "torque_ripple")
+
+# Medium size of each effect (actuator: N·mm, A; piezo: µm, V) and the parameter whose relative error is reported;
+# the actuator's effects of the closed-loop checks at their medium size from MEDIUM_EFFECTS (one definition).
+_REPORTED = {"coil_lag": "tau_s", "thermal_drift": "gain_loss", "friction_current": "gain_per_a",
+             "friction_harmonics": "amplitude_nmm", "torque_ripple": "eps", "sensor_drift": "rate_nmm_per_s",
+             "time_delay": "delay_s", "non_congruent": "curvature"}
+ACTUATOR_MEDIUM: dict[str, tuple[dict[str, float], str, list[str]]] = {
+    **{name: (MEDIUM_EFFECTS[name], key, [key]) for name, key in _REPORTED.items()},
+    "creep": ({"fraction": 0.02, "tau_min_s": 0.1, "tau_max_s": 100.0}, "fraction", ["fraction"]),
+    "rate_dependence": ({"tau_s": 0.01}, "tau_s", ["tau_s"]),
+    "run_gain_offset": ({"gain_sd": 0.03, "offset_sd": 4.0}, "gain_sd", ["gain_sd", "offset_sd"]),
+    "leakage": ({"rate_per_s": 0.5}, "rate_per_s", ["rate_per_s"]),
+    "accommodation": ({"kappa": 0.08, "cycles": 3.0}, "kappa", ["kappa"]),
+}
+PIEZO_MEDIUM: dict[str, tuple[dict[str, float], str, list[str]]] = {
+    "coil_lag": ({"tau_s": 0.003}, "tau_s", ["tau_s"]),
+    "thermal_drift": ({"gain_loss": 0.02, "tau_s": 20.0}, "gain_loss", ["gain_loss"]),
+    "sensor_drift": ({"rate_nmm_per_s": 0.004}, "rate_nmm_per_s", ["rate_nmm_per_s"]),
+    "time_delay": ({"delay_s": 0.003}, "delay_s", ["delay_s"]),
+    "non_congruent": ({"curvature": 1.0}, "curvature", ["curvature"]),
+    "creep": ({"fraction": 0.02, "tau_min_s": 0.1, "tau_max_s": 100.0}, "fraction", ["fraction"]),
+    "rate_dependence": ({"tau_s": 0.003}, "tau_s", ["tau_s"]),
+    "run_gain_offset": ({"gain_sd": 0.02, "offset_sd": 0.1}, "gain_sd", ["gain_sd", "offset_sd"]),
+    "leakage": ({"rate_per_s": 0.002}, "rate_per_s", ["rate_per_s"]),
+    "accommodation": ({"kappa": 0.05, "cycles": 3.0}, "kappa", ["kappa"]),
+}
+PAIRS = [("coil_lag", "thermal_drift"), ("creep", "run_gain_offset"), ("rate_dependence", "friction_harmonics"),
+         ("leakage", "torque_ripple"), ("accommodation", "sensor_drift"), ("time_delay", "creep")]
+
+# A second Preisach density for the actuator: harder, narrower switching fields, less reversible flux.
+RIG_SOFT = {f"steel{k}.{p}": v for k in (1, 2) for p, v in
+            (("coercivity_a", 0.12), ("coercivity_width_a", 0.05), ("interaction_width_a", 0.6),
+             ("reversible_fraction", 0.15))}
 
 
-def effect_at(name: str, size: float) -> dict[str, float]:
-    params = MEDIUM_EFFECTS[name]
+def _plants() -> dict[str, tuple[Callable[[Any, int], Any], dict[str, tuple[dict[str, float], str, list[str]]]]]:
+    return {
+        "rig_preisach": (lambda fx, seed: diagnosis_bundle("rig_preisach", effects=fx, seed=seed), ACTUATOR_MEDIUM),
+        "rig_soft": (lambda fx, seed: diagnosis_bundle("rig_preisach", effects=fx, seed=seed, sample_rate_hz=250.0,
+                                                       forc_reversals=7, overrides=RIG_SOFT), ACTUATOR_MEDIUM),
+        "piezo": (lambda fx, seed: device_bundle("piezo", effects=fx, seed=seed), PIEZO_MEDIUM),
+    }
+
+
+def _make_bundle(plant: str, effects: Any, seed: int) -> Any:
+    """The bundle of one case, made where it is diagnosed (a module-level function: it pickles)."""
+    return _plants()[plant][0](effects, seed)
+
+
+def effect_at(medium: dict[str, tuple[dict[str, float], str, list[str]]], name: str, size: float
+              ) -> dict[str, float]:
+    params, _, scaled = medium[name]
     out = dict(params)
-    for k in SCALED[name]:
+    for k in scaled:
         out[k] = params[k] * size
-    if name == "time_delay":
-        out["delay_s"] = max(0.002, round(out["delay_s"] / 0.002) * 0.002)
     return out
 
 
-def one(name: str | None, size: float, seed: int, closed_loop: bool = False) -> dict[str, Any]:
-    effects = {name: effect_at(name, size)} if name else None
-    bundle = diagnosis_bundle("rig_preisach", effects=effects, seed=seed)
-    t0 = time.perf_counter()
-    d = diagnose(bundle, progress=False, closed_loop=closed_loop)
-    wall = time.perf_counter() - t0
-    names = [e["name"] for e in d.effects]
+def _diagnose_all(makers: list[Any], workers: int) -> list[tuple[dict[str, Any] | str, float]]:
+    """The ``bmr-diagnosis/1`` JSON of every bundle (a bundle-making callable, run where the diagnosis runs), or
+    the error message of a bundle that failed, with the CPU time its worker spent on it (making and diagnosing):
+    on Dask through ``bmr.diagnose_many`` (``workers`` local worker processes; 0: one after the other here)."""
+    from bmr.diagnosis.many import diagnose_many
+
+    table = diagnose_many(makers, workers=workers, progress=True, closed_loop=False)
+    out: list[tuple[dict[str, Any] | str, float]] = []
+    for _, row in table.sort_values("index").iterrows():
+        d = json.loads(row["diagnosis"]) if row["status"] == "ok" else str(row["error"])
+        out.append((d, float(row["cpu_s"])))
+    return out
+
+
+def _row(case: dict[str, Any], d: dict[str, Any] | str, cpu_s: float, medium: dict[str, Any]) -> dict[str, Any]:
+    row = dict(case)
+    row["cpu_s"] = cpu_s
+    if isinstance(d, str):
+        row.update(error=d, found=[], detected=False, wrong=False, false_alarm=False)
+        return row
+    names = [e["name"] for e in d["effects"]]
     physical = [n for n in names if n in PHYSICAL]
-    row: dict[str, Any] = {"effect": name or "clean", "size": size, "seed": seed, "found": names,
-                           "wall_s": wall, "nominal": d.nominal_heldout_rms_nmm, "final": d.residual_rms_nmm,
-                           "noise": d.noise_floor_nmm,
-                           "loop_ratio": (d.closed_loop or {}).get("ratio", math.nan)}
-    if name:
-        row["detected"] = name in physical
-        row["wrong"] = any(n != name for n in physical)
-        key = SCALED[name][0]
-        truth = effects[name][key]
-        got = next((e["params"].get(key) for e in d.effects if e["name"] == name), None)
-        row["param_err"] = abs(got - truth) / abs(truth) if got is not None else math.nan
+    truth = case["effects"]
+    learned = d.get("learned") or {}
+    row.update(found=names, nominal=d["nominal_heldout_rms_nmm"], final=d["residual_rms_nmm"],
+               noise=d["noise_floor_nmm"], wall_s=d["wall_time_s"], learned=bool(learned.get("accepted")))
+    if truth:
+        row["detected"] = all(n in physical for n in truth)
+        row["wrong"] = any(n not in truth for n in physical)
+        errs = []
+        for name, params in truth.items():
+            key = medium[name][1]
+            got = next((e["params"].get(key) for e in d["effects"] if e["name"] == name), None)
+            errs.append(abs(got - params[key]) / abs(params[key]) if got is not None else math.nan)
+        row["param_err"] = float(np.nanmax(errs)) if not all(math.isnan(e) for e in errs) else math.nan
     else:
         row["false_alarm"] = bool(physical)
     return row
@@ -68,53 +151,160 @@ def one(name: str | None, size: float, seed: int, closed_loop: bool = False) -> 
 
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("--seeds", type=int, default=10)
+    p.add_argument("--seeds", type=int, default=2)
     p.add_argument("--sizes", default="0.5,1,2")
-    p.add_argument("--effects", default=",".join(MEDIUM_EFFECTS))
-    p.add_argument("--closed-loop", action="store_true",
-                   help="also measure extended vs nominal compensator tracking on each bundle's plant")
+    p.add_argument("--plants", default="rig_preisach,rig_soft,piezo")
+    p.add_argument("--effects", default="", help="comma-separated effect names (default: every effect)")
+    p.add_argument("--no-pairs", action="store_true")
+    p.add_argument("--workers", type=int, default=2)
+    p.add_argument("--json", help="write every row as JSON here")
+    p.add_argument("--record", action="store_true", help="store the table in docs/measurements.json (README)")
+    p.add_argument("--rows", help="summarize (and --record) the rows a previous --json run wrote instead of "
+                                  "diagnosing again")
     args = p.parse_args(argv)
     sizes = [float(s) for s in args.sizes.split(",")]
-    effects = [e for e in args.effects.split(",") if e]
-    rows = []
+    plants = _plants()
+    cases: list[dict[str, Any]] = []
+    for plant in [x for x in args.plants.split(",") if x]:
+        if plant not in plants:
+            raise SystemExit(f"unknown plant {plant!r}; known: {', '.join(plants)}")
+        _, medium = plants[plant]
+        names = [e for e in (args.effects.split(",") if args.effects else medium) if e in medium]
+        for seed in range(args.seeds):
+            cases.append({"plant": plant, "label": "clean", "size": 0.0, "seed": 1000 + seed, "effects": {}})
+        for name in names:
+            for size in sizes:
+                for seed in range(args.seeds):
+                    cases.append({"plant": plant, "label": name, "size": size, "seed": 1000 + seed,
+                                  "effects": {name: effect_at(medium, name, size)}})
+        if not args.no_pairs:
+            for a, b in PAIRS:
+                if a in medium and b in medium and (not args.effects or (a in names and b in names)):
+                    for seed in range(args.seeds):
+                        cases.append({"plant": plant, "label": f"{a} + {b}", "size": 1.0, "seed": 1000 + seed,
+                                      "effects": {a: effect_at(medium, a, 1.0), b: effect_at(medium, b, 1.0)}})
     t0 = time.perf_counter()
-    for seed in range(args.seeds):
-        rows.append(one(None, 0.0, 1000 + seed))
-        print(f"clean seed {seed}: {rows[-1]['found']}", file=sys.stderr)
-    for name in effects:
-        for size in sizes:
-            for seed in range(args.seeds):
-                rows.append(one(name, size, 1000 + seed, args.closed_loop))
-                r = rows[-1]
-                print(f"{name} ×{size:g} seed {seed}: {r['found']} param err {r['param_err']:.3f} "
-                      f"({r['wall_s']:.1f} s)", file=sys.stderr)
-    clean = [r for r in rows if r["effect"] == "clean"]
-    walls = np.array([r["wall_s"] for r in rows])
-    print(f"\n{len(rows)} bundles in {time.perf_counter() - t0:.0f} s; diagnosis wall time per bundle: median "
-          f"{np.median(walls):.1f} s, max {walls.max():.1f} s (2-core machine)\n")
-    fa = np.mean([r["false_alarm"] for r in clean]) if clean else math.nan
-    print(f"Clean bundles (rig_preisach, no effect): false-alarm rate {fa:.2f} over {len(clean)} seeds; found: "
-          f"{sorted({tuple(r['found']) for r in clean})}\n")
-    loop = " median tracking ratio extended/nominal |" if args.closed_loop else ""
-    print("| effect | size | medium parameters | detection | wrong name | median param. error | held-out RMS "
-          "nominal → extended (N·mm) |" + loop)
-    print("|---|---|---|---|---|---|---|" + ("---|" if args.closed_loop else ""))
-    for name in effects:
-        for size in sizes:
-            sel = [r for r in rows if r["effect"] == name and r["size"] == size]
-            if not sel:
-                continue
-            det = np.mean([r["detected"] for r in sel])
-            wrong = np.mean([r["wrong"] for r in sel])
-            err = np.nanmedian([r["param_err"] for r in sel]) if any(
-                math.isfinite(r["param_err"]) for r in sel) else math.nan
-            nom = np.median([r["nominal"] for r in sel])
-            fin = np.median([r["final"] for r in sel])
-            params = ", ".join(f"{k}={v:g}" for k, v in effect_at(name, size).items())
-            extra = f" {np.nanmedian([r['loop_ratio'] for r in sel]):.2f} |" if args.closed_loop else ""
-            print(f"| {name} | ×{size:g} | {params} | {det:.2f} | {wrong:.2f} | {err:.3f} | {nom:.2f} → {fin:.2f} |"
-                  + extra)
+    c0 = time.process_time()
+    if args.rows:
+        saved = json.loads(Path(args.rows).read_text())
+        rows, wall = saved["rows"], saved["wall_s"]
+    else:
+        makers = [functools.partial(_make_bundle, c["plant"], c["effects"] or None, c["seed"]) for c in cases]
+        results = _diagnose_all(makers, args.workers)
+        rows = [_row(c, d, cpu, plants[c["plant"]][1]) for c, (d, cpu) in zip(cases, results)]
+        wall = time.perf_counter() - t0
+    cpu = time.process_time() - c0
+    for r in rows:
+        print(f"{r['plant']} {r['label']} ×{r['size']:g} seed {r['seed']}: {r.get('found')} "
+              f"{r.get('error', '')}", file=sys.stderr)
+    walls = np.array([r["wall_s"] for r in rows if "wall_s" in r])
+    print(f"\n{len(rows)} bundles in {wall:.0f} s wall ({cpu:.0f} s CPU in this process); diagnosis wall time per "
+          f"bundle: median {np.median(walls):.1f} s, max {walls.max():.1f} s\n")
+    clean = [r for r in rows if r["label"] == "clean" and "error" not in r]
+    single = [r for r in rows if r["label"] not in ("clean",) and " + " not in r["label"] and "error" not in r]
+    pairs = [r for r in rows if " + " in r["label"] and "error" not in r]
+    for what, sel in (("single effects", single), ("pairs", pairs)):
+        if sel:
+            print(f"{what}: detection {np.mean([r['detected'] for r in sel]):.2f}, wrong name "
+                  f"{np.mean([r['wrong'] for r in sel]):.2f} over {len(sel)} bundles")
+    if clean:
+        print(f"clean bundles: false alarm {np.mean([r['false_alarm'] for r in clean]):.2f} over {len(clean)}; "
+              f"learned term kept in {sum(r['learned'] for r in clean)}\n")
+    groups = summarize(rows)
+    print("| plant | effect | size | detection | wrong name | false alarm | median param. error | held-out RMS "
+          "nominal → extended (noise) |")
+    print("|---|---|---|---|---|---|---|---|")
+    for g in groups:
+        print(table_line(g))
+    if args.json:
+        with open(args.json, "w") as fh:
+            json.dump({"rows": rows, "wall_s": wall}, fh, indent=1)
+    if args.record:
+        sys.path.insert(0, str(Path(__file__).resolve().parent))
+        from measurements import record
+
+        given = [a for a in (argv if argv is not None else sys.argv[1:])]
+        for opt in ("--rows", "--json"):  # files of this run, not part of the measurement's command
+            while opt in given:
+                k = given.index(opt)
+                del given[k:k + 2]
+        command = " ".join(["python benches/diagnosis_calibration.py", *given])
+        record("calibration", command, {
+            "groups": groups, "bundles": len(rows), "failed": sum("error" in r for r in rows),
+            "workers": args.workers, "wall_s": wall,
+            "bundle_wall_s": _quantiles([r["wall_s"] for r in rows if "wall_s" in r]),
+            "bundle_cpu_s": _quantiles([r["cpu_s"] for r in rows if "error" not in r]),
+            "rates": rates(rows)})
     return 0
+
+
+def _quantiles(values: list[float]) -> dict[str, float]:
+    v = np.asarray(values, dtype=float)
+    return {"median": float(np.median(v)), "max": float(v.max()), "total": float(v.sum())} if v.size else {}
+
+
+def _mean(rows: list[dict[str, Any]], key: str) -> float | None:
+    return float(np.mean([bool(r[key]) for r in rows])) if rows else None
+
+
+def rates(rows: list[dict[str, Any]]) -> dict[str, Any]:
+    """Detection and wrong-name rates of single effects and pairs, false alarms on clean bundles, per plant and
+    over all."""
+    out: dict[str, Any] = {}
+    for plant in sorted({r["plant"] for r in rows}) + ["all"]:
+        sel = [r for r in rows if (plant == "all" or r["plant"] == plant) and "error" not in r]
+        single = [r for r in sel if r["label"] != "clean" and " + " not in r["label"]]
+        pairs = [r for r in sel if " + " in r["label"]]
+        clean = [r for r in sel if r["label"] == "clean"]
+        out[plant] = {"single": {"n": len(single), "detection": _mean(single, "detected"),
+                                 "wrong": _mean(single, "wrong")},
+                      "pairs": {"n": len(pairs), "detection": _mean(pairs, "detected"), "wrong": _mean(pairs, "wrong")},
+                      "clean": {"n": len(clean), "false_alarm": _mean(clean, "false_alarm"),
+                                "learned": sum(bool(r.get("learned")) for r in clean)}}
+    return out
+
+
+def summarize(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    """One entry per plant, effect (or pair, or clean) and size: rates over seeds, the median parameter error and
+    the median held-out RMS of the nominal and the extended model with the noise floor (output units)."""
+    groups: dict[tuple[str, str, float], list[dict[str, Any]]] = {}
+    for r in rows:
+        groups.setdefault((r["plant"], r["label"], r["size"]), []).append(r)
+    out = []
+    for (plant, label, size), sel in groups.items():
+        ok = [r for r in sel if "error" not in r]
+        g: dict[str, Any] = {"plant": plant, "label": label, "size": size, "n": len(ok), "failed": len(sel) - len(ok)}
+        if not ok:
+            g["error"] = sel[0]["error"][:200]
+            out.append(g)
+            continue
+        if label == "clean":
+            g["false_alarm"] = _mean(ok, "false_alarm")
+            g["found"] = sorted({n for r in ok for n in r["found"] if n in PHYSICAL})
+        else:
+            g["detection"] = _mean(ok, "detected")
+            g["wrong"] = _mean(ok, "wrong")
+            g["wrong_names"] = sorted({n for r in ok for n in r["found"] if n in PHYSICAL and n not in r["effects"]})
+        errs = [r.get("param_err", math.nan) for r in ok]
+        errs = [e for e in errs if e is not None and math.isfinite(e)]
+        g["param_err"] = float(np.median(errs)) if errs else None
+        for k in ("nominal", "final", "noise"):
+            g[k] = float(np.median([r[k] for r in ok]))
+        out.append(g)
+    return out
+
+
+def table_line(g: dict[str, Any]) -> str:
+    """One Markdown table line of a :func:`summarize` entry."""
+    size = "—" if g["label"] == "clean" else f"×{g['size']:g}"
+    if "error" in g:
+        return f"| {g['plant']} | {g['label']} | {size} | failed: {g['error'][:60]} | | | | |"
+    det = "—" if g["label"] == "clean" else f"{g['detection']:.2f}"
+    wrong = "—" if g["label"] == "clean" else f"{g['wrong']:.2f}"
+    fa = f"{g['false_alarm']:.2f}" if g["label"] == "clean" else "—"
+    err = f"{g['param_err']:.3f}" if g["param_err"] is not None else "—"
+    return (f"| {g['plant']} | {g['label']} | {size} | {det} | {wrong} | {fa} | {err} | {g['nominal']:.3g} → "
+            f"{g['final']:.3g} ({g['noise']:.3g}) |")
 
 
 if __name__ == "__main__":

@@ -102,9 +102,36 @@ def measure_identification(repeat: int) -> None:
     _timed([sys.executable, "benches/identification_real_data.py"])
 
 
+def measure_calibration(repeat: int) -> None:
+    """Blind diagnoses of hidden effects on three plants (``benches/diagnosis_calibration.py`` records its own
+    section; one seed per case keeps it to about two hours of CPU time on two workers)."""
+    _timed(["nice", sys.executable, "benches/diagnosis_calibration.py", "--seeds", "1", "--sizes", "0.5,1,2",
+            "--workers", "2", "--record"])
+
+
+def measure_diagnosis_speed(repeat: int) -> None:
+    """CPU time, wall time and peak memory of ``bmr diagnose`` on a quick and a full bundle
+    (``benches/diagnosis_speed.py`` records its own section)."""
+    _timed([sys.executable, "benches/diagnosis_speed.py", "--full", "--record"])
+
+
+def measure_slac_diagnosis(repeat: int) -> None:
+    """The SLAC quadrupole diagnosed with runs 7 and 8 held out (``examples/slac_diagnosis.py``, its figure
+    ``docs/fig_slac_diagnosis.png``); the data from ``$BMR_SLAC_DATA`` or ``../shared/data/slac-quad-4194``."""
+    with tempfile.TemporaryDirectory() as tmp:
+        wall, cpu, _ = _timed([sys.executable, "examples/slac_diagnosis.py", "--json", f"{tmp}/slac.json",
+                               "--figure", "docs/fig_slac_diagnosis.png"])
+        out = json.loads(Path(f"{tmp}/slac.json").read_text())
+    out["process_wall_s"], out["process_cpu_s"] = wall, cpu
+    record("slac_diagnosis", "python benches/readme_figures.py measure slac_diagnosis", out)
+
+
 MEASURE: dict[str, Callable[[int], None]] = {"demo": measure_demo, "performance": measure_performance,
                                              "closed_loop": measure_closed_loop,
-                                             "identification": measure_identification}
+                                             "identification": measure_identification,
+                                             "calibration": measure_calibration,
+                                             "diagnosis_speed": measure_diagnosis_speed,
+                                             "slac_diagnosis": measure_slac_diagnosis}
 
 
 # ------------------------------------------------------------------------------------------------ rendering
@@ -256,9 +283,84 @@ def render_identification(rec: dict[str, Any]) -> str:
     return "\n".join(text)
 
 
+def _rate(x: float | None) -> str:
+    return "—" if x is None else f"{x:.2f}"
+
+
+def render_calibration(rec: dict[str, Any]) -> str:
+    v = rec["values"]
+    units = {"rig_preisach": "N·mm", "rig_soft": "N·mm", "piezo": "µm"}
+    text = ["| plant | hidden effect | size | detected | wrong name | false alarm | median param. error | "
+            "held-out RMS nominal → extended (noise floor) |", "|---|---|---|---|---|---|---|---|"]
+    for g in v["groups"]:
+        size = "—" if g["label"] == "clean" else f"×{g['size']:g}"
+        if "error" in g:
+            text.append(f"| {g['plant']} | {g['label']} | {size} | failed: {g['error'][:80]} | | | | |")
+            continue
+        clean = g["label"] == "clean"
+        wrong = "—" if clean else _rate(g["wrong"]) + (f" ({', '.join(g['wrong_names'])})" if g["wrong_names"]
+                                                          else "")
+        fa = (_rate(g["false_alarm"]) + (f" ({', '.join(g['found'])})" if g["found"] else "")) if clean else "—"
+        err = "—" if g["param_err"] is None else f"{g['param_err']:.2f}"
+        text.append(f"| {g['plant']} | {g['label']} | {size} | {'—' if clean else _rate(g['detection'])} | {wrong} | "
+                    f"{fa} | {err} | {g['nominal']:.3g} → {g['final']:.3g} ({g['noise']:.3g}) "
+                    f"{units.get(g['plant'], '')} |")
+    text += ["", "| plant | single effects: detected | wrong name | pairs: both detected | wrong name | "
+             "clean: false alarm | learned term kept on clean |", "|---|---|---|---|---|---|---|"]
+    for plant, r in v["rates"].items():
+        s, p, c = r["single"], r["pairs"], r["clean"]
+        text.append(f"| {plant} | {_rate(s['detection'])} of {s['n']} | {_rate(s['wrong'])} | "
+                    f"{_rate(p['detection'])} of {p['n']} | {_rate(p['wrong'])} | {_rate(c['false_alarm'])} of "
+                    f"{c['n']} | {c['learned']} |")
+    bw, bc = v["bundle_wall_s"], v["bundle_cpu_s"]
+    text += ["", f"{v['bundles']} bundles ({v['failed']} failed) on {v['workers']} Dask workers in "
+             f"{v['wall_s'] / 60:.0f} min; per bundle (made and diagnosed on its worker): CPU time median "
+             f"{bc['median']:.1f} s, max {bc['max']:.1f} s; diagnosis wall time median {bw['median']:.1f} s, max "
+             f"{bw['max']:.1f} s."]
+    return "\n".join(text)
+
+
+def render_diagnosis_speed(rec: dict[str, Any]) -> str:
+    text = ["| bundle | `bmr diagnose`: CPU | wall | peak memory | `bmr identify`: CPU | named |",
+            "|---|---|---|---|---|---|"]
+    for r in rec["values"]["rows"]:
+        d, i = r["diagnose"], r["identify"]
+        text.append(f"| {r['bundle']} | {d['cpu_s']:.1f} s | {d['wall_s']:.1f} s | {d['peak_mb']:.0f} MB | "
+                    f"{i['cpu_s']:.1f} s | {', '.join(r['effects']) or '—'} |")
+    return "\n".join(text)
+
+
+def render_slac_diagnosis(rec: dict[str, Any]) -> str:
+    v = rec["values"]
+    named = ", ".join(f"`{n}`" for n in v["named"] if n != "table_resolution") or "no effect"
+    learned = f"the learned term `{v['learned']}`" if v["learned"] else "no learned term"
+    text = [f"Runs 3-6 identify, runs 7 and 8 held out in {v['folds']} blocked folds; σ = {v['sigma_t']:.2g} T "
+            f"({v['noise_method'].replace('_', ' ')}). Named: {named}; kept: {learned}.", "",
+            "| held-out runs 7 and 8 | RMS (T) | RMS (σ) |", "|---|---|---|",
+            f"| identified model | {v['heldout_rms_before_t']:.3g} | {v['heldout_rms_before_sigmas']:.1f} |",
+            f"| after discovery | {v['heldout_rms_after_t']:.3g} | {v['heldout_rms_after_sigmas']:.1f} |", "",
+            "| candidate (rejected) | mean fold gain (share of held-out variance removed) | folds with a gain | "
+            "held-out RMS with it (T) |", "|---|---|---|---|"]
+    for name, r in sorted(v["rejected"].items(), key=lambda kv: -kv[1]["gain"]):
+        text.append(f"| `{name}` | {r['gain']:.3g} | {r['folds_positive']} of {v['folds']} | "
+                    f"{r['heldout_rms_after_t']:.3g} |")
+    if v.get("learned_tried") and not v["learned"]:
+        text += ["", f"Learned equation tried and not kept: `{v['learned_tried']}`."]
+    if v["unexplained"]:
+        text += ["", "Structure left, by the signal it depends on: " + ", ".join(
+            f"{u['signal'].replace('_', ' ')} {u['strength']:.2g} T ({u['strength'] / v['sigma_t']:.1f} σ)"
+            for u in v["unexplained"]) + "."]
+    text += ["", f"Diagnosis wall time {v['wall_time_s']:.1f} s; the whole script (import, diagnosis, figure) "
+             f"{v['process_wall_s']:.1f} s wall, {v['process_cpu_s']:.1f} s CPU."]
+    return "\n".join(text)
+
+
 RENDER: dict[str, Callable[[dict[str, Any]], str]] = {"demo": render_demo, "performance": render_performance,
                                                       "closed_loop": render_closed_loop,
-                                                      "identification": render_identification}
+                                                      "identification": render_identification,
+                                                      "calibration": render_calibration,
+                                                      "diagnosis_speed": render_diagnosis_speed,
+                                                      "slac_diagnosis": render_slac_diagnosis}
 
 
 def _footer(rec: dict[str, Any]) -> str:

@@ -91,6 +91,9 @@ pub struct Compensator<S, const N: usize, const K: usize> {
     friction_nmm: f64,
     /// Field gain (thermal × ripple) the last step divided by.
     field_gain: f64,
+    /// Field torque before the gains (core output through creep, the output map and accommodation) of the last
+    /// extended step (N·mm).
+    field_nmm: f64,
 }
 
 /// A compensator parameter outside its range.
@@ -166,6 +169,7 @@ impl<S: AsRef<[f64]>, const N: usize, const K: usize> Compensator<S, N, K> {
             limit_a,
             friction_nmm: 0.0,
             field_gain: 1.0,
+            field_nmm: 0.0,
         };
         c.set_friction(friction)?;
         Ok(c)
@@ -193,15 +197,14 @@ impl<S: AsRef<[f64]>, const N: usize, const K: usize> Compensator<S, N, K> {
         dt_s: f64,
         full_torque_nmm: f64,
     ) -> Result<Self, CompensatorError> {
-        let scales = Scales {
-            full_current_a: self.limit_a,
-            full_torque_nmm,
-        };
+        let scales = Scales::of_core(&self.forward, self.limit_a, full_torque_nmm);
         let (stages, fx) = Stages::new(effects, dt_s, scales)?;
         let friction = fx.apply(self.friction).map_err(StageError::Friction)?;
         self.stages = stages;
         self.set_friction(friction)?;
-        self.stages.reset(self.forward.state().input());
+        self.stages
+            .reset(self.forward.state().input(), self.forward.output());
+        self.field_nmm = self.field_of(self.forward.output());
         Ok(self)
     }
 
@@ -234,12 +237,43 @@ impl<S: AsRef<[f64]>, const N: usize, const K: usize> Compensator<S, N, K> {
     /// Torque (N·mm, with friction) the model predicts for the last command: the core torque through the output
     /// map and the field gain the step used, plus the friction feedforward.
     pub fn model_torque_nmm(&self) -> f64 {
-        let y = self.forward.output();
-        let field = match &self.stages.output_map {
-            Some(m) => m.forward(y),
-            None => y,
+        let field = if self.extended {
+            self.field_nmm
+        } else {
+            self.forward.output()
         };
         field * self.field_gain + self.friction_nmm
+    }
+
+    /// Field torque before the gains of a core output with the stages' present state (no creep or
+    /// accommodation advanced): through the output map, plus the accommodation shift.
+    fn field_of(&self, core_nmm: f64) -> f64 {
+        let mapped = match &self.stages.output_map {
+            Some(m) => m.forward(core_nmm),
+            None => core_nmm,
+        };
+        mapped + self.stages.accommodation.map_or(0.0, |a| a.shift())
+    }
+
+    /// Advance the stages after the core (creep, accommodation) with the core output `core_nmm` it reached for
+    /// core input `core_a`; returns the field torque before the gains.
+    #[inline]
+    fn after_core(&mut self, core_nmm: f64, core_a: f64) -> f64 {
+        if let Some(r) = &mut self.stages.rate {
+            r.observe(core_nmm);
+        }
+        let crept = match &mut self.stages.creep {
+            Some(c) => c.step(core_nmm),
+            None => core_nmm,
+        };
+        let mut field = match &self.stages.output_map {
+            Some(m) => m.forward(crept),
+            None => crept,
+        };
+        if let Some(a) = &mut self.stages.accommodation {
+            field += a.step(core_a, field);
+        }
+        field
     }
     /// Delay (whole samples) the reference must be taken ahead by (`time_delay`; 0 without it).
     pub fn preview_samples(&self) -> usize {
@@ -319,33 +353,54 @@ impl<S: AsRef<[f64]>, const N: usize, const K: usize> Compensator<S, N, K> {
             gain *= r.gain(&terms);
         }
         self.field_gain = gain.max(MIN_FIELD_GAIN);
-        let field = (torque_ref_nmm - self.friction_nmm) / self.field_gain;
-        let target = match &mut self.stages.output_map {
+        let mut field = (torque_ref_nmm - self.friction_nmm) / self.field_gain;
+        if let Some(a) = &self.stages.accommodation {
+            // The shift of the state before this sample (it moves by a small share of a cycle per sample).
+            field -= a.shift();
+        }
+        let crept = match &mut self.stages.output_map {
             Some(m) => m.inverse(field),
             None => field,
+        };
+        let target = match &self.stages.creep {
+            Some(c) => c.input_for(crept),
+            None => crept,
         };
         if !target.is_finite() {
             return self.fault();
         }
         let inv = self.inverse_input(target);
         let (input, saturated) = (inv.input, inv.saturated);
-        let command = match &self.stages.coil_lag {
-            Some(l) => l.command_for(input),
+        // The field current that brings the core input there (rate dependence), then the coil command (lag).
+        let field_wanted = match &self.stages.rate {
+            Some(r) => r.input_for(input),
             None => input,
         };
+        let command = match &self.stages.coil_lag {
+            Some(l) => l.command_for(field_wanted),
+            None => field_wanted,
+        };
         let limited = limit(command, self.limit_a);
-        if !limited.is_finite() {
+        if !limited.is_finite() || !field_wanted.is_finite() {
             return self.fault();
         }
         let exact = !saturated && limited == command;
         // The field current actually reached; the lag state is kept exactly on it.
         let field_a = match &mut self.stages.coil_lag {
             Some(l) if exact => {
-                l.reached(input);
-                input
+                l.reached(field_wanted);
+                field_wanted
             }
             Some(l) => l.forward(limited),
             None => limited,
+        };
+        let core_in = match &mut self.stages.rate {
+            Some(r) if exact => {
+                r.reached(input);
+                input
+            }
+            Some(r) => r.step(field_a),
+            None => field_a,
         };
         if let Some(t) = &mut self.stages.thermal {
             t.commit(limited);
@@ -353,11 +408,14 @@ impl<S: AsRef<[f64]>, const N: usize, const K: usize> Compensator<S, N, K> {
         if let Some(f) = &mut self.stages.friction_current {
             f.commit(field_a);
         }
-        if exact && matches!(self.inverse, InverseKind::Exact) {
-            self.forward.commit(field_a, target, inv.cell, inv.fast);
+        let core_out = if exact && matches!(self.inverse, InverseKind::Exact) {
+            // Exact means the core reaches `input` (= core_in): the inverse's cell applies.
+            self.forward.commit(core_in, target, inv.cell, inv.fast);
+            target
         } else {
-            self.forward.step(field_a);
-        }
+            self.forward.step(core_in)
+        };
+        self.field_nmm = self.after_core(core_out, core_in);
         Command::from_current(limited, self.gain_a_per_v, !exact, false)
     }
 
@@ -385,7 +443,14 @@ impl<S: AsRef<[f64]>, const N: usize, const K: usize> Compensator<S, N, K> {
         if let Some(f) = &mut self.stages.friction_current {
             f.commit(field_a);
         }
-        let y = self.forward.step(field_a);
+        let core_in = match &mut self.stages.rate {
+            Some(r) => r.step(field_a),
+            None => field_a,
+        };
+        let y = self.forward.step(core_in);
+        if self.extended {
+            self.field_nmm = self.after_core(y, core_in);
+        }
         if let InverseKind::Paper(inv) = &mut self.inverse {
             // Keep the torque-domain memory consistent with the torque the zero current produces.
             inv.step(y);
@@ -451,9 +516,11 @@ impl<S: AsRef<[f64]>, const N: usize, const K: usize> Compensator<S, N, K> {
         if let InverseKind::Paper(inv) = &mut self.inverse {
             inv.reset(initial_of_torque(initial, &self.forward));
         }
-        self.stages.reset(self.forward.state().input());
+        self.stages
+            .reset(self.forward.state().input(), self.forward.output());
         self.friction_nmm = 0.0;
         self.field_gain = 1.0;
+        self.field_nmm = self.field_of(self.forward.output());
     }
 }
 

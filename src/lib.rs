@@ -8,13 +8,17 @@
 #[cfg(feature = "alloc")]
 extern crate alloc;
 
+pub mod accommodation;
 pub mod cbh;
 pub mod compensator;
 pub mod congruency;
+pub mod creep;
 #[cfg(feature = "alloc")]
 pub mod curve_fit;
 #[cfg(feature = "alloc")]
 pub mod derived_family;
+#[cfg(feature = "alloc")]
+pub mod discrepancy;
 pub mod error;
 pub mod everett;
 #[cfg(feature = "alloc")]
@@ -35,6 +39,7 @@ pub mod node_selection;
 pub mod paper_inverse;
 #[cfg(feature = "std")]
 pub mod plant;
+pub mod rate_dependence;
 pub mod reversals;
 pub mod simulation;
 pub mod stages;

@@ -2,9 +2,11 @@
 //! commanded current and rotor angle → torque. It runs the very stages the extended compensator inverts, so the
 //! diagnosis, predictions and the compensator agree on what the model is.
 //!
-//! Per sample: `coil current = delay(command)`, `field current = coil_lag(coil current)`, `core = H(field
-//! current)`, `field torque = output_map(core) × (1 − gain_loss·x(coil current)) × (1 + eps cos(θ + φ))`,
-//! `torque = field torque + friction(θ, |field current|)`, and the measurement adds the sensor offset and drift.
+//! Per sample: `coil current = delay(command)`, `field current = coil_lag(coil current)`, `core =
+//! creep(H(rate_dependence(field current)))`, `field torque = (output_map(core) + accommodation shift along the
+//! core input) ×
+//! (1 − gain_loss·x(coil current)) × (1 + eps cos(θ + φ))`, `torque = field torque + friction(θ, |field
+//! current|)`, and the measurement adds the sensor offset, drift and the leakage integral of the coil current.
 //! The delay line and the lag start at rest at the first command (as the plant's state before a run is
 //! unknown, the run is assumed to have held its first value), the core at its own start state.
 use crate::cbh::Hysteresis;
@@ -45,6 +47,9 @@ pub struct Simulation<S, D, const N: usize, const K: usize> {
     drift_nmm_per_s: f64,
     t0_s: f64,
     index: u64,
+    /// Integral of the coil current since the reset (A·s, trapezoids) and the last coil current (`leakage`).
+    leak_integral: f64,
+    last_coil: f64,
 }
 
 impl<S: AsRef<[f64]>, D: AsRef<[f64]> + AsMut<[f64]>, const N: usize, const K: usize>
@@ -86,6 +91,8 @@ impl<S: AsRef<[f64]>, D: AsRef<[f64]> + AsMut<[f64]>, const N: usize, const K: u
             drift_nmm_per_s,
             t0_s: 0.0,
             index: 0,
+            leak_integral: 0.0,
+            last_coil: 0.0,
         })
     }
 
@@ -103,13 +110,14 @@ impl<S: AsRef<[f64]>, D: AsRef<[f64]> + AsMut<[f64]>, const N: usize, const K: u
     /// (time of the first sample, s), delay and lag at rest at the next command.
     pub fn reset(&mut self, initial: crate::cbh::Initial, heating: f64, t0_s: f64) {
         self.core.reset(initial);
-        self.stages.reset(0.0);
+        self.stages.reset(0.0, self.core.output());
         if let Some(t) = &mut self.stages.thermal {
             t.reset(heating);
         }
         self.primed = false;
         self.t0_s = t0_s;
         self.index = 0;
+        self.leak_integral = 0.0;
     }
 
     /// One sample: commanded nominal current (A) and rotor angle (rad).
@@ -121,17 +129,40 @@ impl<S: AsRef<[f64]>, D: AsRef<[f64]> + AsMut<[f64]>, const N: usize, const K: u
             if let Some(l) = &mut self.stages.coil_lag {
                 l.reset(current_a);
             }
+            // The core's start state held long enough for the stages after it to settle there.
+            let core_out = self.core.output();
+            if let Some(r) = &mut self.stages.rate {
+                r.reset(current_a, core_out);
+            }
+            if let Some(c) = &mut self.stages.creep {
+                c.reset(core_out);
+            }
+            self.last_coil = current_a;
         }
         let coil = self.delay.step(current_a);
         let field_a = match &mut self.stages.coil_lag {
             Some(l) => l.forward(coil),
             None => coil,
         };
-        let core_nmm = self.core.step(field_a);
-        let mut field = match &self.stages.output_map {
-            Some(m) => m.forward(core_nmm),
+        let core_a = match &mut self.stages.rate {
+            Some(r) => r.step(field_a),
+            None => field_a,
+        };
+        let core_nmm = self.core.step(core_a);
+        if let Some(r) = &mut self.stages.rate {
+            r.observe(core_nmm);
+        }
+        let crept = match &mut self.stages.creep {
+            Some(c) => c.step(core_nmm),
             None => core_nmm,
         };
+        let mut field = match &self.stages.output_map {
+            Some(m) => m.forward(crept),
+            None => crept,
+        };
+        if let Some(a) = &mut self.stages.accommodation {
+            field += a.step(core_a, field);
+        }
         let terms = self.friction.angle_terms(theta_rad);
         if let Some(t) = &mut self.stages.thermal {
             field *= t.forward(coil);
@@ -143,6 +174,10 @@ impl<S: AsRef<[f64]>, D: AsRef<[f64]> + AsMut<[f64]>, const N: usize, const K: u
         let torque_nmm = field + friction_nmm;
         let t_s = self.t0_s + self.dt_s * self.index as f64;
         self.index += 1;
+        if self.index > 1 {
+            self.leak_integral += 0.5 * self.dt_s * (coil + self.last_coil);
+        }
+        self.last_coil = coil;
         SimSample {
             coil_current_a: coil,
             field_current_a: field_a,
@@ -150,7 +185,10 @@ impl<S: AsRef<[f64]>, D: AsRef<[f64]> + AsMut<[f64]>, const N: usize, const K: u
             field_torque_nmm: field,
             friction_nmm,
             torque_nmm,
-            measured_nmm: torque_nmm + self.offset_nmm + self.drift_nmm_per_s * t_s,
+            measured_nmm: torque_nmm
+                + self.offset_nmm
+                + self.drift_nmm_per_s * t_s
+                + self.stages.leak_per_s * self.leak_integral,
         }
     }
 }

@@ -3,14 +3,21 @@
 //!
 //! The forward chain (the extended simulation, [`crate::simulation`]) is
 //!
-//! `command → time_delay → coil_lag → CBH core → non_congruent output map → × thermal gain × ripple gain
-//! → + friction(θ, |field current|)` (`friction_harmonics` and `friction_current` live in the one
-//! [`crate::friction::Friction`]),
+//! `command → time_delay → coil_lag → rate_dependence → CBH core → creep → non_congruent output map
+//! → + accommodation shift → × thermal gain × ripple gain → + friction(θ, |field current|)`
+//! (`friction_harmonics` and `friction_current` live in the one [`crate::friction::Friction`]),
 //!
 //! and the compensator ([`crate::compensator`]) walks it backwards once per step:
 //!
-//! `reference (time_delay: taken delay ahead) − friction → ÷ (thermal gain × ripple gain) → output-map
-//! inverse → CBH inverse → coil_lag lead (limited) → command`.
+//! `reference (time_delay: taken delay ahead) − friction → ÷ (thermal gain × ripple gain) − accommodation
+//! shift → output-map inverse → creep inverse → CBH inverse → rate-dependence inverse → coil_lag lead (limited)
+//! → command`.
+//!
+//! `creep` ([`crate::creep::Creep`]), `rate_dependence` ([`crate::rate_dependence::RateDependence`]) and
+//! `accommodation` ([`crate::accommodation::Accommodation`]) are their own stages: each has a forward step, an
+//! inverse from the state before the sample and a commit with what the core actually did. `leakage` and
+//! `run_gain_offset` act on the measurement only and are never compensated (the extended simulation adds the
+//! leakage integral to what the sensor reads).
 //!
 //! Every stage is `no_std`, allocation-free and deterministic, with its sample period fixed at construction. A
 //! stage offers `forward` (simulation: advance with what happened this sample) and, for the compensator, an
@@ -18,8 +25,11 @@
 //! actually commanded (after limiting or a fault), so the compensator's states always follow the real command.
 //! A new stage (creep, rate dependence, ...) is a struct with those three operations, a field in [`Stages`] and
 //! one line in each walk.
+use crate::accommodation::Accommodation;
+use crate::creep::Creep;
 use crate::filters::{DelayLine, Heating, Lag};
 use crate::friction::{AngleTerms, FrictionError};
+use crate::rate_dependence::RateDependence;
 use crate::vocabulary::{EffectKind, Params};
 use core::fmt;
 
@@ -382,6 +392,11 @@ pub struct Stages {
     pub ripple: Option<Ripple>,
     pub output_map: Option<OutputMap>,
     pub friction_current: Option<FrictionCurrent>,
+    pub creep: Option<Creep>,
+    pub rate: Option<RateDependence>,
+    pub accommodation: Option<Accommodation>,
+    /// `leakage`: measured output added per unit of input-time (output/(input·s)); measurement only.
+    pub leak_per_s: f64,
 }
 
 /// What the friction model gains from the extensions: an extra harmonic and a current gain.
@@ -416,6 +431,39 @@ pub struct Scales {
     pub full_current_a: f64,
     /// Full-scale torque (N·mm) for `non_congruent` when its `scale_nmm` is 0.
     pub full_torque_nmm: f64,
+    /// The core's input and output ranges: the reference slope of `rate_dependence` (output span over input
+    /// span), the saturation ends, reversal dead-band and output centre of `accommodation`.
+    pub input_range: (f64, f64),
+    pub output_range: (f64, f64),
+}
+
+impl Scales {
+    /// Full values and the ranges of `core`.
+    pub fn of_core<S: AsRef<[f64]>, const N: usize>(
+        core: &crate::cbh::Hysteresis<S, N>,
+        full_current_a: f64,
+        full_torque_nmm: f64,
+    ) -> Self {
+        Scales {
+            full_current_a,
+            full_torque_nmm,
+            input_range: core.input_range(),
+            output_range: core.output_range(),
+        }
+    }
+
+    fn spans(&self) -> Result<(f64, f64), StageError> {
+        let (lo, hi) = self.input_range;
+        let (ylo, yhi) = self.output_range;
+        let (du, dy) = (hi - lo, yhi - ylo);
+        if !(du.is_finite() && du > 0.0) {
+            return Err(StageError::Scale("input span", du));
+        }
+        if !(dy.is_finite() && dy > 0.0) {
+            return Err(StageError::Scale("output span", dy));
+        }
+        Ok((du, dy))
+    }
 }
 
 impl Stages {
@@ -486,7 +534,39 @@ impl Stages {
                         st.friction_current = Some(FrictionCurrent::new(dt_s));
                     }
                 }
-                EffectKind::SensorDrift => {}
+                EffectKind::SensorDrift | EffectKind::RunGainOffset => {}
+                EffectKind::Leakage => st.leak_per_s = v[0],
+                EffectKind::Creep => {
+                    if v[0] != 0.0 {
+                        st.creep = Some(
+                            Creep::log_uniform(v[0], v[1], v[2], dt_s, 0.0)
+                                .ok_or(StageError::Scale("creep time constants (s)", v[1]))?,
+                        );
+                    }
+                }
+                EffectKind::RateDependence => {
+                    let (du, dy) = scales.spans()?;
+                    if v[0] > 0.0 {
+                        let lo = scales.input_range.0;
+                        st.rate = RateDependence::new(v[0], dy / du, dt_s, du, lo, 0.0);
+                    }
+                }
+                EffectKind::Accommodation => {
+                    let (du, _) = scales.spans()?;
+                    let (lo, hi) = scales.input_range;
+                    let (ylo, yhi) = scales.output_range;
+                    if v[0] != 0.0 {
+                        st.accommodation = Accommodation::new(
+                            v[0],
+                            v[1],
+                            lo,
+                            hi,
+                            crate::accommodation::DEADBAND_SHARE * du,
+                            crate::accommodation::SATURATION_SHARE * du,
+                            0.5 * (ylo + yhi),
+                        );
+                    }
+                }
             }
         }
         Ok((st, fr))
@@ -500,10 +580,23 @@ impl Stages {
             || self.ripple.is_some()
             || self.output_map.is_some()
             || self.friction_current.is_some()
+            || self.creep.is_some()
+            || self.rate.is_some()
+            || self.accommodation.is_some()
     }
 
-    /// Back to rest: field current `field_a`, cold coils, no reference history.
-    pub fn reset(&mut self, field_a: f64) {
+    /// Back to rest: field current `field_a` with core output `core_out` (creep settled there), cold coils, no
+    /// reference history, no accommodation.
+    pub fn reset(&mut self, field_a: f64, core_out: f64) {
+        if let Some(c) = &mut self.creep {
+            c.reset(core_out);
+        }
+        if let Some(r) = &mut self.rate {
+            r.reset(field_a, core_out);
+        }
+        if let Some(a) = &mut self.accommodation {
+            a.reset();
+        }
         if let Some(l) = &mut self.coil_lag {
             l.reset(field_a);
         }
@@ -525,6 +618,9 @@ impl Stages {
             time_delay: self.time_delay,
             thermal: self.thermal,
             friction_current: self.friction_current,
+            creep: self.creep,
+            rate: self.rate,
+            accommodation: self.accommodation,
         }
     }
 
@@ -557,12 +653,27 @@ impl Stages {
             let mut f = *f;
             f.reset(0.0);
             f
+        }) && same(&self.creep, &s.creep, |c| {
+            let mut c = *c;
+            c.reset(0.0);
+            c
+        }) && same(&self.rate, &s.rate, |r| {
+            let mut r = *r;
+            r.reset(0.0, 0.0);
+            r
+        }) && same(&self.accommodation, &s.accommodation, |a| {
+            let mut a = *a;
+            a.reset();
+            a
         });
         if ok {
             self.coil_lag = s.coil_lag;
             self.time_delay = s.time_delay;
             self.thermal = s.thermal;
             self.friction_current = s.friction_current;
+            self.creep = s.creep;
+            self.rate = s.rate;
+            self.accommodation = s.accommodation;
         }
         ok
     }
@@ -654,6 +765,9 @@ pub struct StageState {
     time_delay: Option<Predictor>,
     thermal: Option<Thermal>,
     friction_current: Option<FrictionCurrent>,
+    creep: Option<Creep>,
+    rate: Option<RateDependence>,
+    accommodation: Option<Accommodation>,
 }
 
 #[cfg(test)]
@@ -711,6 +825,8 @@ mod tests {
         let scales = Scales {
             full_current_a: 1.25,
             full_torque_nmm: 300.0,
+            input_range: (-1.25, 1.25),
+            output_range: (-300.0, 300.0),
         };
         let (st, fr) = Stages::new(&fx, 1e-3, scales).unwrap();
         assert!(st.coil_lag.is_some() && st.thermal.is_none());

@@ -169,6 +169,40 @@ vocabulary! {
          p("scale_nmm", "N·mm", 0.0, 0.0, 1e9,
            "full-scale torque S (0: the actuator's own — the plant's full_torque_nmm per rotor, a model's \
             largest |torque|)")];
+    Creep = "creep", Field,
+        "After every change of the output (a reversal, a step, a dwell) a share of the change keeps arriving: the \
+         magnetic after-effect of steel, the creep of a piezo stack. The core output v is the equilibrium and \
+         y = v + fraction * sum_i w_i (x_i - v) with x_i first-order lags of v, time constants spaced evenly in \
+         log(tau) from tau_min_s to tau_max_s (equal weights: creep logarithmic in time between them). \
+         Signature: after each reversal or dwell the residual relaxes with log(time since it).",
+        [p("fraction", "1", 0.02, 0.0, 0.9, "share of every output change that arrives by relaxation"),
+         p("tau_min_s", "s", 0.1, 1e-4, 1e5, "shortest relaxation time"),
+         p("tau_max_s", "s", 100.0, 1e-4, 1e6, "longest relaxation time (tau_min_s..tau_max_s: log-uniform)")];
+    RateDependence = "rate_dependence", Current,
+        "The loop widens with the input rate: a dynamic field opposes the change of the material's state (eddy \
+         currents in solid steel, domain-wall damping), u_core = u - k dy/dt. The core input lags the applied \
+         input with a time constant tau_s * s / s_ref that follows the differential slope s of the branch \
+         (s_ref: the major loop's mean slope), so steep branches lag and saturated ones do not. Signature: loop \
+         widening with rate that grows with the local slope, unlike coil_lag (one time constant) or time_delay.",
+        [p("tau_s", "s", 0.005, 0.0, 10.0, "dynamic-field time constant at the reference slope")];
+    RunGainOffset = "run_gain_offset", Sensor,
+        "The calibration changes between recordings (runs, days): each run's measured output is \
+         gain_k * y + offset_k with gain_k and offset_k drawn around 1 and 0 with spreads gain_sd and offset_sd \
+         (a measurement effect). Signature: per-run scale and offset of the residual.",
+        [p("gain_sd", "1", 0.02, 0.0, 0.5, "standard deviation of the per-run gain"),
+         p("offset_sd", "N·mm", 3.0, 0.0, 1e6, "standard deviation of the per-run offset (output units)")];
+    Leakage = "leakage", Sensor,
+        "The measured output integrates the input: a leakage current through the sample into a charge \
+         amplifier (ferroelectric, charge measurements) adds rate_per_s * integral of u dt from the start of \
+         the run. Signature: residual that follows the running integral of the input.",
+        [p("rate_per_s", "N·mm/(A·s)", 1.0, -1e6, 1e6, "output added per unit of input-time (output/(input·s))")];
+    Accommodation = "accommodation", Field,
+        "Minor loops drift over repeated cycling between the same extremes (accommodation, reptation): once the \
+         input has reversed twice since a saturation, the output carries a shift that relaxes, per loop cycle, \
+         towards -kappa * (loop centre - output-range centre), settling in `cycles` cycles; a saturation wipes \
+         it out. Signature: repeated minor loops that do not close, drifting towards the middle.",
+        [p("kappa", "1", 0.05, -0.9, 0.9, "share of the loop centre's distance from the middle it drifts"),
+         p("cycles", "1", 3.0, 0.1, 1e4, "loop cycles to settle (e-folding)")];
 }
 
 /// Entries of a model file's `extensions` list that are not physical effects.
@@ -193,6 +227,14 @@ pub static MODEL_ENTRIES: &[EffectSpec] = &[
             1e4,
             "input intervals of the refined tables",
         )],
+    },
+    EffectSpec {
+        name: "learned_discrepancy",
+        acts: Acts::Sensor,
+        doc: "A term no named effect explains, learned by sparse regression of the residual on signals of the run \
+              (its `terms`: signal names of bmr._core.CANDIDATES with coefficients in the declared units, an \
+              `intercept` and the reversal `deadband`); added to the predicted output, never compensated.",
+        params: &[],
     },
     EffectSpec {
         name: "offset",

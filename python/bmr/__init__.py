@@ -4,7 +4,8 @@ hysteretic device identified from its measured data.
 Core (Rust): ``Hysteresis`` (CBH operator), ``Friction`` (angle-periodic seal friction), ``Compensator``
 (exact or paper inverse + friction feedforward, coil split, current limit; ``Compensator.from_model`` adds the
 stages of what a diagnosis found, ``ExtendedSimulation`` runs them forwards), ``VirtualActuator`` (a physical
-simulator of the rig; ``EFFECTS`` names its switchable effects, ``effect_parameters()`` documents them).
+simulator of the rig; ``EFFECTS`` names its switchable effects, ``effect_parameters()`` documents them),
+``VirtualDevice`` (a hysteretic device with one input and one output and no angle: ``DEVICE_PRESETS``).
 Experiment protocols and bundles of them: ``bmr.experiments`` (:mod:`bmr.simulation.experiments`).
 Package layout, in data-flow order: :mod:`bmr.data` (bundles, lab readers) → :mod:`bmr.identification`
 (friction, first-order curves, least-squares tables, ``Model``) → :mod:`bmr.diagnosis` → :mod:`bmr.report`;
@@ -26,6 +27,8 @@ types are ``TypeError``s naming the argument.
 """
 from bmr._core import (
     ACTUATOR_PARAMETERS,
+    DEVICE_PARAMETERS,
+    DEVICE_PRESETS,
     EFFECTS,
     LIMITS,
     PRESETS,
@@ -51,6 +54,7 @@ from bmr._core import (
     TableError,
     TableReport,
     VirtualActuator,
+    VirtualDevice,
     effect_parameters,
     fit_everett,
 )
@@ -82,6 +86,8 @@ from bmr.simulation import experiments
 
 __all__ = [
     "ACTUATOR_PARAMETERS",
+    "DEVICE_PARAMETERS",
+    "DEVICE_PRESETS",
     "EFFECTS",
     "LIMITS",
     "PRESETS",
@@ -116,6 +122,7 @@ __all__ = [
     "TableError",
     "TableReport",
     "VirtualActuator",
+    "VirtualDevice",
     "bundle_from_files",
     "diagnose",
     "diagnose_many",

@@ -11,6 +11,8 @@ _Curve = Tuple[npt.ArrayLike, npt.ArrayLike]
 _Initial = Union[str, Tuple[str, float]]
 
 __all__ = [
+    "ACCOMMODATION_DEADBAND_SHARE",
+    "ACCOMMODATION_SATURATION_SHARE",
     "ACTUATOR_PARAMETERS",
     "BmrError",
     "BundleError",
@@ -46,9 +48,16 @@ __all__ = [
     "find_reversals",
     "fit_friction_order",
     "FrictionOrderFit",
+    "CANDIDATES",
+    "DEVICE_PARAMETERS",
+    "DEVICE_PRESETS",
     "FRICTION_MAX_ORDER",
     "MODEL_EXTENSIONS",
+    "VirtualDevice",
+    "accommodation_shift",
+    "candidate_signals",
     "check_extensions",
+    "creep_columns",
     "delay",
     "export_source",
     "friction_series",
@@ -131,6 +140,11 @@ class Hysteresis:
         """The same operator on fewer nodes within ``tolerance`` (fraction of the output span), and the bound."""
     def step(self, u: float) -> float: ...
     def run(self, u: _ArrayLike) -> np.ndarray: ...
+    def run_rate_dependent(self, u: _ArrayLike, *, tau_s: float, dt_s: float,
+                           slope_ref: float | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """``u`` through the rate-dependence stage (core-input lag of time constant ``tau_s`` scaled by the
+        branch's differential slope over ``slope_ref``, default output span / input span), then the operator:
+        ``(outputs, core_inputs)``."""
     def __copy__(self) -> Hysteresis: ...
     def __deepcopy__(self, memo: dict[int, object]) -> Hysteresis: ...
     def reset(self, initial: _Initial | None = None) -> None: ...
@@ -429,6 +443,30 @@ def heating_state(current_a: _ArrayLike, tau_s: float, dt_s: float, full_current
                   initial: float = 0.0) -> np.ndarray:
     """Coil heating state (1 = steady full current) driven by ``(I/I_full)²`` with time constant ``tau_s``."""
 
+def creep_columns(v: _ArrayLike, taus_s: _ArrayLike, dt_s: float) -> np.ndarray:
+    """``n × len(taus_s)`` relaxation signals ``lag(v, τⱼ) − v`` (exact lags from rest at ``v[0]``)."""
+
+def accommodation_shift(u: _ArrayLike, v: _ArrayLike, *, kappa: float, cycles: float, lo: float, hi: float,
+                        deadband: float, saturation_tol: float, y_mid: float) -> np.ndarray:
+    """Minor-loop accommodation shift (output units) along input ``u`` and core output ``v``."""
+
+def candidate_signals(t_s: _ArrayLike, u: _ArrayLike, y: _ArrayLike, *, deadband: float,
+                      theta_rad: _ArrayLike | None = None, harmonics: int = 0) -> np.ndarray:
+    """``n × m`` candidate library of one run (columns named in :data:`CANDIDATES`, then angle harmonics)."""
+
+ACCOMMODATION_DEADBAND_SHARE: float
+"""Reversal dead-band of accommodation as a share of the input span."""
+ACCOMMODATION_SATURATION_SHARE: float
+"""Saturation tolerance of accommodation as a share of the input span."""
+CANDIDATES: tuple[tuple[str, str, str], ...]
+"""The candidate library's run signals: ``(name, unit template, definition)``; ``{u}``/``{y}`` stand for the
+input/output unit."""
+
+DEVICE_PRESETS: tuple[str, ...]
+"""Names of the virtual device presets (``piezo``, ``ferroelectric``)."""
+DEVICE_PARAMETERS: tuple[str, ...]
+"""Names of the parameters ``VirtualDevice(overrides=...)`` can change."""
+
 _EffectsSpec = Union[None, dict[str, Union[dict[str, float], None]], Sequence[str], str]
 
 @final
@@ -452,6 +490,11 @@ class VirtualActuator:
     def step(self, current_a: float) -> dict[str, float | bool]:
         """One sample: the keys of ``run`` as floats, plus ``command_valid`` (NaN applies 0 A, flagged)."""
     def reset(self) -> None: ...
+    def start_run(self, rest_s: float = 0.0) -> None:
+        """A new recording after resting ``rest_s`` s at zero current (inf: settled, coils cold)."""
+    @property
+    def run_calibration(self) -> tuple[float, float]:
+        """This recording's sensor ``(gain, offset_nmm)`` (``run_gain_offset``)."""
     def true_friction(self, theta_rad: _ArrayLike) -> np.ndarray: ...
     def theta_ahead(self, n: int) -> np.ndarray: ...
     @property
@@ -613,3 +656,40 @@ def export_source(compensator: Compensator, language: str, *, title: str = "bmr 
                   prefix: str = "bmr") -> str:
     """Firmware source of an exact-inverse compensator: ``"rust"`` (static tables and ``compensator(dt_s)`` for
     the no_std crate) or ``"c"`` (arrays and ``<prefix>_model`` for ``bmr_compensator_init``)."""
+
+@final
+class VirtualDevice:
+    """Seeded virtual hysteretic device with one input and one output and no angle (a piezo stack, a
+    ferroelectric capacitor): Preisach core plus the vocabulary's effects that need no angle."""
+    def __new__(
+        cls,
+        preset: str = "piezo",
+        *,
+        seed: int = 0,
+        sample_rate_hz: float | None = None,
+        effects: _EffectsSpec = None,
+        overrides: dict[str, float] | None = None,
+    ) -> Self: ...
+    def run(self, u: _ArrayLike) -> dict[str, np.ndarray]:
+        """Commanded inputs → ``t_s, input, output`` (measured) and ``output_true``."""
+    def start_run(self, rest_s: float = 0.0) -> None: ...
+    @property
+    def effects(self) -> dict[str, dict[str, float]]: ...
+    @property
+    def quantities(self) -> tuple[tuple[str, str], tuple[str, str]]: ...
+    @property
+    def input_range(self) -> tuple[float, float]: ...
+    @property
+    def run_calibration(self) -> tuple[float, float]: ...
+    @property
+    def noise(self) -> float: ...
+    @property
+    def preset(self) -> str: ...
+    @property
+    def name(self) -> str: ...
+    @property
+    def seed(self) -> int: ...
+    @property
+    def sample_rate_hz(self) -> float: ...
+    @property
+    def time_s(self) -> float: ...

@@ -163,7 +163,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             from bmr.identification.prediction import run_cli
         elif args.command == "export":
             from bmr.identification.model import run_export_cli as run_cli
-        elif len(args.bundle) > 1 or args.out or args.scheduler or args.workers is not None:
+        elif args.command == "diagnose" and (len(args.bundle) > 1 or args.out or args.scheduler
+                                             or args.workers is not None):
             if args.json_out or args.report or args.model_out:
                 raise BmrError("--json, --report and --model-out describe one bundle; for several, the table goes "
                                "to --out")

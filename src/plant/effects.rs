@@ -49,6 +49,25 @@ pub enum Effect {
         curvature: f64,
         scale_nmm: f64,
     },
+    Creep {
+        fraction: f64,
+        tau_min_s: f64,
+        tau_max_s: f64,
+    },
+    RateDependence {
+        tau_s: f64,
+    },
+    RunGainOffset {
+        gain_sd: f64,
+        offset_sd: f64,
+    },
+    Leakage {
+        rate_per_s: f64,
+    },
+    Accommodation {
+        kappa: f64,
+        cycles: f64,
+    },
 }
 
 impl Effect {
@@ -62,6 +81,11 @@ impl Effect {
             Effect::SensorDrift { .. } => EffectKind::SensorDrift,
             Effect::TimeDelay { .. } => EffectKind::TimeDelay,
             Effect::NonCongruent { .. } => EffectKind::NonCongruent,
+            Effect::Creep { .. } => EffectKind::Creep,
+            Effect::RateDependence { .. } => EffectKind::RateDependence,
+            Effect::RunGainOffset { .. } => EffectKind::RunGainOffset,
+            Effect::Leakage { .. } => EffectKind::Leakage,
+            Effect::Accommodation { .. } => EffectKind::Accommodation,
         }
     }
 
@@ -104,6 +128,29 @@ impl Effect {
                 curvature: v[0],
                 scale_nmm: v[1],
             },
+            EffectKind::Creep => {
+                if v[2] < v[1] {
+                    return Err(PlantError::InvalidEffect(format!(
+                        "effect creep: tau_max_s = {} must not be below tau_min_s = {}",
+                        v[2], v[1]
+                    )));
+                }
+                Effect::Creep {
+                    fraction: v[0],
+                    tau_min_s: v[1],
+                    tau_max_s: v[2],
+                }
+            }
+            EffectKind::RateDependence => Effect::RateDependence { tau_s: v[0] },
+            EffectKind::RunGainOffset => Effect::RunGainOffset {
+                gain_sd: v[0],
+                offset_sd: v[1],
+            },
+            EffectKind::Leakage => Effect::Leakage { rate_per_s: v[0] },
+            EffectKind::Accommodation => Effect::Accommodation {
+                kappa: v[0],
+                cycles: v[1],
+            },
         })
     }
 
@@ -125,6 +172,15 @@ impl Effect {
                 curvature,
                 scale_nmm,
             } => vec![curvature, scale_nmm],
+            Effect::Creep {
+                fraction,
+                tau_min_s,
+                tau_max_s,
+            } => vec![fraction, tau_min_s, tau_max_s],
+            Effect::RateDependence { tau_s } => vec![tau_s],
+            Effect::RunGainOffset { gain_sd, offset_sd } => vec![gain_sd, offset_sd],
+            Effect::Leakage { rate_per_s } => vec![rate_per_s],
+            Effect::Accommodation { kappa, cycles } => vec![kappa, cycles],
         };
         self.kind()
             .params()

@@ -8,6 +8,7 @@
 //! [`presets`] holds calibrated configurations; [`virtual_actuator`] wires the stages together.
 
 pub mod converter;
+pub mod device;
 pub mod effects;
 pub mod mr_fluid;
 pub mod presets;
@@ -19,6 +20,9 @@ pub mod steel_preisach;
 pub mod torque_sensor;
 pub mod virtual_actuator;
 
+pub use device::{
+    DEVICE_PRESETS, DEVICE_SETTABLE, DeviceConfig, DeviceSample, VirtualDevice, device_preset,
+};
 pub use effects::{Effect, EffectKind, EffectSet, ParamSpec};
 pub use presets::{PRESETS, preset};
 pub use virtual_actuator::{ActuatorConfig, SETTABLE, Sample, Trace, VirtualActuator};

@@ -16,7 +16,10 @@ use super::seal_friction::SealFriction;
 use super::steel_preisach::{PreisachSteel, SteelParams};
 use super::torque_sensor::SensorParams;
 use super::{PlantError, StateReader, check_range};
+use crate::accommodation::Accommodation;
+use crate::creep::{Creep, MAX_CREEP_TERMS};
 use crate::filters::{DelayLine, Heating, Lag};
+use crate::rate_dependence::RateDependence;
 
 /// Everything that defines a virtual actuator (a preset is one of these).
 #[derive(Clone, Debug, PartialEq)]
@@ -264,6 +267,14 @@ struct ActiveEffects {
     curvature: f64,
     /// Full-scale torque of the output map (0: the configuration's `full_torque_nmm`).
     curvature_scale_nmm: f64,
+    /// Creep of each circuit's flux density: (fraction, tau_min_s, tau_max_s).
+    creep: Option<(f64, f64, f64)>,
+    rate_tau_s: f64,
+    /// Spread of the per-run sensor gain and offset (N·mm).
+    run_gain_offset: Option<(f64, f64)>,
+    leak_per_s: f64,
+    /// Minor-loop accommodation: (kappa, cycles).
+    accommodation: Option<(f64, f64)>,
 }
 
 impl ActiveEffects {
@@ -279,6 +290,11 @@ impl ActiveEffects {
             delay_samples: 0,
             curvature: 0.0,
             curvature_scale_nmm: 0.0,
+            creep: None,
+            rate_tau_s: 0.0,
+            run_gain_offset: None,
+            leak_per_s: 0.0,
+            accommodation: None,
         };
         for e in set.iter() {
             match *e {
@@ -305,6 +321,17 @@ impl ActiveEffects {
                     a.curvature = curvature;
                     a.curvature_scale_nmm = scale_nmm;
                 }
+                Effect::Creep {
+                    fraction,
+                    tau_min_s,
+                    tau_max_s,
+                } => a.creep = Some((fraction, tau_min_s, tau_max_s)),
+                Effect::RateDependence { tau_s } => a.rate_tau_s = tau_s,
+                Effect::RunGainOffset { gain_sd, offset_sd } => {
+                    a.run_gain_offset = Some((gain_sd, offset_sd))
+                }
+                Effect::Leakage { rate_per_s } => a.leak_per_s = rate_per_s,
+                Effect::Accommodation { kappa, cycles } => a.accommodation = Some((kappa, cycles)),
             }
         }
         a
@@ -312,7 +339,7 @@ impl ActiveEffects {
 }
 
 /// First word of a serialised simulator state (format tag and version).
-const PLANT_STATE_TAG: u64 = 0x626d_725f_7661_0001;
+const PLANT_STATE_TAG: u64 = 0x626d_725f_7661_0002;
 
 /// The simulator. `new(config, seed)`, then `step`/`run` with commanded nominal current (A).
 #[derive(Clone, Debug)]
@@ -331,9 +358,28 @@ pub struct VirtualActuator {
     steel1: PreisachSteel,
     steel2: PreisachSteel,
     heating: Heating,
+    /// Magnetic after-effect of each circuit's flux density (`creep`).
+    creep1: Option<Creep>,
+    creep2: Option<Creep>,
+    /// Dynamic field of each circuit (`rate_dependence`).
+    rate1: Option<RateDependence>,
+    rate2: Option<RateDependence>,
+    accommodation: Option<Accommodation>,
+    /// Integral of the applied command since the run's start (`leakage`), A·s, and the last applied command.
+    leak_integral: f64,
+    last_applied: f64,
+    /// This run's sensor calibration (`run_gain_offset`) and the stream it is drawn from.
+    run_gain: f64,
+    run_offset_nmm: f64,
+    calibration_rng: Rng,
     drive: RotorDrive,
     rng: Rng,
     index: u64,
+}
+
+/// The calibration draws use their own stream, so that switching `run_gain_offset` on leaves the noise alone.
+pub(super) fn calibration_stream(seed: u64) -> Rng {
+    Rng::new(seed ^ 0xC0FF_EE15_CA1B_0A7E)
 }
 
 impl VirtualActuator {
@@ -344,7 +390,52 @@ impl VirtualActuator {
         let fx = ActiveEffects::from_set(&config.effects, dt_s);
         let steel1 = PreisachSteel::new(config.steel1.clone())?;
         let steel2 = PreisachSteel::new(config.steel2.clone())?;
+        let creep = || {
+            fx.creep
+                .and_then(|(f, lo, hi)| Creep::log_uniform(f, lo, hi, dt_s, 0.0))
+        };
+        let full = config.full_current_a;
+        let rate = |steel: &SteelParams| {
+            (fx.rate_tau_s > 0.0)
+                .then(|| {
+                    RateDependence::new(
+                        fx.rate_tau_s,
+                        steel.saturation_t / full,
+                        dt_s,
+                        full,
+                        0.0,
+                        0.0,
+                    )
+                })
+                .flatten()
+        };
+        let accommodation = fx.accommodation.and_then(|(kappa, cycles)| {
+            use crate::accommodation::{DEADBAND_SHARE, SATURATION_SHARE};
+            let span = 2.0 * full;
+            Accommodation::new(
+                kappa,
+                cycles,
+                -full,
+                full,
+                DEADBAND_SHARE * span,
+                SATURATION_SHARE * span,
+                0.0,
+            )
+        });
+        let mut calibration_rng = calibration_stream(seed);
+        let (run_gain, run_offset_nmm) =
+            draw_run_calibration(fx.run_gain_offset, &mut calibration_rng);
         Ok(VirtualActuator {
+            creep1: creep(),
+            creep2: creep(),
+            rate1: rate(&config.steel1),
+            rate2: rate(&config.steel2),
+            accommodation,
+            leak_integral: 0.0,
+            last_applied: 0.0,
+            run_gain,
+            run_offset_nmm,
+            calibration_rng,
             torque_per_kpa: config.geometry.yield_torque_per_kpa(),
             delay_line: DelayLine::new(vec![0.0; fx.delay_samples], fx.delay_samples, 0.0)
                 .expect("sized to the delay"),
@@ -407,14 +498,73 @@ impl VirtualActuator {
         self.steel1.demagnetise();
         self.steel2.demagnetise();
         self.heating.set_state(0.0);
+        self.creep1.iter_mut().for_each(|c| c.reset(0.0));
+        self.creep2.iter_mut().for_each(|c| c.reset(0.0));
+        self.rate1.iter_mut().for_each(|r| r.reset(0.0, 0.0));
+        self.rate2.iter_mut().for_each(|r| r.reset(0.0, 0.0));
+        self.accommodation.iter_mut().for_each(|a| a.reset());
+        self.leak_integral = 0.0;
+        self.last_applied = 0.0;
+        self.calibration_rng = calibration_stream(self.seed);
+        (self.run_gain, self.run_offset_nmm) =
+            draw_run_calibration(self.fx.run_gain_offset, &mut self.calibration_rng);
         self.drive.reset();
         self.rng = Rng::new(self.seed);
         self.index = 0;
     }
 
-    /// Everything that evolves (memories, filter states, angle, noise stream, time) as plain words, for pickling.
-    /// [`Self::load_state`] on an actuator built from the same configuration and seed continues bit for bit.
+    /// A new recording. The rig first rests `rest_s` seconds (≥ 0; `f64::INFINITY`: long enough for everything
+    /// to settle) at zero command: the steel goes to zero current and keeps its remanence, the converters and
+    /// field lags settle, the coils cool (the heating state decays with its time constant), creep relaxes; the
+    /// clock advances by a finite rest (sensor drift goes on) and the rotor stands. Then the run starts: the
+    /// leakage integral restarts from zero and the per-run calibration (`run_gain_offset`) is drawn anew. With
+    /// `rest_s = 0` only the run-start part happens.
+    pub fn start_run(&mut self, rest_s: f64) -> Result<(), PlantError> {
+        if rest_s.is_nan() || rest_s < 0.0 {
+            return Err(PlantError::InvalidParameter(format!(
+                "rest_s = {rest_s} must be a nonnegative number of seconds (inf: settled)"
+            )));
+        }
+        if rest_s > 0.0 {
+            let periods = rest_s / self.dt_s;
+            self.delay_line.fill(0.0);
+            self.converter1.reset();
+            self.converter2.reset();
+            self.field1.set_output(0.0);
+            self.field2.set_output(0.0);
+            let b1 = self.steel1.apply(0.0);
+            let b2 = self.steel2.apply(0.0);
+            self.rate1.iter_mut().for_each(|r| r.reset(0.0, b1));
+            self.rate2.iter_mut().for_each(|r| r.reset(0.0, b2));
+            if let Some(c) = self.creep1.as_mut() {
+                c.hold(b1, rest_s, self.dt_s);
+            }
+            if let Some(c) = self.creep2.as_mut() {
+                c.hold(b2, rest_s, self.dt_s);
+            }
+            let cooled = if self.fx.thermal_tau_s > 0.0 {
+                self.heating.state() * libm::exp(-rest_s / self.fx.thermal_tau_s)
+            } else {
+                0.0
+            };
+            self.heating.set_state(cooled);
+            self.last_applied = 0.0;
+            // A finite rest moves the clock (drift continues); beyond 2^52 samples it counts as settled.
+            if periods.is_finite() && periods < 4.5e15 {
+                self.index += libm::round(periods) as u64;
+            }
+        }
+        self.leak_integral = 0.0;
+        (self.run_gain, self.run_offset_nmm) =
+            draw_run_calibration(self.fx.run_gain_offset, &mut self.calibration_rng);
+        Ok(())
+    }
+
+    /// Everything that evolves (memories, filter states, effect states, angle, noise and calibration streams,
+    /// time) as plain words, for pickling. [`Self::load_state`] on an actuator built from the same configuration
+    /// and seed continues bit for bit.
     pub fn save_state(&self) -> Vec<u64> {
+        let f = |w: &mut Vec<u64>, v: f64| w.push(v.to_bits());
         let mut w = vec![
             PLANT_STATE_TAG,
             self.index,
@@ -423,16 +573,29 @@ impl VirtualActuator {
         w.extend(self.delay_line.values().map(f64::to_bits));
         self.converter1.save_state(&mut w);
         self.converter2.save_state(&mut w);
-        w.extend(
-            [
-                self.field1.output(),
-                self.field2.output(),
-                self.heating.state(),
-            ]
-            .map(f64::to_bits),
-        );
+        for v in [
+            self.field1.output(),
+            self.field2.output(),
+            self.heating.state(),
+            self.leak_integral,
+            self.last_applied,
+            self.run_gain,
+            self.run_offset_nmm,
+        ] {
+            f(&mut w, v);
+        }
+        for c in [&self.creep1, &self.creep2].into_iter().flatten() {
+            w.extend(c.states().map(f64::to_bits));
+        }
+        for r in [&self.rate1, &self.rate2].into_iter().flatten() {
+            w.extend(r.state().map(f64::to_bits));
+        }
+        if let Some(a) = &self.accommodation {
+            w.extend(a.state().map(f64::to_bits));
+        }
         self.drive.save_state(&mut w);
         self.rng.save_state(&mut w);
+        self.calibration_rng.save_state(&mut w);
         self.steel1.save_state(&mut w);
         self.steel2.save_state(&mut w);
         w
@@ -465,13 +628,50 @@ impl VirtualActuator {
         next.field1.set_output(r.float()?);
         next.field2.set_output(r.float()?);
         next.heating.set_state(r.float()?);
+        next.leak_integral = r.float()?;
+        next.last_applied = r.float()?;
+        next.run_gain = r.float()?;
+        next.run_offset_nmm = r.float()?;
+        for c in [&mut next.creep1, &mut next.creep2].into_iter().flatten() {
+            let mut v = [0.0; MAX_CREEP_TERMS];
+            for slot in v.iter_mut() {
+                *slot = r.float()?;
+            }
+            if !c.set_states(&v) {
+                return Err(PlantError::BadState("creep state"));
+            }
+        }
+        for rd in [&mut next.rate1, &mut next.rate2].into_iter().flatten() {
+            let mut v = [0.0; 4];
+            for slot in v.iter_mut() {
+                *slot = r.float()?;
+            }
+            if !rd.set_state(v) {
+                return Err(PlantError::BadState("rate-dependence state"));
+            }
+        }
+        if let Some(a) = next.accommodation.as_mut() {
+            let mut v = [0.0; 11];
+            for slot in v.iter_mut() {
+                *slot = r.float()?;
+            }
+            if !a.set_state(&v) {
+                return Err(PlantError::BadState("accommodation state"));
+            }
+        }
         next.drive.load_state(&mut r)?;
         next.rng.load_state(&mut r)?;
+        next.calibration_rng.load_state(&mut r)?;
         next.steel1.load_state(&mut r)?;
         next.steel2.load_state(&mut r)?;
         r.finish()?;
         *self = next;
         Ok(())
+    }
+
+    /// This recording's sensor calibration: gain and offset (N·mm) of `run_gain_offset` (1 and 0 when it is off).
+    pub fn run_calibration(&self) -> (f64, f64) {
+        (self.run_gain, self.run_offset_nmm)
     }
 
     /// Noise-free seal friction (N·mm) at zero current and angle `theta_rad`, including any extra harmonic.
@@ -533,8 +733,18 @@ impl VirtualActuator {
         let coil2_a = self.converter2.step(self.converter2.voltage_for(c2));
         let field1_a = self.field1.step(coil1_a);
         let field2_a = self.field2.step(coil2_a);
-        let b1_t = self.steel1.apply(field1_a);
-        let b2_t = self.steel2.apply(field2_a);
+        let b1_t = preisach_flux(
+            &mut self.steel1,
+            &mut self.rate1,
+            &mut self.creep1,
+            field1_a,
+        );
+        let b2_t = preisach_flux(
+            &mut self.steel2,
+            &mut self.rate2,
+            &mut self.creep2,
+            field2_a,
+        );
 
         let theta_rad = self.drive.theta_rad();
         let speed_rad_s = self.drive.speed_rad_s();
@@ -547,6 +757,12 @@ impl VirtualActuator {
             .viscous_torque_nmm(fluid.viscosity_pa_s, speed_rad_s);
         // Both rotors turn at the same speed in opposite directions: their viscous drags oppose.
         let mut field = (yield2 + viscous_nmm) - (yield1 + viscous_nmm);
+        if let Some(a) = self.accommodation.as_mut() {
+            // Along the field the steel sees: the coils' core inputs recombined as a nominal current.
+            let core1 = self.rate1.as_ref().map_or(field1_a, |r| r.core_input());
+            let core2 = self.rate2.as_ref().map_or(field2_a, |r| r.core_input());
+            field += a.step(core2 - core1, field);
+        }
 
         if self.fx.thermal_loss != 0.0 {
             let full = self.config.full_current_a;
@@ -559,10 +775,13 @@ impl VirtualActuator {
         let friction_nmm = self.friction_nmm(theta_rad, field1_a + field2_a);
         let torque_true_nmm = field + friction_nmm;
         let drift = self.fx.drift_nmm_per_s * t_s;
-        let torque_nmm = self
-            .config
-            .sensor
-            .measure(torque_true_nmm, drift, &mut self.rng);
+        // What reaches the sensor: a charge-type measurement integrates the leakage (trapezoids of the applied
+        // command), scaled and offset by this run's calibration.
+        self.leak_integral += 0.5 * self.dt_s * (applied + self.last_applied);
+        self.last_applied = applied;
+        let sensed = self.run_gain * (torque_true_nmm + self.fx.leak_per_s * self.leak_integral)
+            + self.run_offset_nmm;
+        let torque_nmm = self.config.sensor.measure(sensed, drift, &mut self.rng);
 
         self.drive.advance();
         self.index += 1;
@@ -592,5 +811,36 @@ impl VirtualActuator {
             trace.push(&s);
         }
         trace
+    }
+}
+
+/// One circuit's flux density (any Preisach core's output): the input through the dynamic field (rate
+/// dependence) into the core, then the after-effect (creep).
+#[inline]
+pub(super) fn preisach_flux(
+    steel: &mut PreisachSteel,
+    rate: &mut Option<RateDependence>,
+    creep: &mut Option<Creep>,
+    field_current_a: f64,
+) -> f64 {
+    let b = match rate {
+        Some(r) => {
+            let b = steel.apply(r.step(field_current_a));
+            r.observe(b);
+            b
+        }
+        None => steel.apply(field_current_a),
+    };
+    match creep {
+        Some(c) => c.step(b),
+        None => b,
+    }
+}
+
+/// This run's sensor gain and offset (output units): 1 and 0 unless `run_gain_offset` (spreads) is on.
+pub(super) fn draw_run_calibration(spread: Option<(f64, f64)>, rng: &mut Rng) -> (f64, f64) {
+    match spread {
+        Some((gain_sd, offset_sd)) => (1.0 + gain_sd * rng.normal(), offset_sd * rng.normal()),
+        None => (1.0, 0.0),
     }
 }

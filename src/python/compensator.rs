@@ -894,10 +894,11 @@ impl PySimulation {
         let ext = parse_extensions(extensions)?;
         let core = hysteresis.op.clone();
         let (ylo, yhi) = core.output_range();
-        let scales = Scales {
+        let scales = Scales::of_core(
+            &core,
             full_current_a,
-            full_torque_nmm: full_torque_nmm.unwrap_or(ylo.abs().max(yhi.abs())),
-        };
+            full_torque_nmm.unwrap_or(ylo.abs().max(yhi.abs())),
+        );
         let friction = friction.map_or(Friction::zero(), |f| f.f);
         let sim =
             Sim::new(core, friction, &ext, dt_s, scales, |n| vec![0.0; n]).map_err(bmr_err)?;

@@ -10,6 +10,7 @@ use crate::everett::Family;
 use crate::python::arrays::{DETACH_LEN, curves_to_py, extract_f64_array, to_numpy};
 use crate::python::table_report::{PyTableReport, congruency_dict};
 use crate::python::{BmrError, borrow, borrow_mut, bytes_to_words, table_err, words_to_bytes};
+use crate::rate_dependence::RateDependence;
 use crate::table_builder::{BuildOptions, BuildReport};
 
 /// Memory capacity (reversal points) of the Python operator.
@@ -329,6 +330,61 @@ impl PyHysteresis {
             me.op.run_into(&inputs, &mut out);
         }
         Ok(to_numpy(py, out))
+    }
+
+    /// Run ``u`` (sampled every ``dt_s``) through the rate-dependence stage (``rate_dependence``: a lag of the core
+    /// input whose time constant ``tau_s`` is scaled by the branch's differential slope over ``slope_ref``; default
+    /// the major loop's mean slope, output span over input span), continuing from the current state with the stage
+    /// at rest at ``u[0]``. Returns ``(outputs, core_inputs)``.
+    #[pyo3(signature = (u, *, tau_s, dt_s, slope_ref=None))]
+    #[allow(clippy::type_complexity)]
+    fn run_rate_dependent<'py>(
+        slf: &Bound<'py, Self>,
+        u: &Bound<'py, PyAny>,
+        tau_s: f64,
+        dt_s: f64,
+        slope_ref: Option<f64>,
+    ) -> PyResult<(Bound<'py, PyArray1<f64>>, Bound<'py, PyArray1<f64>>)> {
+        let py = slf.py();
+        let inputs = extract_f64_array(u, "u")?;
+        if let Some(i) = inputs.iter().position(|x| !x.is_finite()) {
+            return Err(BmrError::new_err(format!(
+                "u[{i}] = {} is not finite",
+                inputs[i]
+            )));
+        }
+        let mut me = borrow_mut(slf)?;
+        let (lo, hi) = me.op.input_range();
+        let (ylo, yhi) = me.op.output_range();
+        let slope_ref = slope_ref.unwrap_or((yhi - ylo) / (hi - lo));
+        let u0 = inputs.first().copied().unwrap_or(0.0);
+        let mut stage = RateDependence::new(tau_s, slope_ref, dt_s, hi - lo, u0, me.op.output())
+            .ok_or_else(|| {
+                BmrError::new_err(format!(
+                    "rate dependence needs tau_s >= 0, slope_ref > 0 and dt_s > 0 (tau_s={tau_s}, \
+                     slope_ref={slope_ref}, dt_s={dt_s})"
+                ))
+            })?;
+        let n = inputs.len();
+        let op = &mut me.op;
+        let mut scan = move || -> (Vec<f64>, Vec<f64>) {
+            let mut ys = Vec::with_capacity(n);
+            let mut cores = Vec::with_capacity(n);
+            for &x in &inputs {
+                let c = stage.step(x);
+                let y = op.step(c);
+                stage.observe(y);
+                ys.push(y);
+                cores.push(c);
+            }
+            (ys, cores)
+        };
+        let (ys, cores) = if n > DETACH_LEN {
+            py.detach(scan)
+        } else {
+            scan()
+        };
+        Ok((to_numpy(py, ys), to_numpy(py, cores)))
     }
 
     /// Forget the memory and start from `initial` ("negative", "positive", ("ascending", u), ("descending", u)).

@@ -6,6 +6,7 @@ use pyo3::{PyClass, PyTypeInfo};
 mod arrays;
 mod compensator;
 mod curve_fit;
+mod effect_signals;
 mod filters;
 mod friction;
 mod hysteresis;
@@ -13,6 +14,7 @@ mod identification;
 mod reversals;
 mod table_report;
 mod virtual_actuator;
+mod virtual_device;
 
 /// The exception hierarchy, created here so that Rust and Python raise the same classes. `BmrError` (a
 /// `ValueError`) is the base; each subclass names a kind of problem.
@@ -202,7 +204,9 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     table_report::register(m)?;
     curve_fit::register(m)?;
     virtual_actuator::register(m)?;
+    virtual_device::register(m)?;
     compensator::register(m)?;
+    effect_signals::register(m)?;
     filters::register(m)?;
     Ok(())
 }

@@ -16,7 +16,7 @@ use std::sync::{Mutex, MutexGuard, TryLockError};
 
 /// Apply a Python effects specification to `set`: None, a dict `{name: {param: value} | None}` (None
 /// removes the preset's effect), or a list of `"name:key=value,..."` strings (`"name:off"` removes it).
-fn apply_effects(set: &mut EffectSet, spec: &Bound<'_, PyAny>) -> PyResult<()> {
+pub(crate) fn apply_effects(set: &mut EffectSet, spec: &Bound<'_, PyAny>) -> PyResult<()> {
     if spec.is_none() {
         return Ok(());
     }
@@ -324,6 +324,21 @@ impl PyVirtualActuator {
         }
         out.set_item("command_valid", s.command_valid)?;
         Ok(out)
+    }
+
+    /// Start a new recording after the rig rested ``rest_s`` seconds at zero current (``float("inf")``: long enough
+    /// for the coils to cool and creep to settle; 0: back to back). The steel keeps its remanence; the leakage
+    /// integral restarts and the per-run calibration (``run_gain_offset``) is drawn anew.
+    #[pyo3(signature = (rest_s = 0.0))]
+    fn start_run(&self, rest_s: f64) -> PyResult<()> {
+        self.sim()?.start_run(rest_s).map_err(bmr_err)
+    }
+
+    /// This recording's sensor calibration ``(gain, offset_nmm)`` (``run_gain_offset``; ``(1, 0)`` when off): the
+    /// hidden truth a calibration study compares the diagnosis with.
+    #[getter]
+    fn run_calibration(&self) -> PyResult<(f64, f64)> {
+        Ok(self.sim()?.run_calibration())
     }
 
     /// Back to the state right after construction (demagnetised, cold, t = 0, same noise stream).

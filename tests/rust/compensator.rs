@@ -203,6 +203,9 @@ struct StageDraw {
     gain_per_a: f64,
     order: u32,
     amplitude: f64,
+    creep_fraction: f64,
+    rate_tau_s: f64,
+    kappa: f64,
 }
 
 fn stage_draw() -> impl Strategy<Value = StageDraw> {
@@ -210,12 +213,14 @@ fn stage_draw() -> impl Strategy<Value = StageDraw> {
         (0.0f64..0.1, 0usize..12, -0.5f64..0.9, 0.01f64..100.0),
         (0.0f64..0.9, -4.0f64..4.0, -0.45f64..5.0),
         (-0.5f64..5.0, 4u32..25, -50.0f64..50.0),
+        (0.0f64..0.2, 0.0f64..0.02, -0.3f64..0.3),
     )
         .prop_map(
             |(
                 (tau_s, delay_samples, gain_loss, heat_tau_s),
                 (eps, ripple_phase, curvature),
                 (gain_per_a, order, amplitude),
+                (creep_fraction, rate_tau_s, kappa),
             )| StageDraw {
                 tau_s,
                 delay_samples,
@@ -227,6 +232,9 @@ fn stage_draw() -> impl Strategy<Value = StageDraw> {
                 gain_per_a,
                 order,
                 amplitude,
+                creep_fraction,
+                rate_tau_s,
+                kappa,
             },
         )
 }
@@ -254,6 +262,19 @@ fn effects(d: &StageDraw) -> Vec<Params> {
         p(
             EffectKind::FrictionHarmonics,
             &[("order", d.order as f64), ("amplitude_nmm", d.amplitude)],
+        ),
+        p(
+            EffectKind::Creep,
+            &[
+                ("fraction", d.creep_fraction),
+                ("tau_min_s", 0.01),
+                ("tau_max_s", 10.0),
+            ],
+        ),
+        p(EffectKind::RateDependence, &[("tau_s", d.rate_tau_s)]),
+        p(
+            EffectKind::Accommodation,
+            &[("kappa", d.kappa), ("cycles", 2.0)],
         ),
     ]
 }
@@ -293,8 +314,11 @@ proptest! {
             if cmd.fault {
                 prop_assert!(cmd.current_a == 0.0 && !cmd.saturated);
             }
-            // The lag state is the field current the forward memory holds.
-            if let Some(l) = c.stages().coil_lag {
+            // The forward memory holds the core input the stages reached: the lag's field current, through the
+            // rate-dependence stage when there is one.
+            if let Some(r) = c.stages().rate {
+                prop_assert_eq!(c.forward().state().input(), r.core_input().clamp(-1.25, 1.25));
+            } else if let Some(l) = c.stages().coil_lag {
                 prop_assert_eq!(c.forward().state().input(), l.field_a().clamp(-1.25, 1.25));
             }
         }
@@ -362,6 +386,9 @@ fn extended_compensator_inverts_the_extended_simulation() {
         gain_per_a: 0.3,
         order: 6,
         amplitude: 4.0,
+        creep_fraction: 0.05,
+        rate_tau_s: 0.005,
+        kappa: 0.1,
     };
     // With every stage on the error is what the estimated current of the current-dependent friction leaves
     // (smoothed over 10 ms: 0.3/A × ~37 N·mm × its lag); the plant's noise floor is ~1.5 N·mm.
@@ -376,6 +403,9 @@ fn extended_compensator_inverts_the_extended_simulation() {
         curvature: 0.0,
         gain_per_a: 0.0,
         amplitude: 0.0,
+        creep_fraction: 0.0,
+        rate_tau_s: 0.0,
+        kappa: 0.0,
         ..d.clone()
     };
     let alone = [
@@ -399,20 +429,32 @@ fn extended_compensator_inverts_the_extended_simulation() {
             amplitude: 4.0,
             ..off.clone()
         },
+        StageDraw {
+            creep_fraction: 0.05,
+            ..off.clone()
+        },
+        StageDraw {
+            rate_tau_s: 0.005,
+            ..off.clone()
+        },
     ];
     for s in &alone {
         let e = inversion_error(s);
         assert!(e < 1e-9, "{s:?}: {e}");
     }
+    // Accommodation is undone with the shift of the state before the sample: it moves by a small share of a
+    // cycle per sample.
+    let acc = inversion_error(&StageDraw {
+        kappa: 0.1,
+        ..off.clone()
+    });
+    assert!(acc < 0.05, "accommodation alone: {acc} N·mm");
 }
 
 fn inversion_error(d: &StageDraw) -> f64 {
     let mut c = extended(false, 1.25, d);
     let f = Friction::from_amplitude_phase(12.0, &[25.0, 8.0, 4.0], &[0.3, 1.1, -0.7]).unwrap();
-    let scales = Scales {
-        full_current_a: 1.25,
-        full_torque_nmm: 300.0,
-    };
+    let scales = Scales::of_core(&forward(), 1.25, 300.0);
     let mut sim: Simulation<Vec<f64>, Vec<f64>, 16, 24> =
         Simulation::new(forward(), f, &effects(d), DT, scales, |n| vec![0.0; n]).unwrap();
     let n = 6000;
@@ -435,15 +477,19 @@ fn inversion_error(d: &StageDraw) -> f64 {
     let mut sat = 0;
     c.run_with(&refs, &thetas, |i, cmd, _| {
         currents[i] = cmd.current_a;
-        if i > 1000 && cmd.saturated {
+        // (The last samples see the reference held past its end: a kink the leads answer with a spike.)
+        if i > 1000 && i + 10 < n && cmd.saturated {
             sat += 1;
         }
     });
-    assert_eq!(sat, 0, "the reference is within reach after the opening");
+    assert_eq!(
+        sat, 0,
+        "the reference is within reach after the opening: {d:?}"
+    );
     let mut worst: f64 = 0.0;
     for i in 0..n {
         let s = sim.step(currents[i], thetas[i]);
-        if i > 1000 {
+        if i > 1000 && i + 10 < n {
             worst = worst.max((s.torque_nmm - refs[i]).abs());
         }
     }

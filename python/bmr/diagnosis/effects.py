@@ -10,6 +10,17 @@ Two families:
   (``thermal_drift``: thermal time constant, ``friction_harmonics``: harmonic order; ``friction_current``,
   ``torque_ripple``, ``sensor_drift`` have none).
 
+The actuator's effects (seal friction, rotor ripple) need an angle (``needs_angle``); the material and
+measurement effects any device can show — ``creep``, ``rate_dependence`` (a field effect: the core input lags
+with a time constant that follows the branch's slope), ``run_gain_offset``, ``leakage``, ``accommodation`` — need
+none. They read the evaluated spans run by run (``data.runs``: each run's full input, its first evaluated sample
+``start`` and sample period ``dt_s``) and the configuration's field output over the evaluated spans.
+
+States that carry over between runs get their initial value fitted with the effect: ``thermal_drift`` splits the
+heating state into each run's own heating from cold coils and the heat carried over from the runs before, with the
+carried share fitted (1 when the runs followed back to back, 0 when the rig rested long enough between them: the
+rig's history is estimated, not assumed), and removes the protocol runs' heating with that share.
+
 Every effect has a stable ``name`` and reports its parameters with units in their names; ``params`` follow the
 virtual actuator's parametrisation (``bmr.effect_parameters()``) so a simulated truth can be compared.
 
@@ -21,6 +32,7 @@ builders read the signals the diagnosis prepared once (``data.theta``, ``data.cu
 """
 from __future__ import annotations
 
+import copy
 import math
 from abc import ABC, abstractmethod
 from typing import Any
@@ -32,7 +44,7 @@ from bmr._core import BmrError
 from bmr.diagnosis.field import REIDENTIFY_INTERVALS, FieldPath
 from bmr.diagnosis.residuals import EvalData
 
-__all__ = ["Effect", "LIBRARY", "PHYSICAL", "thermal_state"]
+__all__ = ["Effect", "LIBRARY", "PHYSICAL", "ANGLE_EFFECTS", "thermal_state", "CREEP_TAUS_S"]
 
 
 class Effect(ABC):
@@ -43,6 +55,7 @@ class Effect(ABC):
     field = False
     doc = ""
     needs_reidentify = False  # the effect needs least-squares core tables (compare against those)
+    needs_angle = False  # the effect lives on the rotor angle (seal friction, ripple): actuators only
     # Order in which fitted effects are removed from the protocol runs before re-identification: additive terms
     # (rank 0) before multiplicative gains (rank 1).
     removal_rank = 0
@@ -62,6 +75,11 @@ class Effect(ABC):
     @abstractmethod
     def params(self, value: Any, beta: np.ndarray, path: FieldPath) -> dict[str, float]:
         """The effect's parameters (named with units) from its nonlinear value, fitted ``beta`` and path."""
+
+    def adjust_path(self, path: FieldPath, value: Any) -> FieldPath:
+        """A linear effect whose nonlinear value also changes the field path (e.g. the correction of the
+        protocol runs the tables come from) returns that path; the others leave it alone."""
+        return path
 
     def update_path(self, path: FieldPath, value: Any, own_beta: np.ndarray, data: EvalData
                     ) -> FieldPath | None:
@@ -185,6 +203,25 @@ def _angle_harmonic(data: EvalData, order: Any) -> tuple[np.ndarray, np.ndarray]
     return data.cache.get(("angle_harmonic", order), lambda: (np.sin(order * data.theta), np.cos(order * data.theta)))
 
 
+def _cold_and_carried(data: EvalData, tau_s: float) -> tuple[np.ndarray, np.ndarray]:
+    """Over the evaluated spans: the heating state of every run started with cold coils, and the decaying heat each
+    run carried over from the runs before it (``x = cold + rho·carried``, ``rho`` = 1 back to back, 0 after long
+    rests)."""
+
+    def make() -> tuple[np.ndarray, np.ndarray]:
+        states = bundle_thermal_state(data, tau_s)
+        cold, carried = [], []
+        for r in data.runs:
+            i = r.thermal_index
+            x0 = float(states[i - 1][-1]) if i > 0 and states[i - 1].size else 0.0
+            decay = x0 * np.exp(-np.arange(r.current_a.size) * r.dt_s / tau_s)
+            carried.append(decay[r.start:])
+            cold.append(states[i][r.start:] - decay[r.start:])
+        return data.concat(cold), data.concat(carried)
+
+    return data.cache.get(("thermal_cold_carried", tau_s), make)
+
+
 class ThermalDrift(Effect):
     name = "thermal_drift"
     doc = "coil heating lowers the torque gain: field × (1 − gain_loss·x), x the heating state of time constant tau_s"
@@ -196,18 +233,32 @@ class ThermalDrift(Effect):
     needs_reidentify = True
 
     def columns(self, data, value, y_field, model):
-        x = thermal_state(data, float(value))
-        return np.column_stack([-x * y_field, y_field])
+        # The heating of each run from cold coils, the heat carried over from the runs before (its share fitted:
+        # the rig may have rested between runs), and a gain.
+        cold, carried = _cold_and_carried(data, float(value))
+        return np.column_stack([-cold * y_field, y_field, -carried * y_field])
 
     def update_path(self, path, value, own_beta, data):
         # Heating also changed the gain along the protocol runs: identify the tables again without it.
         return path.with_correction(self, float(value), own_beta)
 
     @staticmethod
+    def carried_share(beta: np.ndarray) -> float:
+        """The share of the heat each run carried over from the runs before (1: back to back, 0: after rests
+        long enough for the coils to cool), in [0, 1]."""
+        return float(np.clip(beta[2] / beta[0], 0.0, 1.0)) if beta[0] != 0 else 1.0
+
+    @staticmethod
     def remove(y, value, beta, run):
         if run.context is None or run.bundle_index is None:
             raise BmrError(f"protocol run {run.name!r}: the heating state needs the bundle's evaluation data")
-        x = bundle_thermal_state(run.context, float(value))[run.bundle_index]
+        tau = float(value)
+        states = bundle_thermal_state(run.context, tau)
+        i = run.bundle_index
+        x0 = float(states[i - 1][-1]) if i > 0 and states[i - 1].size else 0.0
+        decay = x0 * np.exp(-np.arange(states[i].size) * run.dt / tau)
+        # The protocol run's start state as the evaluation runs show it (cold after rests).
+        x = states[i] - (1.0 - ThermalDrift.carried_share(np.asarray(beta))) * decay
         # Only the heating is undone, relative to cold coils: the fitted field gain ``1 + beta[1]`` is the
         # tables' own error (identified warm) and belongs in the re-identified tables, which are cold.
         return y / np.maximum(1.0 - ThermalDrift._gain_loss(beta) * x, 1e-3)
@@ -220,12 +271,16 @@ class ThermalDrift(Effect):
     def params(self, value, beta, path):
         return {"gain_loss": self._gain_loss(beta), "tau_s": float(value)}
 
+    def detail(self, value, beta) -> dict[str, float]:
+        return {"carried_share": self.carried_share(np.asarray(beta))}
+
     def refine(self) -> bool:
         return True
 
 
 class FrictionCurrent(Effect):
     name = "friction_current"
+    needs_angle = True
     doc = "seal friction grows with current: angle-dependent friction × (1 + gain_per_a·|I|)"
 
     def columns(self, data, value, y_field, model):
@@ -251,6 +306,7 @@ class FrictionCurrent(Effect):
 
 class FrictionHarmonics(Effect):
     name = "friction_harmonics"
+    needs_angle = True
     doc = "a friction harmonic above the 3rd: amplitude_nmm·sin(order·θ + phase_rad)"
 
     def grid(self, data: EvalData) -> list[Any]:
@@ -276,6 +332,7 @@ class FrictionHarmonics(Effect):
 
 class TorqueRipple(Effect):
     name = "torque_ripple"
+    needs_angle = True
     doc = "eccentric gap: field × (1 + eps·cos(θ + phase_rad))"
     removal_rank = 1
 
@@ -318,6 +375,225 @@ class SensorDrift(Effect):
         return {"rate_nmm_per_s": float(beta[0])}
 
 
+# ------------------------------------------------------------------------------ material and measurement effects
+# Relaxation times the creep spectrum is built from (three per decade), limited per bundle by its sample period and
+# the length of its runs.
+CREEP_TAUS_S = tuple(float(v) for v in np.geomspace(0.01, 1000.0, 16))
+
+
+def _split(data: Any, y: np.ndarray) -> list[np.ndarray]:
+    """``y`` over the evaluated spans, cut run by run."""
+    bounds = np.cumsum([r.n_eval for r in data.runs])[:-1]
+    return np.split(np.asarray(y, dtype=float), bounds)
+
+
+def _fingerprint(y: np.ndarray) -> tuple:
+    """A cheap identity of a field-output array (the caches' key: paths are re-simulated, arrays change)."""
+    return (y.size, float(y[0]) if y.size else 0.0, float(np.sum(y)), float(np.sum(y[::97] ** 2)))
+
+
+def _run_input(r: Any) -> np.ndarray:
+    return r.current_a
+
+
+class Creep(Effect):
+    """After each change of the core output, a share ``fraction`` keeps arriving through relaxations with time
+    constants spread evenly in ``log τ`` from ``tau_min_s`` to ``tau_max_s`` (creep logarithmic in time between
+    them; one exponential when they coincide). The column is the mean of ``lag(v, τ) − v`` over the spectrum's
+    time constants (``v`` the field output; the relaxations run through the whole run, the nominal core standing
+    in before the evaluated span), linear in ``fraction``.
+
+    Creep also bent the protocol runs the tables come from, and tables identified from creeping runs absorb part of
+    it (with the opposite sign on faster or slower runs): so the grid value is ``(tau_min_s, tau_max_s,
+    fraction removed from the protocol runs)`` — each candidate's tables are identified again from the protocol
+    runs with that creep removed (an output-side change: one right-hand side), and the evaluation runs fit the
+    fraction linearly on those tables."""
+
+    name = "creep"
+    doc = "output relaxes after every change: y = v + fraction·mean_τ(lag(v, τ) − v), τ log-uniform in a range"
+    needs_reidentify = True
+    FRACTIONS = (0.0025, 0.005, 0.01, 0.02, 0.04, 0.08)
+
+    def _taus(self, data: Any) -> list[float]:
+        dt = min(r.dt_s for r in data.runs)
+        longest = max(r.current_a.size * r.dt_s for r in data.runs)
+        return [t for t in CREEP_TAUS_S if 3.0 * dt <= t <= 3.0 * longest]
+
+    def grid(self, data: Any) -> list[Any]:
+        taus = self._taus(data)
+        decades = taus[::3] if len(taus) > 3 else taus
+        # Creep starts fast: the spectrum's shortest time constant is at most a second (or the shortest the
+        # sample period allows).
+        first = max(1.0, decades[0]) if decades else 1.0
+        spectra = [(a, b) for i, a in enumerate(decades) for b in decades[i:] if a <= first * (1 + 1e-9)]
+        return [(a, b, f) for a, b in spectra for f in self.FRACTIONS]
+
+    def adjust_path(self, path, value):
+        return path.with_correction(self, value, (value[2],))
+
+    def _bank(self, data: Any, y_field: np.ndarray, model: Any) -> tuple[list[float], np.ndarray]:
+        taus = self._taus(data)
+
+        def make() -> np.ndarray:
+            # Relaxations carry the run's whole history: before the evaluated span (the opening excursion) the
+            # nominal core's output stands in for the path's, from rest at the run's first sample.
+            before = data.cache.get("nominal_field_full",
+                                    lambda: FieldPath.nominal(model).simulate(data.runs, copy.copy(model.hysteresis)))
+            cols = []
+            for y, v0, r in zip(_split(data, y_field), before, data.runs):
+                v = np.concatenate([v0[:r.start], y])
+                cols.append(_core.creep_columns(np.ascontiguousarray(v), taus, r.dt_s)[r.start:])
+            return np.vstack(cols)
+
+        return taus, data.cache.get(("creep_bank", _fingerprint(y_field)), make)
+
+    def columns(self, data, value, y_field, model):
+        taus, bank = self._bank(data, y_field, model)
+        lo, hi = value[0], value[1]
+        sel = [j for j, t in enumerate(taus) if lo * (1 - 1e-9) <= t <= hi * (1 + 1e-9)]
+        return bank[:, sel].mean(axis=1)[:, None]
+
+    @staticmethod
+    def remove(y, value, beta, run):
+        lo, hi = value[0], value[1]
+        taus = [t for t in CREEP_TAUS_S if lo * (1 - 1e-9) <= t <= hi * (1 + 1e-9)]
+        # The relaxation of the measured output approximates that of the core output (second order in fraction).
+        cols = _core.creep_columns(np.ascontiguousarray(y), taus, run.dt)
+        return y - beta[0] * cols.mean(axis=1)
+
+    def params(self, value, beta, path):
+        return {"fraction": float(beta[0]), "tau_min_s": float(value[0]), "tau_max_s": float(value[1])}
+
+
+class RateDependence(Effect):
+    """The core's input lags the applied input with a time constant ``tau_s · ŝ`` that follows the branch's
+    relative slope ``ŝ`` (a dynamic field opposing the change of the material's state: eddy currents, domain-wall
+    damping). A field effect: the path runs the core through the rate-dependence stage."""
+
+    name = "rate_dependence"
+    field = True
+    doc = "core input lags with a time constant proportional to the branch's differential slope (dynamic field)"
+    needs_reidentify = True
+
+    def grid(self, data: Any) -> list[Any]:
+        return [float(v) for v in np.geomspace(2e-4, 0.5, 18)]
+
+    def apply(self, path, value, data, train):
+        return path.with_(rate_tau_s=float(value), reidentify=True)
+
+    def params(self, value, beta, path):
+        return {"tau_s": float(path.rate_tau_s)}
+
+    def refine(self) -> bool:
+        return True
+
+
+class RunGainOffset(Effect):
+    """Each evaluation run has its own output offset and, when the data support it, its own gain (calibration
+    that changed between recordings, a remanence or zero that differs per run): the columns are a constant and
+    (grid value ``"gain_offset"``) the field output, each restricted to one run. The reported spreads are those of
+    the per-run estimates."""
+
+    name = "run_gain_offset"
+    doc = "per-run gain and offset of the measured output (calibration between recordings)"
+
+    def grid(self, data: Any) -> list[Any]:
+        return ["offset", "gain_offset"]
+
+    def columns(self, data, value, y_field, model):
+        def make() -> np.ndarray:
+            ind = np.zeros((y_field.size, len(data.runs)))
+            start = 0
+            for j, r in enumerate(data.runs):
+                ind[start:start + r.n_eval, j] = 1.0
+                start += r.n_eval
+            return ind
+
+        ind = data.cache.get(("run_indicator", y_field.size), make)
+        if value == "offset":
+            return ind
+        # The calibration scales what the sensor reads: the field output and the friction alike.
+        return np.column_stack([ind * (y_field + data.friction_nmm)[:, None], ind])
+
+    def params(self, value, beta, path):
+        beta = np.asarray(beta, dtype=float)
+        k = beta.size if value == "offset" else beta.size // 2
+        offsets = beta if value == "offset" else beta[k:]
+        gains = np.zeros(k) if value == "offset" else beta[:k]
+        return {"gain_sd": float(np.std(gains, ddof=1)) if k > 1 else 0.0,
+                "offset_sd": float(np.std(offsets - np.mean(offsets), ddof=1)) if k > 1 else 0.0}
+
+
+class Leakage(Effect):
+    """The measured output integrates the input: ``rate_per_s · ∫u dt`` from the start of each run (trapezoids of
+    the input, as a charge amplifier integrates a leakage current)."""
+
+    name = "leakage"
+    doc = "the measured output integrates the input: rate_per_s · ∫u dt from each run's start"
+    needs_reidentify = True
+
+    def columns(self, data, value, y_field, model):
+        def make() -> np.ndarray:
+            out = []
+            for r in data.runs:
+                u = _run_input(r)
+                integral = np.concatenate([[0.0], np.cumsum(0.5 * r.dt_s * (u[1:] + u[:-1]))])
+                out.append(integral[r.start:])
+            return np.concatenate(out)[:, None]
+
+        return data.cache.get("leakage_integral", make)
+
+    def update_path(self, path, value, own_beta, data):
+        return path.with_correction(self, value, own_beta)
+
+    @staticmethod
+    def remove(y, value, beta, run):
+        u = run.current
+        integral = np.concatenate([[0.0], np.cumsum(0.5 * run.dt * (u[1:] + u[:-1]))])
+        return y - beta[0] * integral
+
+    def params(self, value, beta, path):
+        return {"rate_per_s": float(beta[0])}
+
+
+class Accommodation(Effect):
+    """Repeated minor loops drift towards the middle of the output range: the unit-``kappa`` shift of
+    :func:`bmr._core.accommodation_shift` along the run (reversals and saturation by the core's shares of the
+    input span), linear in ``kappa`` for each ``cycles`` of the grid."""
+
+    name = "accommodation"
+    doc = "minor loops drift over repeated cycling: shift → −kappa·(loop centre − middle), settling in `cycles`"
+
+    def grid(self, data: Any) -> list[Any]:
+        return [0.5, 1.0, 2.0, 4.0, 8.0, 16.0, 32.0]
+
+    def columns(self, data, value, y_field, model):
+        lo, hi = model.hysteresis.input_range
+        ylo, yhi = model.hysteresis.output_range
+        span = hi - lo
+
+        def make() -> np.ndarray:
+            out = []
+            for y, r in zip(_split(data, y_field), data.runs):
+                u = np.ascontiguousarray(_run_input(r)[r.start:])
+                out.append(_core.accommodation_shift(u, np.ascontiguousarray(y), kappa=1.0, cycles=float(value),
+                                                     lo=lo, hi=hi, deadband=_core.ACCOMMODATION_DEADBAND_SHARE * span,
+                                                     saturation_tol=_core.ACCOMMODATION_SATURATION_SHARE * span,
+                                                     y_mid=0.5 * (ylo + yhi)))
+            return np.concatenate(out)[:, None]
+
+        return data.cache.get(("accommodation", float(value), _fingerprint(y_field)), make)
+
+    def params(self, value, beta, path):
+        return {"kappa": float(beta[0]), "cycles": float(value)}
+
+    def refine(self) -> bool:
+        return True
+
+
+
 LIBRARY: tuple[Effect, ...] = (CoilLag(), ThermalDrift(), FrictionCurrent(), FrictionHarmonics(), TorqueRipple(),
-                               SensorDrift(), TimeDelay(), NonCongruent(), TableResolution())
+                               SensorDrift(), TimeDelay(), NonCongruent(), Creep(), RateDependence(),
+                               RunGainOffset(), Leakage(), Accommodation(), TableResolution())
 PHYSICAL = tuple(e.name for e in LIBRARY if e.name != "table_resolution")
+ANGLE_EFFECTS = tuple(e.name for e in LIBRARY if e.needs_angle)

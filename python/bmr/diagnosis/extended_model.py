@@ -20,7 +20,7 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from bmr._core import BmrError, ExtendedSimulation, check_extensions
+from bmr._core import BmrError, ExtendedSimulation, check_extensions, effect_parameters
 
 __all__ = ["ExtendedModel", "extensions_from_selection", "with_extensions"]
 
@@ -28,8 +28,18 @@ __all__ = ["ExtendedModel", "extensions_from_selection", "with_extensions"]
 def extensions_from_selection(config: Any, accepted: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
     """``model.extensions`` entries of a selected configuration (refined tables stored with their effect)."""
     out = []
+    specs = effect_parameters(model_entries=True)
     for row in accepted:
-        out.append({"name": row["name"], "params": {k: float(v) for k, v in row["params"].items()}})
+        params = {k: float(v) for k, v in row["params"].items()}
+        entry: dict[str, Any] = {"name": row["name"], "params": params}
+        # A fit outside the vocabulary's physical range (a negative creep fraction, say) is kept as fitted and
+        # stored clipped, so the model file stays valid.
+        spec = specs.get(row["name"], {}).get("params", {})
+        clipped = {k: min(max(v, spec[k]["min"]), spec[k]["max"]) for k, v in params.items() if k in spec}
+        if any(clipped[k] != params[k] for k in clipped):
+            entry["params"] = {**params, **clipped}
+            entry["params_fitted"] = params
+        out.append(entry)
     path = config.path
     if path.tables is not None or path.reidentify or path.lag_tau_s > 0 or path.delay_s > 0 or path.curvature != 0:
         # The Preisach core's own tables (refined, or re-identified under the field effects).
@@ -73,12 +83,37 @@ class ExtendedModel:
         if u.ndim != 1 or th.shape != u.shape:
             raise BmrError(f"current and theta must be 1-D of one length (got {u.shape} and {th.shape})")
         out = self.simulation(dt_s).run(u, th, heating=thermal_x0, t0_s=t0_s)
-        return out["measured_nmm" if measured else "torque_nmm"]
+        y = out["measured_nmm" if measured else "torque_nmm"]
+        learned = self.model.extension("learned_discrepancy")
+        if learned is not None and measured:
+            y = y + learned_term(learned, u, y, th, dt_s)
+        return y
 
     def compensator(self, *, dt_s: float, **kwargs: Any) -> Any:
         """The extended ``bmr.Compensator`` (``Model.compensator``; by default every stage: ``stages="all"``)."""
         kwargs.setdefault("stages", "all")
         return self.model.compensator(dt_s, **kwargs)
+
+
+def learned_term(entry: dict[str, Any], u: np.ndarray, y: np.ndarray, theta: np.ndarray | None, dt_s: float
+                 ) -> np.ndarray:
+    """The ``learned_discrepancy`` entry's term along a run (input ``u``, model output ``y``, angle, sample period):
+    its intercept plus each signal of ``bmr._core.candidate_signals`` times its coefficient."""
+    from bmr._core import CANDIDATES, candidate_signals
+
+    names = [c[0] for c in CANDIDATES]
+    harmonics = max((int(t["name"][4:].split("θ")[0]) for t in entry.get("terms", [])
+                     if t["name"].startswith(("sin(", "cos("))), default=0)
+    lib = candidate_signals(np.arange(u.size) * dt_s, u, y, deadband=float(entry["deadband"]),
+                            theta_rad=theta if harmonics else None, harmonics=harmonics)
+    for k in range(1, harmonics + 1):
+        names += [f"sin({k}θ)", f"cos({k}θ)"]
+    out = np.full(u.size, float(entry.get("intercept", 0.0)))
+    for t in entry.get("terms", []):
+        if t["name"] not in names:
+            raise BmrError(f"learned_discrepancy: unknown signal {t['name']!r}")
+        out += float(t["coefficient"]) * lib[:, names.index(t["name"])]
+    return out
 
 
 def with_extensions(model: Any, extensions: Sequence[dict[str, Any]]) -> Any:

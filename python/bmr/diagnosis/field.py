@@ -16,6 +16,8 @@ history. Its caches are bounded; nothing is kept between diagnoses.
 """
 from __future__ import annotations
 
+import copy
+import math
 from collections import OrderedDict
 from dataclasses import dataclass, field, replace
 from typing import Any, Sequence
@@ -92,20 +94,22 @@ class ProtocolRun:
         self.name = run.name
         self.t0_s = float(t0_s)
         self.t = run.t
-        self.current = run.current
-        self.theta = run.theta
+        self.current = run.input
+        self.theta = run.angle if run.angle is not None else np.zeros(self.current.size)
+        self.has_angle = run.angle is not None
         self.dt = float(np.median(np.diff(self.t))) if self.current.size > 1 else 1.0
         self.model = model
         self.context = context
         names = list(getattr(context, "run_start_s", {}) or {})
         self.bundle_index = names.index(run.name) if run.name in names else None
         self._friction: np.ndarray | None = None
-        self.torque = run.torque - self.friction()
+        self.torque = run.output - self.friction()
 
     def friction(self) -> np.ndarray:
-        """The nominal model's friction (N·mm) along the run (computed once)."""
+        """The nominal model's friction (output units) along the run (computed once; zero without an angle)."""
         if self._friction is None:
-            self._friction = self.model.friction_torque(self.theta)
+            self._friction = (self.model.friction_torque(self.theta) if self.has_angle
+                              else np.zeros(self.current.size))
         return self._friction
 
 
@@ -134,7 +138,7 @@ class Reidentifier:
         self.runs = [ProtocolRun(r, t0_s, model, context) for r, t0_s in self.protocol]
 
     def curves(self, path: "FieldPath") -> Curves:
-        key = (path.lag_tau_s, path.delay_s, path.curvature, path.corrections)
+        key = (path.lag_tau_s, path.delay_s, path.rate_tau_s, path.curvature, path.corrections)
         if key in self._tables:
             self._tables.move_to_end(key)
             return self._tables[key]
@@ -146,7 +150,7 @@ class Reidentifier:
 
     def _regression(self, path: "FieldPath") -> Any:
         """The prepared least squares of the protocol runs under ``path``'s input stages."""
-        key = (path.lag_tau_s, path.delay_s)
+        key = (path.lag_tau_s, path.delay_s, path.rate_tau_s)
         if key in self._regressions:
             self._regressions.move_to_end(key)
             return self._regressions[key]
@@ -159,7 +163,7 @@ class Reidentifier:
             s = evaluation_start(u, lo, hi, SATURATION_TOL * (hi - lo)) + int(np.ceil(5 * path.lag_tau_s / pr.dt))
             w = np.zeros(u.size)
             w[s:] = 1.0
-            inputs.append(np.ascontiguousarray(path.core_input(u, pr.dt)))
+            inputs.append(np.ascontiguousarray(path.core_input(u, pr.dt, rate_core=self.model.hysteresis)))
             weights.append(w)
         total = sum(int(np.count_nonzero(w)) for w in weights)
         stride = max(1, int(np.ceil(total / REIDENTIFY_ROWS)))
@@ -167,8 +171,10 @@ class Reidentifier:
             keep = np.zeros(w.size, dtype=bool)
             keep[np.flatnonzero(w)[::stride]] = True
             w[~keep] = 0.0
+        # One output offset per protocol run: each is its own recording (a zero or a remanence of its own).
         reg = _core.EverettRegression(np.linspace(lo, hi, REIDENTIFY_INTERVALS + 1),
-                                      [(u, w, 0) for u, w in zip(inputs, weights)], 1, smoothing=1e-4, ridge=1e-9)
+                                      [(u, w, k) for k, (u, w) in enumerate(zip(inputs, weights))], len(inputs),
+                                      smoothing=1e-4, ridge=1e-9)
         self.regressions += 1
         self._regressions[key] = reg
         while len(self._regressions) > self.max_inputs:
@@ -203,6 +209,8 @@ class FieldPath:
     model: Any
     lag_tau_s: float = 0.0
     delay_s: float = 0.0
+    # rate_dependence: time constant of the core-input lag at the loop's mean slope (s).
+    rate_tau_s: float = 0.0
     curvature: float = 0.0
     tables: Any = None
     scale_nmm: float = 600.0
@@ -222,7 +230,7 @@ class FieldPath:
         return replace(self, **kwargs)
 
     def key(self) -> tuple:
-        return (self.lag_tau_s, self.delay_s, self.curvature, id(self.tables), self.reidentify,
+        return (self.lag_tau_s, self.delay_s, self.rate_tau_s, self.curvature, id(self.tables), self.reidentify,
                 self.corrections)
 
     def core_curves(self) -> Curves:
@@ -255,22 +263,38 @@ class FieldPath:
         except BmrError as exc:
             raise BmrError(f"field path with curvature {self.curvature:g}: tables rejected: {exc}") from None
 
-    def core_input(self, current_a: np.ndarray, dt_s: float) -> np.ndarray:
-        """The current the core sees: delayed, then each coil's current lagged on its own (coil 1 carries the
-        negative part of the nominal current, coil 2 the positive part), recombined as a nominal current."""
+    def drive_input(self, current_a: np.ndarray, dt_s: float) -> np.ndarray:
+        """The input after the delay and the lag (each coil's current lagged on its own: coil 1 carries the
+        negative part of the nominal current, coil 2 the positive part, recombined as a nominal current)."""
         u = delay(current_a, self.delay_s, dt_s)
         if self.lag_tau_s <= 0.0:
             return u
         return lag(np.maximum(u, 0.0), self.lag_tau_s, dt_s) - lag(np.maximum(-u, 0.0), self.lag_tau_s, dt_s)
 
+    def core_input(self, current_a: np.ndarray, dt_s: float, rate_core: Any = None) -> np.ndarray:
+        """The input the core sees: :meth:`drive_input`, then (``rate_dependence``) the slope-following lag,
+        whose slopes come from ``rate_core`` (a ``bmr.Hysteresis``; default this path's own core) run from
+        negative saturation."""
+        u = self.drive_input(current_a, dt_s)
+        if self.rate_tau_s <= 0.0:
+            return u
+        h = copy.copy(rate_core) if rate_core is not None else self.hysteresis()
+        h.reset(initial="negative")
+        _, core = h.run_rate_dependent(np.ascontiguousarray(u), tau_s=self.rate_tau_s, dt_s=dt_s)
+        return np.asarray(core, dtype=float)
+
     def simulate(self, runs: Sequence[Any], hysteresis: Any = None) -> list[np.ndarray]:
-        """Field torque (N·mm) of every run (full length), each from negative saturation."""
+        """Field output of every run (full length), each from negative saturation."""
         h = hysteresis if hysteresis is not None else self.hysteresis()
         out = []
         for r in runs:
             h.reset(initial="negative")
-            core = np.asarray(h.run(np.ascontiguousarray(self.core_input(r.current_a, r.dt_s))), dtype=float)
-            out.append(output_map(core, self.curvature, self.scale_nmm))
+            u = np.ascontiguousarray(self.drive_input(r.current_a, r.dt_s))
+            if self.rate_tau_s > 0.0:
+                core, _ = h.run_rate_dependent(u, tau_s=self.rate_tau_s, dt_s=r.dt_s)
+            else:
+                core = h.run(u)
+            out.append(output_map(np.asarray(core, dtype=float), self.curvature, self.scale_nmm))
         return out
 
     def with_correction(self, effect: Any, value: Any, beta: Sequence[float]) -> "FieldPath":
@@ -281,5 +305,5 @@ class FieldPath:
         return self.with_(corrections=kept + ((effect, value, tuple(float(b) for b in beta)),), reidentify=True)
 
     def params(self) -> dict[str, float]:
-        return {"lag_tau_s": self.lag_tau_s, "delay_s": self.delay_s, "curvature": self.curvature,
-                "scale_nmm": self.scale_nmm}
+        return {"lag_tau_s": self.lag_tau_s, "delay_s": self.delay_s, "rate_tau_s": self.rate_tau_s,
+                "curvature": self.curvature, "scale_nmm": self.scale_nmm}

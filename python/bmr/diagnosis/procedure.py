@@ -34,11 +34,13 @@ import numpy as np
 from bmr._core import BmrError, ModelFileError, VirtualActuator
 from bmr.data.files import check_output_file, write_text
 from bmr.data.bundle import Bundle, read_bundle
-from bmr.diagnosis.effects import PHYSICAL
+from bmr.diagnosis.discrepancy import candidate_library, learn
+from bmr.diagnosis.effects import ANGLE_EFFECTS, LIBRARY, PHYSICAL
 from bmr.diagnosis.field import FieldPath
+from bmr.diagnosis.noise import from_residual
 from bmr.diagnosis.extended_model import ExtendedModel, extensions_from_selection, with_extensions
-from bmr.diagnosis.residuals import prepare, structure
-from bmr.diagnosis.selection import Fitter, forward_selection
+from bmr.diagnosis.residuals import prepare, signal_label, structure
+from bmr.diagnosis.selection import MIN_EXCESS, NOISE_MARGIN, Fitter, forward_selection, t975
 from bmr.identification.procedure import identify
 from bmr.identification.model import LOOP_STAGES, Model
 from bmr.report.diagnosis import figures, html_page, html_section
@@ -47,6 +49,8 @@ from bmr.simulation.experiments import MULTIPEAK_SEED, reference_multipeak, trac
 __all__ = ["FORMAT", "Diagnosis", "diagnose", "closed_loop_gain", "check_duration_s", "run_cli", "PHYSICAL"]
 
 FORMAT = "bmr-diagnosis/1"
+# A learned equation (no mechanism behind it) must earn more held-out gain than a named effect.
+LEARNED_MIN_GAIN = 0.05
 # Nominal friction: the paper's 3 harmonics (eq 21-22); higher ones are the friction_harmonics effect.
 NOMINAL_FRICTION_ORDER = 3
 
@@ -74,6 +78,9 @@ class Diagnosis:
         self.model = kw["model"]
         self.extended_model = kw["extended_model"]
         self.closed_loop: dict[str, Any] | None = kw.get("closed_loop")
+        self.quantities = kw["quantities"]
+        self.noise: dict[str, Any] = kw["noise"]
+        self.learned: dict[str, Any] | None = kw.get("learned")
         self._signals = kw["signals"]
         self._figures: dict[str, str] | None = None
 
@@ -99,10 +106,14 @@ class Diagnosis:
         return clean({
             "format": FORMAT,
             "actuator": self.actuator,
+            "quantities": self.quantities.to_dict(),
+            "units": {"input": self.quantities.input.unit, "output": self.quantities.output.unit},
             "cause": self.cause,
             "effects": [{k: e[k] for k in keys if k in e} for e in self.effects],
             "rejected": [{k: r[k] for k in keys if k in r} for r in self.rejected],
             "noise_floor_nmm": self.noise_floor_nmm,
+            "noise_floor": self.noise,
+            "learned": self.learned,
             "residual_rms_nmm": self.residual_rms_nmm,
             "nominal_heldout_rms_nmm": self.nominal_heldout_rms_nmm,
             "unexplained": self.unexplained,
@@ -132,9 +143,11 @@ class Diagnosis:
         return write_text(path, json.dumps(self.to_dict(), indent=1, allow_nan=False) + "\n", what="diagnosis")
 
     def __repr__(self) -> str:
-        return (f"Diagnosis(cause={self.cause!r}, effects={[e['name'] for e in self.effects]}, "
-                f"held-out RMS {self.nominal_heldout_rms_nmm:.3g} -> {self.residual_rms_nmm:.3g} N·mm, "
-                f"noise {self.noise_floor_nmm:.3g} N·mm)")
+        unit = self.quantities.output.unit
+        learned = f", learned {self.learned['equation']!r}" if self.learned else ""
+        return (f"Diagnosis(cause={self.cause!r}, effects={[e['name'] for e in self.effects]}{learned}, "
+                f"held-out RMS {self.nominal_heldout_rms_nmm:.3g} -> {self.residual_rms_nmm:.3g} {unit}, "
+                f"noise {self.noise_floor_nmm:.3g} {unit} ({self.noise['method']}))")
 
 
 def _rms(x: np.ndarray) -> float:
@@ -172,10 +185,17 @@ def diagnose(bundle: Bundle | str | Path, model: Any = None, *, folds: int = 5, 
     protocol = [(r, data.run_start_s[r.name]) for r in
                 bundle.by_kind("first_order_ascending", "first_order_descending")]
     fitter = Fitter(data, model, protocol)
+    if data.noise is None:
+        # No off-state run, dwell, repeated run or declared uncertainty: the high-frequency part of the nominal
+        # residual is the noise.
+        r0, _ = fitter.fit(FieldPath.nominal(model), [])
+        data.noise = from_residual(np.split(r0, np.cumsum([r.n_eval for r in data.runs])[:-1]))
+        data.noise_floor_nmm = data.noise.sigma
+    library = [e for e in LIBRARY if data.has_angle or e.name not in ANGLE_EFFECTS]
     bar = tqdm(total=0, file=sys.stderr, desc="bmr diagnose", unit="test", disable=not progress,
                leave=False)
     try:
-        sel = forward_selection(fitter, progress=bar)
+        sel = forward_selection(fitter, library=library, progress=bar)
     finally:
         bar.close()
     config = sel["config"]
@@ -204,6 +224,18 @@ def diagnose(bundle: Bundle | str | Path, model: Any = None, *, folds: int = 5, 
     threshold = max(0.25 * data.noise_floor_nmm, 0.1 * resid_rms, 1e-9)
     unexplained = sorted(({"signal": k, "strength": float(v)} for k, v in struct_ext.items() if v > threshold),
                          key=lambda u: -u["strength"])
+    learned = None
+    if resid_rms > NOISE_MARGIN * data.noise_floor_nmm:
+        learned = _learn_discrepancy(data, r_ext, lo, hi, bundle.quantities)
+        if learned is not None and learned["accepted"]:
+            r_ext = r_ext - learned["prediction"]
+            resid_rms = learned["heldout_rms_after"]
+            ext_runs = np.split(r_ext, split)
+            struct_ext = structure(data, ext_runs, lo, hi)
+            unexplained = sorted(({"signal": k, "strength": float(v)} for k, v in struct_ext.items()
+                                  if v > threshold), key=lambda u: -u["strength"])
+        if learned is not None:
+            learned.pop("prediction")
     per_run = {r.name: (_rms(a), _rms(b)) for r, a, b in zip(data.runs, nom_runs, ext_runs)}
     signals = {
         "runs": [(r.name, r.t_abs_s[r.start:], a, b) for r, a, b in zip(data.runs, nom_runs, ext_runs)],
@@ -212,13 +244,21 @@ def diagnose(bundle: Bundle | str | Path, model: Any = None, *, folds: int = 5, 
         "rate": data.concat([np.gradient(r.current_a, r.dt_s)[r.start:] for r in data.runs]),
         "nominal": r_nom, "extended": r_ext,
     }
-    ext_model = with_extensions(model, extensions_from_selection(config, accepted))
+    extensions = extensions_from_selection(config, accepted)
+    if learned is not None and learned["accepted"]:
+        extensions.append({"name": "learned_discrepancy", "params": {},
+                           "terms": [{k: t[k] for k in ("name", "coefficient", "unit", "coefficient_unit")}
+                                     for t in learned["terms"]],
+                           "intercept": learned["intercept"], "deadband": learned["deadband"],
+                           "equation": learned["equation"]})
+    ext_model = with_extensions(model, extensions)
     ext_model.meta["diagnosis"] = {"cause": cause, "effects": [e["name"] for e in accepted]}
     d = Diagnosis(actuator=bundle.actuator, cause=cause, effects=accepted, rejected=sel["rejected"],
                   noise_floor_nmm=data.noise_floor_nmm, residual_rms_nmm=resid_rms,
                   nominal_heldout_rms_nmm=sel["nominal_heldout_rms_nmm"], unexplained=unexplained,
                   structure_nominal=struct_nom, structure_extended=struct_ext, per_run_rms=per_run, folds=folds,
-                  seed=seed, wall_time_s=0.0, model=model, extended_model=ext_model, signals=signals)
+                  seed=seed, wall_time_s=0.0, model=model, extended_model=ext_model, signals=signals,
+                  quantities=bundle.quantities, noise=data.noise.to_dict(), learned=learned)
     # What each extension does: held-out prediction for all, closed-loop tracking for those the compensator undoes.
     rows = {e["name"]: e for e in accepted}
     for entry in ext_model.extensions:
@@ -226,7 +266,7 @@ def diagnose(bundle: Bundle | str | Path, model: Any = None, *, folds: int = 5, 
         if row is not None:
             entry["heldout"] = {"gain": float(row["gain"]), "rms_before_nmm": float(row["heldout_rms_before_nmm"]),
                                 "rms_after_nmm": float(row["heldout_rms_after_nmm"])}
-    if closed_loop and any(e["name"] in LOOP_STAGES for e in ext_model.extensions):
+    if closed_loop and bundle.quantities.is_actuator and any(e["name"] in LOOP_STAGES for e in ext_model.extensions):
         sim = bundle.meta.get("simulator") if isinstance(bundle.meta, dict) else None
         plant = _simulator_plant(sim, bundle.sample_rate_hz) if isinstance(sim, dict) and "preset" in sim else None
         try:
@@ -236,6 +276,42 @@ def diagnose(bundle: Bundle | str | Path, model: Any = None, *, folds: int = 5, 
             d.closed_loop = {"error": str(exc)}
     d.wall_time_s = time.perf_counter() - t0
     return d
+
+
+def _learn_discrepancy(data: Any, residual: np.ndarray, lo: float, hi: float, quantities: Any
+                       ) -> dict[str, Any] | None:
+    """The sparse regression of what the accepted effects leave (:mod:`bmr.diagnosis.discrepancy`), judged like
+    an effect on the blocked folds; None when the runs give no library."""
+    from types import SimpleNamespace
+
+    predicted = data.torque - residual
+    runs = []
+    pos = 0
+    for r in data.runs:
+        y = np.empty(r.current_a.size)
+        y[r.start:] = predicted[pos:pos + r.n_eval]
+        y[:r.start] = y[r.start]
+        pos += r.n_eval
+        runs.append(SimpleNamespace(t_s=np.arange(r.current_a.size) * r.dt_s, u=r.current_a, y=y,
+                                    theta=r.theta_rad if data.has_angle else None, start=r.start))
+    deadband = 0.01 * (hi - lo)
+    lib = candidate_library(runs, deadband)
+    if lib.matrix.shape[0] < 4 * data.folds:
+        return None
+    res = learn(lib, residual, data.block, data.folds, data.noise_floor_nmm, input_unit=quantities.input.unit,
+                output_unit=quantities.output.unit)
+    g = res.fold_gains
+    k = g.size
+    half = t975(k - 1) * float(np.std(g, ddof=1)) / math.sqrt(k) if k > 1 else float("inf")
+    excess = res.rms_before ** 2 - data.noise_floor_nmm ** 2
+    explained = (res.rms_before ** 2 - res.rms_after ** 2) / excess if excess > 0 else 0.0
+    accepted = bool(res.terms) and res.folds_positive * 2 > k and res.mean_gain - half > 0 and \
+        res.mean_gain >= LEARNED_MIN_GAIN and explained >= MIN_EXCESS
+    out = res.to_dict()
+    out.update({"accepted": accepted, "gain_interval": [res.mean_gain - half, res.mean_gain + half],
+                "excess_explained": float(explained), "deadband": deadband,
+                "prediction": res.predict(lib.matrix, lib.names) if accepted else np.zeros(residual.size)})
+    return out
 
 
 class _ModelPlant:
@@ -375,22 +451,31 @@ def run_cli(args: Any) -> int:
     if args.model_out:
         check_output_file(args.model_out, "model file", error=ModelFileError)
     d = diagnose(args.bundle, args.model, folds=args.folds, seed=args.seed)
-    print(f"bmr diagnose: {d.actuator}: cause {d.cause}; held-out RMS {d.nominal_heldout_rms_nmm:.3f} -> "
-          f"{d.residual_rms_nmm:.3f} N·mm (noise floor {d.noise_floor_nmm:.3f}), {d.wall_time_s:.1f} s")
+    q = d.quantities
+    u = q.output.unit
+    print(f"bmr diagnose: {d.actuator} ({q.describe()}): cause {d.cause}; held-out RMS "
+          f"{q.output.format(d.nominal_heldout_rms_nmm, 4)} -> {q.output.format(d.residual_rms_nmm, 4)} "
+          f"(noise floor {q.output.format(d.noise_floor_nmm, 4)}, {d.noise['method'].replace('_', ' ')}), "
+          f"{d.wall_time_s:.1f} s")
     for e in d.effects:
         params = ", ".join(f"{k}={v:.4g}" for k, v in e["params"].items())
         print(f"  accepted {e['name']}: gain {100 * e['gain']:.1f} % ({e['folds_positive']}/{d.folds} folds), "
               f"{params}")
     for r in d.rejected:
         print(f"  rejected {r['name']}: gain {100 * r['gain']:.1f} % ({r['folds_positive']}/{d.folds} folds)")
-    for u in d.unexplained:
-        print(f"  unexplained structure against {u['signal']}: {u['strength']:.3f} N·mm RMS")
+    if d.learned:
+        state = "learned" if d.learned["accepted"] else "not kept"
+        print(f"  {state} (no named effect): {d.learned['equation']}; gain {100 * d.learned['gain']:.1f} % "
+              f"({d.learned['folds_positive']}/{d.folds} folds)")
+    for un in d.unexplained:
+        print(f"  unexplained structure against {signal_label(un['signal'], q)}: "
+              f"{q.output.format(un['strength'], 3)} RMS")
     c = d.closed_loop or {}
     if "ratio" in c:
         print(f"  closed loop on the {c['plant']} ({c['duration_s']:g} s multi-peak): tracking RMS "
               f"{c['nominal_rms_nmm']:.2f} (nominal) -> "
-              f"{c['extended_rms_nmm']:.2f} N·mm (extended), ratio {c['ratio']:.2f}; all stages "
-              f"{c['all_stages_rms_nmm']:.2f} N·mm")
+              f"{c['extended_rms_nmm']:.2f} {u} (extended), ratio {c['ratio']:.2f}; all stages "
+              f"{c['all_stages_rms_nmm']:.2f} {u}")
         for name, v in c["stages"].items():
             state = "on " if v["in_loop"] else "OFF"
             print(f"    stage {state} {name}: tracking ratio {v['ratio']:.2f} (with / without it)")

@@ -27,11 +27,19 @@ from bmr._core import BmrError
 from bmr.data.bundle import Bundle, Run
 from bmr.identification.spans import SATURATION_TOL, evaluation_start
 
-__all__ = ["EvalRun", "EvalData", "BoundedCache", "prepare", "noise_floor", "reversal_order", "structure",
+__all__ = ["EvalRun", "EvalData", "BoundedCache", "prepare", "noise_floor", "reversal_order", "signal_label", "structure",
            "SIGNALS", "MAX_FIT_ROWS"]
 
 # Signals the residual structure is studied against.
-SIGNALS = ("angle", "time", "current_level", "current_rate", "reversal_order")
+SIGNALS = ("angle", "time", "input_level", "input_rate", "reversal_order", "time_since_reversal")
+"""Signals the residual structure is studied against (``input_*``: the declared input, e.g. current or voltage)."""
+
+
+def signal_label(signal: str, quantities: Any) -> str:
+    """A residual-structure signal in the device's words: ``input_level`` → ``current level``."""
+    name = quantities.input.name
+    return {"input_level": f"{name} level", "input_rate": f"{name} rate",
+            "time_since_reversal": "time since the last reversal"}.get(signal, signal.replace("_", " "))
 
 MAX_FIT_ROWS = 200_000
 """Rows used by the least-squares fits of the selection (an even stride in every fold block when the evaluated
@@ -118,7 +126,9 @@ class EvalRun:
 
 @dataclass
 class EvalData:
-    """All the evaluation runs of a bundle plus what the effects need from the whole bundle."""
+    """All the evaluation runs of a bundle plus what the effects need from the whole bundle. ``current`` /
+    ``torque`` / ``theta`` are the declared input / output / angle (zeros without an angle); ``has_angle`` says
+    whether the device has one; ``noise`` is the noise floor with the estimate it came from."""
 
     runs: list[EvalRun]
     folds: int
@@ -129,6 +139,8 @@ class EvalData:
     sample_rate_hz: float
     run_start_s: dict[str, float] = field(default_factory=dict)  # every run's start time in the bundle
     friction_nmm: np.ndarray | None = None  # the nominal model's friction over the evaluated spans
+    has_angle: bool = True
+    noise: Any = None
     cache: BoundedCache = field(default_factory=lambda: BoundedCache(max_entries=64, max_bytes=24 << 20))
     max_fit_rows: int = MAX_FIT_ROWS
 
@@ -195,33 +207,14 @@ def _run_dt(run: Run, fallback_s: float) -> float:
     return fallback_s
 
 
-def noise_floor(bundle: Bundle, friction: Any = None) -> float:
-    """Sensor noise (N·mm, one standard deviation) estimated from the data: the robust spread (MAD) of the first
-    differences of the off-state torque after friction removal, divided by √2 (the friction and any slow structure
-    hardly change from one sample to the next). Without an off-state run, the same estimate on the evaluation
-    runs' torque."""
-    runs = bundle.by_kind("off_state") or bundle.evaluation_runs()
-    diffs = []
-    for r in runs:
-        y = r.torque - (friction(r.theta) if friction is not None else 0.0)
-        u = r.current
-        # Only pairs of samples at one held current (the off-state body, the holds of a step run): the opening
-        # excursion's field torque changes from sample to sample.
-        held = (u[1:] == u[:-1]) & (np.abs(u[1:]) <= 1e-9 + 1e-3 * np.max(np.abs(u)))
-        if not held.any():
-            held = u[1:] == u[:-1]
-        d = np.diff(y)[held]
-        if d.size > 2:
-            diffs.append(d)
-    if not diffs:
-        raise BmrError("the bundle has no run long enough to estimate the noise floor")
-    d = np.concatenate(diffs)
-    mad = float(np.median(np.abs(d - np.median(d))))
-    sigma = 1.4826 * mad / math.sqrt(2.0)
-    if sigma == 0.0:
-        # Quantised or noise-free data: fall back to the plain standard deviation of the differences.
-        sigma = float(np.std(d)) / math.sqrt(2.0)
-    return sigma
+def noise_floor(bundle: Bundle, friction: Any = None) -> Any:
+    """The noise floor from the data themselves (:func:`bmr.diagnosis.noise.from_data`: declared sigmas, the
+    off-state run, dwells, repeated runs), with the seal friction removed along the angle when there is one; None
+    when the data hold no estimate (the diagnosis then uses the high-frequency part of the nominal residual)."""
+    from bmr.diagnosis.noise import from_data
+
+    slow = (lambda r: friction(r.angle)) if friction is not None and bundle.quantities.angle is not None else None
+    return from_data(bundle.runs, bundle.evaluation_runs(), slow=slow)
 
 
 def prepare(bundle: Bundle, input_range: tuple[float, float], folds: int, friction: Any = None) -> EvalData:
@@ -246,23 +239,27 @@ def prepare(bundle: Bundle, input_range: tuple[float, float], folds: int, fricti
         t_abs = t0 + (t - t[0])
         starts[r.name] = t0
         t0 = float(t_abs[-1]) + dt if t.size else t0
-        currents.append(r.current)
+        currents.append(r.input)
         dts.append(dt)
         if r.name not in evaluation:
             continue
-        u = r.current
+        u = r.input
         s = evaluation_start(u, lo, hi, tol)
         n = u.size - s
         if n < 2 * folds:
             continue
         block = np.minimum((np.arange(n) * folds) // n, folds - 1).astype(np.int64)
-        out.append(EvalRun(r.name, r.kind, u, r.theta, r.torque, t_abs, dt, s, block, index))
+        theta = r.angle if r.angle is not None else np.zeros(u.size)
+        out.append(EvalRun(r.name, r.kind, u, theta, r.output, t_abs, dt, s, block, index))
     if not out:
         raise BmrError("the bundle has no evaluation run (multi_step, triangle, multipeak, tracking or custom) "
                        f"with at least {2 * folds} samples after its first saturation; nothing to diagnose")
     full = max(abs(lo), abs(hi))
-    data = EvalData(out, int(folds), full, noise_floor(bundle, friction), currents, dts, fs, starts)
-    data.friction_nmm = friction(data.theta) if friction is not None else np.zeros(data.n_eval)
+    noise = noise_floor(bundle, friction)
+    sigma = noise.sigma if noise is not None else float("nan")
+    has_angle = bundle.quantities.angle is not None
+    data = EvalData(out, int(folds), full, sigma, currents, dts, fs, starts, has_angle=has_angle, noise=noise)
+    data.friction_nmm = friction(data.theta) if friction is not None and has_angle else np.zeros(data.n_eval)
     return data
 
 
@@ -325,20 +322,40 @@ def _angle_strength(theta: np.ndarray, r: np.ndarray, orders: int = 12, chunk: i
     return math.sqrt(max(0.0, var - noise_var))
 
 
+def _time_since_reversal(u: np.ndarray, dt_s: float, deadband: float) -> np.ndarray:
+    """Time (s) since the last dead-band reversal of ``u`` (from the start before the first one)."""
+    from bmr import _core
+
+    rev = np.asarray(_core.find_reversals(np.ascontiguousarray(u, dtype=float), deadband), dtype=np.int64)
+    last = np.zeros(u.size, dtype=np.int64)
+    if rev.size:
+        marks = np.zeros(u.size, dtype=np.int64)
+        marks[rev] = rev
+        last = np.maximum.accumulate(marks)
+    return (np.arange(u.size) - last) * dt_s
+
+
 def structure(data: EvalData, residual: Sequence[np.ndarray], lo: float, hi: float) -> dict[str, float]:
-    """How much of the residual (per-run arrays over the evaluated spans) each signal explains: the RMS (N·mm)
-    of its conditional mean against angle (harmonics up to 12/rev), time, current level, current rate and
-    reversal order, with the part expected from noise alone removed."""
+    """How much of the residual (per-run arrays over the evaluated spans) each signal explains: the RMS (output
+    units) of its conditional mean against angle (harmonics up to 12/rev, only with an angle), time, input level,
+    input rate, reversal order and the logarithm of the time since the last reversal, with the part expected from
+    noise alone removed."""
     r = data.concat(residual)
-    theta = data.concat(data.eval_slice("theta_rad"))
     t = data.concat(data.eval_slice("t_abs_s"))
     cur = data.concat(data.eval_slice("current_a"))
     rate = data.concat([np.gradient(run.current_a, run.dt_s)[run.start:] for run in data.runs])
     order = data.concat([reversal_order(run.current_a, lo, hi)[run.start:] for run in data.runs])
-    return {
-        "angle": _angle_strength(theta, r),
+    since = data.concat([_time_since_reversal(run.current_a, run.dt_s, 0.01 * (hi - lo))[run.start:]
+                         for run in data.runs])
+    out = {}
+    if data.has_angle:
+        out["angle"] = _angle_strength(data.concat(data.eval_slice("theta_rad")), r)
+    out.update({
         "time": _binned_strength(t, r),
-        "current_level": _binned_strength(cur, r),
-        "current_rate": _binned_strength(rate, r),
+        "input_level": _binned_strength(cur, r),
+        "input_rate": _binned_strength(rate, r),
         "reversal_order": _binned_strength(np.minimum(order, 6).astype(float) + 1e-9 * cur, r, bins=7),
-    }
+        "time_since_reversal": _binned_strength(np.log1p(since / max(min(run.dt_s for run in data.runs), 1e-12)),
+                                                r),
+    })
+    return out

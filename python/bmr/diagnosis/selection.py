@@ -261,7 +261,7 @@ def _with(config: Configuration, eff: Effect, value: Any, data: EvalData
           ) -> tuple[FieldPath, list[tuple[Effect, Any]]]:
     if eff.field:
         return eff.apply(config.path, value, data, None), list(config.linear)
-    return config.path, list(config.linear) + [(eff, value)]
+    return eff.adjust_path(config.path, value), list(config.linear) + [(eff, value)]
 
 
 def _fit_with(fitter: Fitter, config: Configuration, eff: Effect, value: Any, fold: int | None
@@ -296,6 +296,12 @@ def evaluate(fitter: Fitter, config: Configuration, eff: Effect, before: Heldout
     fits = [fitter.solve(*_with(config, eff, v, data)) for v in grid]
     train_sse = np.array([f.sse_train[:data.folds] for f in fits])
     train_sse = np.where(np.isnan(train_sse), np.inf, train_sse)
+    # Grid values may differ in their number of columns (nested variants, e.g. per-run offsets with or without
+    # per-run gains): rank them on the training blocks by the Bayesian information criterion.
+    n_train = np.maximum(np.sum(fits[0].n_test) - fits[0].n_test, 2.0)
+    widths = np.array([sum(f.widths) for f in fits], dtype=float)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        train_sse = n_train * np.log(np.maximum(train_sse, 1e-300) / n_train) + widths[:, None] * np.log(n_train)
     reidentifies = type(eff).update_path is not Effect.update_path
     gains, sse_after, sse_before, n_test, values = [], [], [], [], []
     for k in range(data.folds):
@@ -343,7 +349,10 @@ def refit(fitter: Fitter, config: Configuration, eff: Effect) -> tuple[Configura
     grid = eff.grid(data)
 
     def sse(v: Any) -> float:
-        return float(fitter.solve(*_with(config, eff, v, data)).sse_train[data.folds])
+        # The information criterion of the fit on all data (as the selection ranks grid values).
+        ff = fitter.solve(*_with(config, eff, v, data))
+        n = max(float(np.sum(ff.n_test)), 2.0)
+        return float(n * math.log(max(float(ff.sse_train[data.folds]), 1e-300) / n) + sum(ff.widths) * math.log(n))
 
     scores = [sse(v) for v in grid]
     i = int(np.argmin(scores))
@@ -408,6 +417,9 @@ def forward_selection(fitter: Fitter, *, library: Sequence[Effect] = LIBRARY, ma
             progress.total = (progress.total or 0) + len(candidates)
             progress.refresh()
         cands = []
+        # An effect whose parameter has no admissible value on these data (e.g. relaxation times longer than
+        # the runs) cannot be tested.
+        candidates = [e for e in candidates if e.grid(data)]
         for eff in candidates:
             if progress is not None:
                 progress.set_postfix_str(f"round {rounds}: {eff.name}")
@@ -419,7 +431,9 @@ def forward_selection(fitter: Fitter, *, library: Sequence[Effect] = LIBRARY, ma
             c.round = rounds
         ok = [c for c in cands if c.accepted]
         if not ok:
-            if candidates[0].name == "table_resolution":
+            if candidates and candidates[0].name == "table_resolution":
+                # A large physical effect can hide what finer tables give: try them again in later rounds.
+                remaining.append(candidates[0])
                 continue
             break
         best = max(ok, key=lambda c: c.mean_gain)
@@ -436,11 +450,11 @@ def forward_selection(fitter: Fitter, *, library: Sequence[Effect] = LIBRARY, ma
         if eff_name in final_params:
             row["params"] = final_params[eff_name]
     for row in accepted:
-        if row["name"] in ("coil_lag", "time_delay", "non_congruent"):
+        if row["name"] in ("coil_lag", "time_delay", "non_congruent", "rate_dependence"):
             path = config.path
             row["params"] = {"coil_lag": {"tau_s": path.lag_tau_s}, "time_delay": {"delay_s": path.delay_s},
-                             "non_congruent": {"curvature": path.curvature, "scale_nmm": path.scale_nmm}
-                             }[row["name"]]
+                             "non_congruent": {"curvature": path.curvature, "scale_nmm": path.scale_nmm},
+                             "rate_dependence": {"tau_s": path.rate_tau_s}}[row["name"]]
     names = {r["name"] for r in accepted}
     rejected = []
     for name, c in last.items():

@@ -53,7 +53,8 @@ from bmr.identification.friction import FrictionFit
 __all__ = ["FORMAT", "LOOP_STAGES", "Model"]
 
 # Extensions the compensator can undo, in the order the physics acts (the others are measurement-only or notes).
-LOOP_STAGES = ("core_tables", "time_delay", "coil_lag", "non_congruent", "thermal_drift", "torque_ripple",
+LOOP_STAGES = ("core_tables", "time_delay", "coil_lag", "rate_dependence", "creep", "non_congruent",
+               "accommodation", "thermal_drift", "torque_ripple",
                "friction_harmonics", "friction_current")
 
 FORMAT = "bmr-model/2"
@@ -187,25 +188,6 @@ class Model:
             y = y + self.friction_torque(th)
         return y
 
-    def end_slopes(self) -> tuple[float, float]:
-        """Slopes (output per input) of the major branches where they meet the ends of the input range: the
-        descending major branch at the lowest input, the ascending one at the highest (used to extrapolate)."""
-        asc, desc = self.hysteresis.curves()
-        ua, ya = np.asarray(asc[0][0]), np.asarray(asc[0][1])
-        ud, yd = np.asarray(desc[0][0]), np.asarray(desc[0][1])
-        s_hi = float((ya[-1] - ya[-2]) / (ua[-1] - ua[-2])) if ua.size > 1 else 0.0
-        s_lo = float((yd[-1] - yd[-2]) / (ud[-1] - ud[-2])) if ud.size > 1 else 0.0
-        return s_lo, s_hi
-
-    def input_excess(self, current: Any) -> tuple[int, float]:
-        """How many samples of ``current`` lie outside the table's input range, and the largest distance beyond
-        it (input units; 0 when none)."""
-        u = np.asarray(current, dtype=float)
-        lo, hi = self.hysteresis.input_range
-        excess = np.maximum(u - hi, 0.0) + np.maximum(lo - u, 0.0)
-        excess[excess <= 1e-9 * (hi - lo)] = 0.0  # round-off at the ends is not beyond them
-        return int(np.count_nonzero(excess)), float(excess.max()) if excess.size else 0.0
-
     def extension(self, name: str) -> dict[str, Any] | None:
         """The extension entry ``name`` (None if the model has none)."""
         return next((e for e in self.extensions if e.get("name") == name), None)
@@ -292,6 +274,25 @@ class Model:
             plan.append({"name": e["name"], "on": on, "reason": why, "tracking": tracking})
         return plan
 
+    def end_slopes(self) -> tuple[float, float]:
+        """Slopes (output per input) of the major branches where they meet the ends of the input range: the
+        descending major branch at the lowest input, the ascending one at the highest (used to extrapolate)."""
+        asc, desc = self.hysteresis.curves()
+        ua, ya = np.asarray(asc[0][0]), np.asarray(asc[0][1])
+        ud, yd = np.asarray(desc[0][0]), np.asarray(desc[0][1])
+        s_hi = float((ya[-1] - ya[-2]) / (ua[-1] - ua[-2])) if ua.size > 1 else 0.0
+        s_lo = float((yd[-1] - yd[-2]) / (ud[-1] - ud[-2])) if ud.size > 1 else 0.0
+        return s_lo, s_hi
+
+    def input_excess(self, current: Any) -> tuple[int, float]:
+        """How many samples of ``current`` lie outside the table's input range, and the largest distance beyond
+        it (input units; 0 when none)."""
+        u = np.asarray(current, dtype=float)
+        lo, hi = self.hysteresis.input_range
+        excess = np.maximum(u - hi, 0.0) + np.maximum(lo - u, 0.0)
+        excess[excess <= 1e-9 * (hi - lo)] = 0.0  # round-off at the ends is not beyond them
+        return int(np.count_nonzero(excess)), float(excess.max()) if excess.size else 0.0
+
     def compensator(self, dt_s: float | None = None, *, stages: Any = None, **kwargs: Any) -> Any:
         """The full compensator of this model, built in the core: friction and converter gain filled in, the
         extensions made into stages at control period ``dt_s`` (s; needed when the model has extensions).
@@ -300,7 +301,8 @@ class Model:
         through to ``bmr.Compensator`` (e.g. ``inverse="paper"``, ``initial``)."""
         friction = self.friction.to_friction() if self.friction is not None else None
         kwargs.setdefault("converter_gain", self.converter_gain_a_per_v)
-        kwargs.setdefault("current_limit", self.full_current_a)
+        lo, hi = self.input_limits
+        kwargs.setdefault("current_limit", max(abs(lo), abs(hi)))
         plan = self.stage_plan(stages)
         for row in plan:
             ratio = (row["tracking"] or {}).get("ratio")
@@ -315,7 +317,8 @@ class Model:
         if not on:
             return Compensator(self.hysteresis, friction, **kwargs)
         effects = [e for e in self.extensions if e["name"] in on and e["name"] != "core_tables"]
-        needs_dt = any(e["name"] in ("time_delay", "coil_lag", "thermal_drift", "friction_current") for e in effects)
+        needs_dt = any(e["name"] in ("time_delay", "coil_lag", "thermal_drift", "friction_current", "creep",
+                                     "rate_dependence") for e in effects)
         if needs_dt and dt_s is None:
             raise BmrError(f"this model's extensions ({', '.join(on)}) need the control period: pass dt_s")
         core = self.core_hysteresis(refined="core_tables" in on)
@@ -482,6 +485,20 @@ class Model:
                 f"extensions={[e['name'] for e in self.extensions]})")
 
 
+def run_export_cli(args: Any) -> int:
+    """``bmr export MODEL (--rust OUT.rs | --c OUT.h) [--stages all|a,b] [--prefix P]``."""
+    model = Model.load(args.model)
+    stages: Any = args.stages
+    if stages is not None and stages != "all":
+        stages = [s.strip() for s in stages.split(",") if s.strip()]
+    language, out = ("rust", args.rust) if args.rust else ("c", args.c)
+    for row in model.stage_plan(stages):
+        print(f"  {row['name']}: {'on' if row['on'] else 'off'} ({row['reason']})")
+    p = model.export(out, language, stages=stages, prefix=args.prefix)
+    print(f"bmr export: wrote {p} ({language})")
+    return 0
+
+
 # Options of ``Hysteresis.from_curves`` a model file may carry, with their types.
 _BUILD_OPTIONS = {"monotone_tolerance": float, "reach_tolerance": float, "closure_tolerance": float,
                   "node_tolerance": float, "max_nodes": int, "subdivisions": int}
@@ -499,20 +516,6 @@ def _build_options(value: Any, where: str) -> dict[str, Any]:
             raise BmrError(f"{where}.{k} must be {'an integer' if kind is int else 'a number'}, got {v!r}")
         out[k] = kind(v)
     return out
-
-
-def run_export_cli(args: Any) -> int:
-    """``bmr export MODEL (--rust OUT.rs | --c OUT.h) [--stages all|a,b] [--prefix P]``."""
-    model = Model.load(args.model)
-    stages: Any = args.stages
-    if stages is not None and stages != "all":
-        stages = [s.strip() for s in stages.split(",") if s.strip()]
-    language, out = ("rust", args.rust) if args.rust else ("c", args.c)
-    for row in model.stage_plan(stages):
-        print(f"  {row['name']}: {'on' if row['on'] else 'off'} ({row['reason']})")
-    p = model.export(out, language, stages=stages, prefix=args.prefix)
-    print(f"bmr export: wrote {p} ({language})")
-    return 0
 
 
 def _curves(value: Any, where: str) -> list[tuple[np.ndarray, np.ndarray]]:

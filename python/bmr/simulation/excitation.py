@@ -6,7 +6,7 @@ Units: current A, rate A/s.
 """
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, Sequence
 
 import numpy as np
 
@@ -14,7 +14,8 @@ from bmr._core import ExcitationError
 from bmr.data.bundle import Bundle, Run
 from bmr.simulation.experiments import FULL_CURRENT_A, OPENING_RATE_A_PER_S, custom, ramp_path, simulate_bundle
 
-__all__ = ["minor_loop_vertices", "minor_loops", "diagnosis_bundle", "MEDIUM_EFFECTS"]
+__all__ = ["minor_loop_vertices", "minor_loops", "repeated_loop_vertices", "repeated_loops", "diagnosis_bundle",
+           "MEDIUM_EFFECTS"]
 
 # A medium size of every physical effect of the vocabulary on the ``rig_preisach`` actuator: large enough for a
 # quick diagnosis bundle to show it, small enough to be realistic. What the calibration and the closed-loop checks
@@ -67,11 +68,49 @@ def minor_loops(actuator: Any, *, rate_a_per_s: float = 1.0, name: str = "minor_
     return run
 
 
+def repeated_loop_vertices(full_a: float = FULL_CURRENT_A, *, centres: Sequence[float] = (-0.4, 0.4),
+                           swing_a: float | None = None, cycles: int = 6) -> list[float]:
+    """Reversal currents of minor loops cycled ``cycles`` times between the same extremes (swing ``swing_a``,
+    default full/5) around each of ``centres`` (fractions of full), each approached from the opposite
+    saturation: the excitation that shows accommodation (loops drifting from cycle to cycle)."""
+    if not (isinstance(cycles, int) and cycles >= 2):
+        raise BmrError(f"cycles must be an integer >= 2, got {cycles!r}")
+    w = full_a / 5.0 if swing_a is None else float(swing_a)
+    if not (0 < w < full_a):
+        raise BmrError(f"swing_a must lie in (0, full_a), got {swing_a!r}")
+    out: list[float] = []
+    for c in centres:
+        c = float(c) * full_a
+        from_top = c < 0
+        out.append(full_a if from_top else -full_a)
+        for _ in range(cycles):
+            out += [c - w, c + w] if from_top else [c + w, c - w]
+    out.append(0.0)
+    return out
+
+
+def repeated_loops(actuator: Any, *, rate_a_per_s: float = 1.0, name: str = "repeated_loops",
+                   full_a: float = FULL_CURRENT_A, opening_rate_a_per_s: float = OPENING_RATE_A_PER_S,
+                   **kwargs: Any) -> Run:
+    """A ``custom`` run of repeated minor loops (:func:`repeated_loop_vertices`) at ``rate_a_per_s``."""
+    if not (np.isfinite(rate_a_per_s) and rate_a_per_s > 0):
+        raise BmrError(f"rate_a_per_s must be positive, got {rate_a_per_s!r}")
+    vertices = repeated_loop_vertices(full_a, **kwargs)
+    body = ramp_path(0.0, vertices, rate_a_per_s / actuator.sample_rate_hz)
+    run = custom(actuator, body, name=name, full_a=full_a, opening_rate_a_per_s=opening_rate_a_per_s)
+    run.meta.update({"vertices_a": vertices, "rate_a_per_s": float(rate_a_per_s)})
+    return run
+
+
 def diagnosis_bundle(preset: str = "rig_preisach", *, effects: Any = None, seed: int = 0, quick: bool = True,
-                     sample_rate_hz: float = 500.0) -> Bundle:
+                     sample_rate_hz: float = 500.0, rest_s: float | None = None, overrides: Any = None,
+                     forc_reversals: int | None = None) -> Bundle:
     """The paper's experiment set (:func:`bmr.simulation.experiments.simulate_bundle`) plus one
-    :func:`minor_loops` run, all on one virtual actuator (``preset`` with ``effects``, ``seed``): the bundle the
-    diagnosis is calibrated on."""
+    :func:`minor_loops` run and one :func:`repeated_loops` run, all on one virtual actuator (``preset`` with
+    ``effects``, ``seed``, ``overrides``): the bundle the diagnosis is calibrated on. ``rest_s``: rest between
+    runs, ``forc_reversals``: reversals per first-order family (see ``simulate_bundle``)."""
     opening = 2.5 if quick else OPENING_RATE_A_PER_S
     return simulate_bundle(preset, effects=effects, seed=seed, quick=quick, sample_rate_hz=sample_rate_hz,
-                           extra_runs=[lambda a: minor_loops(a, opening_rate_a_per_s=opening)])
+                           rest_s=rest_s, overrides=overrides, forc_reversals=forc_reversals,
+                           extra_runs=[lambda a: minor_loops(a, opening_rate_a_per_s=opening),
+                                       lambda a: repeated_loops(a, opening_rate_a_per_s=opening)])

@@ -395,14 +395,16 @@ def tracking(actuator: VirtualActuator, compensator: Any, reference_nmm: np.ndar
 # The experiment set
 
 
-def _plan(quick: bool, compensator: Any, fs: float) -> list[tuple[str, Callable[[VirtualActuator], Run]]]:
+def _plan(quick: bool, compensator: Any, fs: float, reversals: int | None = None
+          ) -> list[tuple[str, Callable[[VirtualActuator], Run]]]:
     if quick:
+        nr = 11 if reversals is None else int(reversals)
         o = {"opening_rate_a_per_s": 2.5}
         plan: list[tuple[str, Callable[[VirtualActuator], Run]]] = [
             ("off_state", lambda a: off_state(a, duration_s=8.0, **o)),
             ("multi_step", lambda a: multi_step(a, duration_s=42.0, **o)),
-            ("first_order_ascending", lambda a: first_order_ascending(a, reversals=11, rate_a_per_s=1.0, **o)),
-            ("first_order_descending", lambda a: first_order_descending(a, reversals=11, rate_a_per_s=1.0, **o)),
+            ("first_order_ascending", lambda a: first_order_ascending(a, reversals=nr, rate_a_per_s=1.0, **o)),
+            ("first_order_descending", lambda a: first_order_descending(a, reversals=nr, rate_a_per_s=1.0, **o)),
             ("triangle", lambda a: triangle(a, rate_a_per_s=0.5, duration_s=20.0, **o)),
             ("multipeak", lambda a: multipeak(a, duration_s=20.0, **o)),
         ]
@@ -410,11 +412,12 @@ def _plan(quick: bool, compensator: Any, fs: float) -> list[tuple[str, Callable[
                  ("tracking_multipeak", dict(duration_s=10.0))]
         opening_s = 2.0
     else:
+        nf = 21 if reversals is None else int(reversals)
         plan = [
             ("off_state", lambda a: off_state(a)),
             ("multi_step", lambda a: multi_step(a)),
-            ("first_order_ascending", lambda a: first_order_ascending(a)),
-            ("first_order_descending", lambda a: first_order_descending(a)),
+            ("first_order_ascending", lambda a: first_order_ascending(a, reversals=nf)),
+            ("first_order_descending", lambda a: first_order_descending(a, reversals=nf)),
             ("triangle", lambda a: triangle(a)),
             ("multipeak", lambda a: multipeak(a)),
         ]
@@ -436,7 +439,8 @@ def simulate_bundle(preset: str = "bmr2013", *, effects: Mapping[str, Any] | Seq
                     sample_rate_hz: float = BUNDLE_SAMPLE_RATE_HZ,
                     on_run: Callable[[Run], Any] | None = None,
                     overrides: Mapping[str, float] | None = None,
-                    extra_runs: Sequence[Callable[[VirtualActuator], Run]] = ()) -> Bundle:
+                    extra_runs: Sequence[Callable[[VirtualActuator], Run]] = (),
+                    rest_s: float | None = None, forc_reversals: int | None = None) -> Bundle:
     """The paper's experiment set on a fresh virtual actuator, as a :class:`bmr.Bundle`.
 
     Runs, in order, on one actuator (its thermal state and sensor drift carry over; each run's opening
@@ -449,18 +453,29 @@ def simulate_bundle(preset: str = "bmr2013", *, effects: Mapping[str, Any] | Seq
     ``on_run(run)`` is called after each run (progress reporting). Logged at ``sample_rate_hz`` (500 Hz).
     ``overrides`` changes physical parameters by dotted name (``bmr.ACTUATOR_PARAMETERS``), e.g. the noise level.
     ``extra_runs``: further protocols (callables taking the actuator, returning a run) appended after the set.
+    ``rest_s``: the rig rests that long at zero current before each run after the first (the coils cool, creep
+    settles; ``VirtualActuator.start_run``); None: back to back. Each run is a new recording either way (per-run
+    calibration and the leakage integral start anew). ``forc_reversals``: reversals per first-order family
+    (default 21, quick 11).
     """
     actuator = VirtualActuator(preset, seed=seed, sample_rate_hz=sample_rate_hz, effects=effects,
                                overrides=dict(overrides) if overrides else None)
-    plan = [fn for _name, fn in _plan(bool(quick), compensator, actuator.sample_rate_hz)] + list(extra_runs)
+    plan = [fn for _name, fn in _plan(bool(quick), compensator, actuator.sample_rate_hz, forc_reversals)]
+    plan += list(extra_runs)
     runs: list[Run] = []
-    for fn in plan:
+    for i, fn in enumerate(plan):
+        if i > 0:
+            actuator.start_run(float(rest_s or 0.0))
+        calibration = actuator.run_calibration
         runs.append(fn(actuator))
+        if "run_gain_offset" in actuator.effects:
+            # The recording's hidden calibration (ground truth for calibration studies).
+            runs[-1].meta["calibration"] = {"gain": calibration[0], "offset_nmm": calibration[1]}
         if on_run is not None:
             on_run(runs[-1])
     meta = {"simulator": {"preset": preset, "seed": int(seed), "quick": bool(quick),
                           "effects": {k: dict(v) for k, v in actuator.effects.items()},
-                          "noise_nmm": actuator.noise_nmm,
+                          "noise_nmm": actuator.noise_nmm, "rest_s": rest_s,
                           "overrides": {k: float(v) for k, v in (overrides or {}).items()}}}
     return Bundle(actuator=actuator.name, sample_rate_hz=actuator.sample_rate_hz, runs=runs, meta=meta)
 

@@ -56,11 +56,16 @@ def _check_params(name: str, truth: dict[str, float], got: dict[str, float]) -> 
         assert truth["tau_s"] / 3 <= got["tau_s"] <= truth["tau_s"] * 3
 
 
-# The quick tier runs two effects (a field effect and a linear one); the slow tier (CI: pytest -m slow) all.
+# The actuator's effects (the material and measurement effects are in test_discovery); coil_lag and
+# friction_harmonics (a field effect and a linear one) run in the default tier, the others run in the slow one.
+ACTUATOR_EFFECTS = ("coil_lag", "thermal_drift", "friction_current", "friction_harmonics", "torque_ripple",
+                    "sensor_drift", "time_delay", "non_congruent")
+
+
 @pytest.mark.parametrize("name", [n if n in ("coil_lag", "friction_harmonics") else
-                                  pytest.param(n, marks=pytest.mark.slow) for n in PHYSICAL])
+                                  pytest.param(n, marks=pytest.mark.slow) for n in ACTUATOR_EFFECTS])
 def test_hidden_effect_is_named_fitted_and_removed(name: str) -> None:
-    seed = 100 + PHYSICAL.index(name)
+    seed = 100 + ACTUATOR_EFFECTS.index(name)
     truth = _draw(name, np.random.default_rng(seed))
     bundle = diagnosis_bundle(PRESET, effects={name: truth}, seed=seed)
     d = diagnose(bundle, progress=False, closed_loop=False)

@@ -64,7 +64,9 @@ SANE: dict[str, object] = {
     "dt_s": 1e-3, "full_torque_nmm": None, "full_current_a": 1.25, "columns": None, "out": None, "heating": 0.0,
     "t0_s": 0.0, "x": U, "delay_s": 3e-3, "fill": None, "tau_s": 0.01, "model_entries": False, "language": "c",
     "title": "bmr compensator", "prefix": "bmr", "core_nmm": 100 * U, "field_nmm": 100 * U, "curvature": 0.2,
-    "scale_nmm": 300.0, "torque_ref_ahead_nmm": 50.0, "theta_ahead_rad": 0.3,
+    "scale_nmm": 300.0, "torque_ref_ahead_nmm": 50.0, "theta_ahead_rad": 0.3, "slope_ref": None, "rest_s": 0.0,
+    "kappa": 0.1, "cycles": 5.0, "deadband": 0.05, "y_mid": 0.0, "t_s": np.arange(300) / 1000.0, "harmonics": 0,
+    "v": 10 * U, "taus_s": np.array([0.01, 0.1]),
 }
 SANE["subdivisions"] = 2
 # Per-callable values where the generic ones do not fit (scalars for single steps, objects for methods).
@@ -106,6 +108,14 @@ def _targets() -> list[tuple[str, object, dict[str, object]]]:
         ("Hysteresis.run", _hysteresis().run, {}),
         ("Hysteresis.reset", _hysteresis().reset, {}),
         ("Hysteresis.compressed", _hysteresis().compressed, {}),
+        ("Hysteresis.run_rate_dependent", _hysteresis().run_rate_dependent, {"tau_s": 0.01}),
+        ("VirtualActuator.start_run", core.VirtualActuator().start_run, {}),
+        ("VirtualDevice", core.VirtualDevice, {"preset": "piezo", "sample_rate_hz": None}),
+        ("VirtualDevice.run", core.VirtualDevice().run, {"u": 50 * U}),
+        ("VirtualDevice.start_run", core.VirtualDevice().start_run, {}),
+        ("accommodation_shift", core.accommodation_shift, {"saturation_tol": 0.002}),
+        ("candidate_signals", core.candidate_signals, {"theta_rad": None}),
+        ("creep_columns", core.creep_columns, {}),
         ("fit_curve", core.fit_curve, {"u": np.linspace(0, 1, 200), "y": np.linspace(0, 1, 200) ** 2}),
         ("Hysteresis.restore", _hysteresis().restore, {"state": _hysteresis().snapshot()}),
         ("fit_friction_order", core.fit_friction_order, {}),

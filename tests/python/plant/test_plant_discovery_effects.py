@@ -1,0 +1,129 @@
+"""The effects real devices show beyond the paper's model (creep, rate dependence, accommodation, leakage, per-run
+calibration), recordings after a rest, and the virtual hysteretic device: each effect leaves its documented
+signature and nothing else."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import bmr
+from bmr.simulation.experiments import ramp_path
+from bmr.simulation.device import device_bundle
+
+FS = 500.0
+
+
+def _pair(effects, u, preset="ideal", **kw):
+    a = bmr.VirtualActuator(preset, sample_rate_hz=FS, **kw).run(u)
+    b = bmr.VirtualActuator(preset, sample_rate_hz=FS, effects=effects, **kw).run(u)
+    return a, b
+
+
+def test_creep_relaxes_logarithmically_after_a_step_and_settles():
+    # Saturate, step to +0.3 A and hold 200 s: the output keeps creeping towards its equilibrium.
+    u = np.concatenate([ramp_path(0.0, [1.25, -1.25, 0.3], 1.0 / FS), np.full(int(210 * FS), 0.3)])
+    a, b = _pair({"creep": {"fraction": 0.05, "tau_min_s": 0.01, "tau_max_s": 1e4}}, u)
+    d = b["torque_nmm"] - a["torque_nmm"]
+    hold0 = u.size - int(210 * FS)
+    at = lambda s: d[hold0 + int(s * FS)]  # noqa: E731
+    # Behind the equilibrium after the rise, by less and less; equal steps per decade of time in the middle.
+    assert at(2) < at(20) < at(200) < 0
+    assert abs((at(20) - at(2)) / (at(200) - at(20)) - 1.0) < 0.3
+    # The noise-free seal friction and current are untouched.
+    np.testing.assert_array_equal(a["current_a"], b["current_a"])
+
+
+def test_rate_dependence_widens_loops_with_rate_most_where_the_loop_is_steep():
+    widths = []
+    for rate in (0.5, 2.0):
+        u = ramp_path(0.0, [1.25, -1.25, 1.25, -1.25], rate / FS)
+        a, b = _pair({"rate_dependence": {"tau_s": 0.01}}, u)
+        d = np.abs(b["torque_nmm"] - a["torque_nmm"])[u.size // 2:]
+        uu = u[u.size // 2:]
+        steep = d[np.abs(uu) < 0.3].max()
+        flat = d[np.abs(uu) > 1.15].max()
+        widths.append(steep)
+        assert flat < 0.2 * steep
+    assert widths[1] > 2.5 * widths[0]
+
+
+def test_leakage_integrates_the_input_and_restarts_with_each_recording():
+    u = np.full(int(10 * FS), 0.5)
+    act = bmr.VirtualActuator("ideal", sample_rate_hz=FS, effects={"leakage": {"rate_per_s": 2.0}})
+    ref = bmr.VirtualActuator("ideal", sample_rate_hz=FS)
+    d = act.run(u)["torque_nmm"] - ref.run(u)["torque_nmm"]
+    t = np.arange(u.size) / FS
+    # 2 N·mm/(A·s) × 0.5 A × t (the first sample's trapezoid starts from the 0 A before it).
+    np.testing.assert_allclose(d[1:], 1.0 * t[1:] + 0.25 / FS * 2.0, atol=1e-9)
+    act.start_run()
+    ref.start_run()
+    d2 = act.run(u)["torque_nmm"] - ref.run(u)["torque_nmm"]
+    assert abs(d2[0]) < 0.01
+
+
+def test_accommodation_drifts_repeated_minor_loops_and_saturation_wipes_it():
+    verts = [1.25]
+    for _ in range(8):
+        verts += [-0.55, -0.25]
+    verts += [1.25]
+    u = ramp_path(0.0, verts, 1.0 / FS)
+    a, b = _pair({"accommodation": {"kappa": 0.2, "cycles": 2.0}}, u)
+    d = b["torque_nmm"] - a["torque_nmm"]
+    # At the top of each cycle (u = -0.25) the shift grows towards its limit, then saturation wipes it.
+    tops = np.flatnonzero(np.isclose(u, -0.25) & (np.diff(u, append=u[-1]) > -1e-12))
+    shifts = d[tops]
+    assert np.all(np.diff(np.abs(shifts[1:])) > -1e-9)
+    assert abs(shifts[-1]) > 2.0
+    assert d[-1] == 0.0
+
+
+def test_run_gain_offset_is_drawn_per_recording_and_leaves_the_noise_alone():
+    u = np.full(2000, 1.0)
+    act = bmr.VirtualActuator("rig_preisach", sample_rate_hz=FS, seed=3,
+                              effects={"run_gain_offset": {"gain_sd": 0.05, "offset_sd": 5.0}})
+    ref = bmr.VirtualActuator("rig_preisach", sample_rate_hz=FS, seed=3)
+    ratios = []
+    for _ in range(4):
+        act.start_run()
+        ref.start_run()
+        a, r = act.run(u), ref.run(u)
+        ratios.append(np.median(a["torque_nmm"] - r["torque_nmm"]))
+    assert np.std(ratios) > 1.0
+    # Same seed, effect off: bit for bit what a bundle without start_run gives.
+    one = bmr.VirtualActuator("rig_preisach", sample_rate_hz=FS, seed=3).run(np.tile(u, 2))["torque_nmm"]
+    two = bmr.VirtualActuator("rig_preisach", sample_rate_hz=FS, seed=3)
+    first = two.run(u)["torque_nmm"]
+    two.start_run()
+    np.testing.assert_array_equal(one, np.concatenate([first, two.run(u)["torque_nmm"]]))
+
+
+def test_rest_between_recordings_cools_the_coils():
+    u = np.full(int(60 * FS), 1.25)
+    fx = {"thermal_drift": {"gain_loss": 0.1, "tau_s": 20.0}}
+    hot = bmr.VirtualActuator("ideal", sample_rate_hz=FS, effects=fx)
+    hot.run(u)
+    cold = bmr.VirtualActuator("ideal", sample_rate_hz=FS, effects=fx)
+    cold.run(u)
+    cold.start_run(float("inf"))
+    hot.start_run(0.0)
+    y_hot = hot.run(u[:10])["torque_nmm"]
+    y_cold = cold.run(u[:10])["torque_nmm"]
+    # Hot coils lost ~10 % of the gain; after a long rest the gain is back.
+    assert y_cold[-1] > y_hot[-1] * 1.08
+    with pytest.raises(bmr.BmrError, match="rest_s"):
+        hot.start_run(-1.0)
+
+
+def test_virtual_device_bundle_declares_its_quantities_and_has_no_angle():
+    b = device_bundle("piezo", seed=2, reversals=5, sweep_rates=(1.0,), dwell_s=0.5)
+    assert b.quantities.input.unit == "V" and b.quantities.output.unit == "µm"
+    assert b.quantities.angle is None
+    assert [r.role for r in b.runs][:2] == ["identification", "identification"]
+    assert all(r.angle is None for r in b.runs)
+    again = device_bundle("piezo", seed=2, reversals=5, sweep_rates=(1.0,), dwell_s=0.5)
+    for r, s in zip(b.runs, again.runs):
+        np.testing.assert_array_equal(r.output, s.output)
+    with pytest.raises(bmr.BmrError, match="rotor angle"):
+        bmr.VirtualDevice("piezo", effects={"torque_ripple": {"eps": 0.1}})
+    with pytest.raises(bmr.BmrError, match="unknown virtual device preset"):
+        bmr.VirtualDevice("nope")
