@@ -61,7 +61,7 @@ pub struct Hysteresis<S, const N: usize> {
     pub(crate) y_hi: f64,
     pub(crate) lo: f64,
     pub(crate) hi: f64,
-    anchor: Reversal,
+    pub(crate) anchor: Reversal,
     fingerprint: u64,
     pub(crate) state: State<N>,
     /// The exact inverse's shortcut for the branch and cell of its last committed answer (see
@@ -108,9 +108,10 @@ impl<S: AsRef<[f64]>, const N: usize> Hysteresis<S, N> {
         let anchor = Reversal {
             u: lo,
             y: y_lo,
-            k,
+            k: k.unwrap_or(1.0),
             strip,
             via: None,
+            linear: k.is_none(),
         };
         let fingerprint = fingerprint(&asc, &desc, y_lo, y_hi);
         let state = State {
@@ -263,7 +264,7 @@ impl<S: AsRef<[f64]>, const N: usize> Hysteresis<S, N> {
 
     /// Push the current point as a reversal (a maximum if rising until now, else a minimum).
     pub(crate) fn push_reversal(&mut self) {
-        push_reversal(&self.asc, &self.desc, &mut self.state);
+        push_reversal(&self.asc, &self.desc, &mut self.state, (self.hi, self.y_hi));
     }
 
     /// Output on the branch leaving the newest reversal, at input `u` (inside its range).
@@ -272,36 +273,59 @@ impl<S: AsRef<[f64]>, const N: usize> Hysteresis<S, N> {
         let st = &mut self.state;
         let rising = st.history.rising();
         let top = st.history.top();
-        if rising {
-            if u >= self.hi && st.history.len() == 1 {
-                return self.y_hi; // positive saturation is exact, like the negative one
+        if rising && u >= self.hi && st.history.len() == 1 {
+            return self.y_hi; // positive saturation is exact, like the negative one
+        }
+        // Closure target of the newest entry (positive saturation for the anchor).
+        let end = || {
+            st.history
+                .target()
+                .map_or((self.hi, self.y_hi), |t| (t.u, t.y))
+        };
+        match top.via {
+            Some(v) if (rising && u > v.u) || (!rising && u < v.u) => {
+                if v.linear {
+                    let (tu, ty) = end();
+                    return line(v.u, v.y, tu, ty, u);
+                }
+                let e = if rising {
+                    self.asc.everett(&top.strip, u, &mut st.hint_a)
+                } else {
+                    self.desc.everett(&top.strip, -u, &mut st.hint_d)
+                };
+                if rising {
+                    v.y + v.k * (e - v.e)
+                } else {
+                    v.y - v.k * (e - v.e)
+                }
             }
-            let e = self.asc.everett(&top.strip, u, &mut st.hint_a);
-            match top.via {
-                Some(v) if u > v.u => v.y + v.k * (e - v.e),
-                _ => top.y + top.k * e,
-            }
-        } else {
-            let e = self.desc.everett(&top.strip, -u, &mut st.hint_d);
-            match top.via {
-                Some(v) if u < v.u => v.y - v.k * (e - v.e),
-                _ => top.y - top.k * e,
+            via => {
+                if top.linear {
+                    let (tu, ty) = via.map_or_else(end, |v| (v.u, v.y));
+                    return line(top.u, top.y, tu, ty, u);
+                }
+                if rising {
+                    top.y + top.k * self.asc.everett(&top.strip, u, &mut st.hint_a)
+                } else {
+                    top.y - top.k * self.desc.everett(&top.strip, -u, &mut st.hint_d)
+                }
             }
         }
     }
 }
 
 /// First word of a serialised [`State`] (format tag and version).
-const STATE_TAG: u64 = 0x626d_725f_7374_0001;
+const STATE_TAG: u64 = 0x626d_725f_7374_0003;
 /// Words before the memory entries: tag, fingerprint, length, input, output, two hints.
 const STATE_HEADER: usize = 7;
-/// Words per memory entry: input, output, scale, second-piece flag and its four values.
-const ENTRY_WORDS: usize = 8;
+/// Words per memory entry: input, output, second-piece flag and the second piece's start `(input, output)`.
+const ENTRY_WORDS: usize = 5;
 
 #[cfg(feature = "alloc")]
 impl<const N: usize> State<N> {
-    /// The state as plain words (for pickling and files); [`Hysteresis::state_from_words`] reads it back
-    /// bit for bit. Where a reversal sits in its table is not stored: it is recomputed from the table.
+    /// The state as plain words (for pickling and files); [`Hysteresis::state_from_words`] reads it back bit for
+    /// bit. Only points are stored: where each sits in its table and the scales of its branch pieces are
+    /// recomputed from the tables, exactly as they were made.
     pub fn to_words(&self) -> alloc::vec::Vec<u64> {
         let mut w = alloc::vec::Vec::with_capacity(STATE_HEADER + ENTRY_WORDS * self.history.len());
         w.extend([
@@ -314,23 +338,18 @@ impl<const N: usize> State<N> {
             self.hint_d as u64,
         ]);
         for r in self.history.entries() {
-            w.extend([r.u.to_bits(), r.y.to_bits(), r.k.to_bits()]);
+            w.extend([r.u.to_bits(), r.y.to_bits()]);
             match r.via {
-                None => w.extend([0, 0, 0, 0, 0]),
-                Some(v) => w.extend([
-                    1,
-                    v.u.to_bits(),
-                    v.y.to_bits(),
-                    v.e.to_bits(),
-                    v.k.to_bits(),
-                ]),
+                None => w.extend([0, 0, 0]),
+                Some(v) => w.extend([1, v.u.to_bits(), v.y.to_bits()]),
             }
         }
         w
     }
 }
 
-/// Input and output stored in serialised state words (`None` if the words are too short to be a state).
+/// Input and output stored in serialised state words, and the memory length (`None` if the words are not a
+/// state).
 pub fn state_words_io(words: &[u64]) -> Option<(f64, f64, usize)> {
     if words.len() < STATE_HEADER || words[0] != STATE_TAG {
         return None;
@@ -344,8 +363,11 @@ pub fn state_words_io(words: &[u64]) -> Option<(f64, f64, usize)> {
 
 impl<S: AsRef<[f64]>, const N: usize> Hysteresis<S, N> {
     /// Read back a state written by [`State::to_words`] from an operator with the same tables. Everything is
-    /// checked (format, tables, memory length, finite values inside the input range, the saturation anchor), so
-    /// damaged words give an error, never a state that could index outside the tables.
+    /// checked: format, tables, memory length, the saturation anchor, finite points inside the input and output
+    /// ranges, alternating and nested reversals (each inside its neighbours), second-piece points on their
+    /// branches, and the current output on the current branch. Branch scales are recomputed from the tables, so
+    /// every branch runs monotonically between checked points: a damaged or forged state gives an error or
+    /// outputs inside the major loop, never an index outside the tables.
     pub fn state_from_words(&self, w: &[u64]) -> Result<State<N>, TableError> {
         let bad = |what| Err(TableError::BadState { what });
         if w.len() < STATE_HEADER || w[0] != STATE_TAG {
@@ -362,10 +384,79 @@ impl<S: AsRef<[f64]>, const N: usize> Hysteresis<S, N> {
             return bad("word count does not match the memory length");
         }
         let f = f64::from_bits;
-        let in_range = |u: f64| u >= self.lo && u <= self.hi;
-        let (u, y) = (f(w[3]), f(w[4]));
-        if !(in_range(u) && y.is_finite()) {
-            return bad("input outside the table range or output not finite");
+        // Outputs may pass the major-loop ends by round-off.
+        let slack = 1e-9 * (self.y_hi - self.y_lo);
+        let point_ok = |u: f64, y: f64| {
+            u >= self.lo && u <= self.hi && y >= self.y_lo - slack && y <= self.y_hi + slack
+        };
+        // `x` lies between `a` and `b` (either order), ends included; outputs with the round-off slack.
+        let between = |x: f64, a: f64, b: f64| x >= a.min(b) && x <= a.max(b);
+        let between_y = |y: f64, a: f64, b: f64| y >= a.min(b) - slack && y <= a.max(b) + slack;
+        let saturation = (self.hi, self.y_hi);
+        let mut history = History::new(self.anchor);
+        for i in 0..len {
+            let e = &w[STATE_HEADER + ENTRY_WORDS * i..STATE_HEADER + ENTRY_WORDS * (i + 1)];
+            let (u, y) = (f(e[0]), f(e[1]));
+            let via_point = match e[2] {
+                0 => None,
+                1 => Some((f(e[3]), f(e[4]))),
+                _ => return bad("second branch piece flag"),
+            };
+            let below = if i == 0 {
+                saturation
+            } else {
+                let b = history.top();
+                (b.u, b.y)
+            };
+            if i == 0 {
+                if (u, y) != (self.anchor.u, self.anchor.y) {
+                    return bad("first memory entry is not the saturation anchor");
+                }
+            } else {
+                if !point_ok(u, y) {
+                    return bad("memory entry outside the table's input or output range");
+                }
+                // Entry i sits between the one below it and that one's closure target.
+                let outer = if i >= 2 {
+                    let t = history.get(i - 2);
+                    (t.u, t.y)
+                } else {
+                    saturation
+                };
+                if !(between(u, below.0, outer.0) && between_y(y, below.1, outer.1)) {
+                    return bad("memory entries are not nested reversals");
+                }
+            }
+            let strip = if i == 0 {
+                self.anchor.strip
+            } else if i % 2 == 1 {
+                self.desc.strip(-u)
+            } else {
+                self.asc.strip(u)
+            };
+            let mut r = Reversal::scaled(u, y, strip, None);
+            let first_to = match via_point {
+                Some((vu, vy)) => {
+                    if !(point_ok(vu, vy) && between(vu, u, below.0) && between_y(vy, y, below.1)) {
+                        return bad("second branch piece outside its branch");
+                    }
+                    r.via = Some(second_piece(&self.asc, &self.desc, &r, (vu, vy), below));
+                    (vu, vy)
+                }
+                None => below,
+            };
+            if i == 0 && via_point.is_none() {
+                r = self.anchor;
+            } else {
+                let k = first_piece_scale(&self.asc, &self.desc, &r, first_to);
+                r.k = k.unwrap_or(1.0);
+                r.linear = k.is_none();
+            }
+            if i == 0 {
+                *history.get_mut(0) = r;
+            } else {
+                history.push(r);
+            }
         }
         // Hints only speed searches up; keep them inside each family's cells all the same.
         let hint = |x: u64, fam: &Family<S>| {
@@ -373,136 +464,190 @@ impl<S: AsRef<[f64]>, const N: usize> Hysteresis<S, N> {
                 .unwrap_or(usize::MAX)
                 .min(fam.nodes() - 2)
         };
-        let mut history = History::new(self.anchor);
-        for i in 0..len {
-            let e = &w[STATE_HEADER + ENTRY_WORDS * i..STATE_HEADER + ENTRY_WORDS * (i + 1)];
-            let (ru, ry, rk) = (f(e[0]), f(e[1]), f(e[2]));
-            if !(in_range(ru) && ry.is_finite() && rk.is_finite()) {
-                return bad("memory entry outside the table range or not finite");
-            }
-            let via = match e[3] {
-                0 => None,
-                1 => {
-                    let v = Via {
-                        u: f(e[4]),
-                        y: f(e[5]),
-                        e: f(e[6]),
-                        k: f(e[7]),
-                    };
-                    if !(in_range(v.u) && v.y.is_finite() && v.e.is_finite() && v.k.is_finite()) {
-                        return bad("second branch piece outside the table range or not finite");
-                    }
-                    Some(v)
-                }
-                _ => return bad("second branch piece flag"),
-            };
-            if i == 0 {
-                let a = self.anchor;
-                if (ru, ry, rk) != (a.u, a.y, a.k) || via.is_some() {
-                    return bad("first memory entry is not the saturation anchor");
-                }
-                continue;
-            }
-            // Even entries are minima (ascending branch ahead), odd ones maxima (see crate::history).
-            let strip = if i % 2 == 1 {
-                self.desc.strip(-ru)
-            } else {
-                self.asc.strip(ru)
-            };
-            history.push(Reversal {
-                u: ru,
-                y: ry,
-                k: rk,
-                strip,
-                via,
-            });
-        }
-        Ok(State {
+        let st = State {
             history,
-            u,
-            y,
+            u: f(w[3]),
+            y: f(w[4]),
             hint_a: hint(w[5], &self.asc),
             hint_d: hint(w[6], &self.desc),
             fingerprint: self.fingerprint,
-        })
+        };
+        // The current point lies on the newest entry's branch, between it and its closure target.
+        let top = *st.history.top();
+        let end = st.history.target().map_or(saturation, |t| (t.u, t.y));
+        if !(point_ok(st.u, st.y) && between(st.u, top.u, end.0)) {
+            return bad("current point outside the newest branch");
+        }
+        let mut probe = Hysteresis {
+            asc: self.asc.view(),
+            desc: self.desc.view(),
+            y_lo: self.y_lo,
+            y_hi: self.y_hi,
+            lo: self.lo,
+            hi: self.hi,
+            anchor: self.anchor,
+            fingerprint: self.fingerprint,
+            state: st,
+            fast: None,
+        };
+        let on_branch = probe.branch_output(st.u);
+        let off = (on_branch - st.y).abs();
+        if off.is_nan() || off > slack {
+            return bad("current output is not on the newest branch");
+        }
+        Ok(st)
     }
 }
 
-/// Push the state's current point as a reversal, merging first when the memory is full.
+/// Push the state's current point as a reversal, merging first when the memory is full. `saturation` is the
+/// anchor's closure target `(hi, y_hi)`.
 pub(crate) fn push_reversal<S: AsRef<[f64]>, const N: usize>(
     asc: &Family<S>,
     desc: &Family<S>,
     st: &mut State<N>,
+    saturation: (f64, f64),
 ) {
     if st.history.is_full() {
-        st.history
-            .make_room(|entry, old, new| second_piece(asc, desc, entry, old, new));
+        merge(asc, desc, &mut st.history, saturation);
     }
     let (u, y) = (st.u, st.y);
     let below = *st.history.top();
-    let r = if st.history.rising() {
-        let strip = desc.strip(-u);
-        let e = desc.everett(&strip, -below.u, &mut st.hint_d);
-        Reversal {
-            u,
-            y,
-            k: branch_scale(y - below.y, e),
-            strip,
-            via: None,
-        }
+    let strip = if st.history.rising() {
+        desc.strip(-u)
     } else {
-        let strip = asc.strip(u);
-        let e = asc.everett(&strip, below.u, &mut st.hint_a);
-        Reversal {
-            u,
-            y,
-            k: branch_scale(below.y - y, e),
-            strip,
-            via: None,
-        }
+        asc.strip(u)
     };
+    let mut r = Reversal::scaled(u, y, strip, None);
+    let k = first_piece_scale(asc, desc, &r, (below.u, below.y));
+    r.k = k.unwrap_or(1.0);
+    r.linear = k.is_none();
     st.history.push(r);
 }
 
-/// Branch scale that makes an increment `e` produce the output change `dy`; 1 when undefined.
-#[inline]
-pub(crate) fn branch_scale(dy: f64, e: f64) -> f64 {
-    if e > 0.0 {
-        let k = dy / e;
-        if k.is_finite() { k.max(0.0) } else { 1.0 }
+/// Make room for one entry in a full memory by merging away the interior pair `(j, j+1)` chosen by
+/// [`History::merge_candidate`]. Entry `j+2` keeps its branch up to the old target `j+1`, then follows a second
+/// piece scaled to close on its new target `j-1`. Entry `j-1`, whose branch is only ever followed again from
+/// `j+2`'s input on (after `j+2` is wiped out), now runs through `j+2`'s point and then closes on its own target.
+/// No stored output changes, and the output stays continuous at every later wipe-out, of `j+2` and of `j-1`; only
+/// the shape between the targets is approximated.
+fn merge<S: AsRef<[f64]>, const N: usize>(
+    asc: &Family<S>,
+    desc: &Family<S>,
+    h: &mut History<N>,
+    saturation: (f64, f64),
+) {
+    let Some(j) = h.merge_candidate() else {
+        // Unreachable for N >= 4 (see merge_candidate); dropping the newest pair keeps the stack valid regardless.
+        h.pop(2);
+        return;
+    };
+    let point = |r: &Reversal| (r.u, r.y);
+    let (upper, old, lower) = (*h.get(j + 2), *h.get(j + 1), *h.get(j - 1));
+    let lower_target = if j >= 2 {
+        point(h.get(j - 2))
     } else {
-        1.0
+        saturation
+    };
+    h.get_mut(j + 2).via = Some(second_piece(asc, desc, &upper, point(&old), point(&lower)));
+    let k = first_piece_scale(asc, desc, &lower, point(&upper));
+    let via = second_piece(asc, desc, &lower, point(&upper), lower_target);
+    let l = h.get_mut(j - 1);
+    l.k = k.unwrap_or(1.0);
+    l.linear = k.is_none();
+    l.via = Some(via);
+    h.remove_pair(j);
+}
+
+/// Scale of `entry`'s first branch piece so that it closes on `to` (`None`: a straight line, see
+/// [`branch_scale`]). The branch rises from a minimum (`to` above it) and falls from a maximum.
+fn first_piece_scale<S: AsRef<[f64]>>(
+    asc: &Family<S>,
+    desc: &Family<S>,
+    entry: &Reversal,
+    to: (f64, f64),
+) -> Option<f64> {
+    let mut hint = 0;
+    if to.0 > entry.u {
+        branch_scale(to.1 - entry.y, asc.everett(&entry.strip, to.0, &mut hint))
+    } else {
+        branch_scale(entry.y - to.1, desc.everett(&entry.strip, -to.0, &mut hint))
     }
 }
 
-/// Second branch piece of `entry` from its old target to its new one (see [`History::make_room`]).
+/// Branch scale that makes an increment `e` produce the output change `dy`, or `None` when no scale can: the
+/// tables give no increment (`e = 0`) while the output must still rise, or the scale overflows. Such a branch is a
+/// straight line in the input to its target (see [`Reversal::linear`]).
+#[inline]
+pub(crate) fn branch_scale(dy: f64, e: f64) -> Option<f64> {
+    if e > 0.0 {
+        let k = dy / e;
+        if k.is_finite() {
+            Some(k.max(0.0))
+        } else {
+            None
+        }
+    } else if dy > 0.0 {
+        None
+    } else {
+        Some(1.0)
+    }
+}
+
+/// The straight line from `(u0, y0)` to `(u1, y1)` at `u` (the far end when the two inputs coincide).
+#[inline]
+pub(crate) fn line(u0: f64, y0: f64, u1: f64, y1: f64, u: f64) -> f64 {
+    if u1 == u0 {
+        return y1;
+    }
+    y0 + (y1 - y0) * ((u - u0) / (u1 - u0)).clamp(0.0, 1.0)
+}
+
+impl Reversal {
+    /// A reversal whose branch follows the tables with scale `k`, or a straight line when `k` is `None`.
+    #[inline]
+    pub(crate) fn scaled(u: f64, y: f64, strip: crate::everett::Strip, k: Option<f64>) -> Reversal {
+        Reversal {
+            u,
+            y,
+            k: k.unwrap_or(1.0),
+            strip,
+            via: None,
+            linear: k.is_none(),
+        }
+    }
+}
+
+/// Second branch piece of `entry` from the point `from` on its branch to `to` (`(input, output)` pairs; see
+/// [`merge`]).
 fn second_piece<S: AsRef<[f64]>>(
     asc: &Family<S>,
     desc: &Family<S>,
     entry: &Reversal,
-    old: &Reversal,
-    new: &Reversal,
+    from: (f64, f64),
+    to: (f64, f64),
 ) -> Via {
     let mut hint = 0;
-    // Entry rises if it is a minimum, i.e. its targets are maxima above it.
-    let (e_old, e_new, dy) = if old.u > entry.u {
+    // Entry rises if it is a minimum, i.e. the points are above it.
+    let (e_from, e_to, dy) = if from.0 > entry.u {
         (
-            asc.everett(&entry.strip, old.u, &mut hint),
-            asc.everett(&entry.strip, new.u, &mut hint),
-            new.y - old.y,
+            asc.everett(&entry.strip, from.0, &mut hint),
+            asc.everett(&entry.strip, to.0, &mut hint),
+            to.1 - from.1,
         )
     } else {
         (
-            desc.everett(&entry.strip, -old.u, &mut hint),
-            desc.everett(&entry.strip, -new.u, &mut hint),
-            old.y - new.y,
+            desc.everett(&entry.strip, -from.0, &mut hint),
+            desc.everett(&entry.strip, -to.0, &mut hint),
+            from.1 - to.1,
         )
     };
+    let k = branch_scale(dy, e_to - e_from);
     Via {
-        u: old.u,
-        y: old.y,
-        e: e_old,
-        k: branch_scale(dy, e_new - e_old),
+        u: from.0,
+        y: from.1,
+        e: e_from,
+        k: k.unwrap_or(1.0),
+        linear: k.is_none(),
     }
 }
 

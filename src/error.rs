@@ -122,6 +122,14 @@ pub enum TableError {
     },
     /// The major loop has no height (output at positive saturation not above negative saturation).
     NoOutputSpan { lo: f64, hi: f64 },
+    /// A curve's output leaves the major loop by more than the closure tolerance.
+    OutsideMajorLoop {
+        family: FamilyKind,
+        curve: usize,
+        output: f64,
+        lo: f64,
+        hi: f64,
+    },
     /// A raw internal table is inconsistent (dimensions, grid, rows).
     BadTable {
         family: FamilyKind,
@@ -294,6 +302,17 @@ impl fmt::Display for TableError {
             } => write!(
                 f,
                 "major branches do not meet at saturation input {at_input}: ascending ends at {ascending}, descending at {descending}"
+            ),
+            TableError::OutsideMajorLoop {
+                family,
+                curve,
+                output,
+                lo,
+                hi,
+            } => write!(
+                f,
+                "{family} curve {curve} reaches output {output}, outside the major loop [{lo}, {hi}] by more than \
+                 the closure tolerance: not a first-order curve between these major branches"
             ),
             TableError::NoOutputSpan { lo, hi } => write!(
                 f,

@@ -177,6 +177,16 @@ impl<S: AsRef<[f64]>> Family<S> {
         Ok(f)
     }
 
+    /// The same table over borrowed storage (no copy, no validation again).
+    pub(crate) fn view(&self) -> Family<&[f64]> {
+        Family {
+            data: self.data.as_ref(),
+            nodes: self.nodes,
+            curves: self.curves,
+            kind: self.kind,
+        }
+    }
+
     pub fn kind(&self) -> FamilyKind {
         self.kind
     }
@@ -210,17 +220,19 @@ impl<S: AsRef<[f64]>> Family<S> {
         self.grid()[self.nodes - 1]
     }
 
-    /// Grid cell `k` with `g[k] <= u <= g[k+1]`, hunting from `hint` (a cache that only speeds the search).
+    /// Grid cell `k` with `g[k] <= u < g[k+1]` (the last cell also holds `g[nodes-1]`), hunting from `hint` (a
+    /// cache that only speeds the search: the cell, and so every value interpolated in it, does not depend on it).
     #[inline]
     pub fn locate(&self, u: f64, hint: &mut usize) -> usize {
         let g = self.grid();
         let last = self.nodes - 2;
         let h = (*hint).min(last);
-        let k = if g[h] <= u && u <= g[h + 1] {
+        let holds = |k: usize| g[k] <= u && (u < g[k + 1] || (k == last && u <= g[k + 1]));
+        let k = if holds(h) {
             h
-        } else if h < last && g[h + 1] <= u && u <= g[h + 2] {
+        } else if h < last && holds(h + 1) {
             h + 1
-        } else if h > 0 && g[h - 1] <= u && u <= g[h] {
+        } else if h > 0 && holds(h - 1) {
             h - 1
         } else {
             // First node above u, minus one: the cell holding u.

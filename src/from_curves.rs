@@ -98,12 +98,13 @@ impl<const N: usize> Hysteresis<Vec<f64>, N> {
     /// ascending curve on the grid from its reversal up, starting on the descending major branch; each
     /// descending curve from its reversal down, starting on the ascending major branch.
     pub fn curves(&self) -> (Vec<CurveData>, Vec<CurveData>) {
-        let anchor = *self.state.history.get(0);
+        let anchor = self.anchor;
         let mut hint = 0;
         // Major-branch outputs where the first-order curves leave them.
         let top_strip = self.desc.strip(-self.hi);
         let k_top =
-            crate::cbh::branch_scale(self.y_hi - self.y_lo, self.desc.everett_max(&top_strip));
+            crate::cbh::branch_scale(self.y_hi - self.y_lo, self.desc.everett_max(&top_strip))
+                .unwrap_or(1.0);
         let mut asc = Vec::with_capacity(self.asc.curves());
         for (j, &m) in self.asc.reversals().iter().enumerate() {
             let y0 = if j == 0 {

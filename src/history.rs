@@ -7,7 +7,7 @@
 //! saturation.
 use crate::everett::Strip;
 
-/// A point where the output follows a second piece after a merge (see [`History::make_room`]).
+/// A point where the output follows a second piece after a merge (see [`History::merge_candidate`]).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Via {
     /// Input where the second piece starts (the merged-away closure target).
@@ -18,6 +18,8 @@ pub struct Via {
     pub e: f64,
     /// Scale of the second piece, so that it closes on the new target.
     pub k: f64,
+    /// The tables give no increment towards the new target: the piece is a straight line in the input to it.
+    pub linear: bool,
 }
 
 /// One remembered reversal point and the branch that leaves it.
@@ -34,6 +36,10 @@ pub struct Reversal {
     pub strip: Strip,
     /// Second branch piece after a merge.
     pub via: Option<Via>,
+    /// The tables give no increment towards the closure target (a flat Everett function where the outputs still
+    /// differ, as in measured families that disagree): the branch is a straight line in the input to the target
+    /// instead, so that the output stays continuous and monotone.
+    pub linear: bool,
 }
 
 impl Reversal {
@@ -43,6 +49,7 @@ impl Reversal {
         k: 1.0,
         strip: Strip::ZERO,
         via: None,
+        linear: false,
     };
 }
 
@@ -122,18 +129,12 @@ impl<const N: usize> History<N> {
         self.len = 1;
     }
 
-    /// Make room for one more entry when full: merge away the interior pair `(j, j+1)` with the smallest input
-    /// excursion (the newest such pair on ties) whose upper neighbour `j+2` has no second piece yet. Entry `j+2`
-    /// keeps its branch up to the old target's input and output, then follows a second piece scaled to close on
-    /// its new target `j-1`. No stored output changes, so the output stays continuous now and at every later
-    /// wipe-out; only the shape between the two targets is approximated. `second_piece(entry, old_target,
-    /// new_target)` computes that piece. With `N >= 4` a candidate always exists (the newest entry has no piece).
-    pub fn make_room(&mut self, second_piece: impl Fn(&Reversal, &Reversal, &Reversal) -> Via) {
-        if self.len < N {
-            return;
-        }
+    /// The interior pair `(j, j+1)` to merge away when the memory is full: the one with the smallest input
+    /// excursion (the newest on ties) whose upper neighbour `j+2` has no second piece yet. With `N >= 4` one
+    /// always exists (the newest entry has no piece). See `cbh::merge` for what the merge does to the branches.
+    pub fn merge_candidate(&self) -> Option<usize> {
         let mut best: Option<(usize, f64)> = None;
-        for j in 1..self.len - 2 {
+        for j in 1..self.len.saturating_sub(2) {
             if self.entries[j + 2].via.is_some() {
                 continue;
             }
@@ -142,17 +143,18 @@ impl<const N: usize> History<N> {
                 best = Some((j, excursion));
             }
         }
-        let Some((j, _)) = best else {
-            // Unreachable for N >= 4 (see above); dropping the newest pair keeps the stack valid regardless.
-            self.len -= 2;
-            return;
-        };
-        let via = second_piece(
-            &self.entries[j + 2],
-            &self.entries[j + 1],
-            &self.entries[j - 1],
-        );
-        self.entries[j + 2].via = Some(via);
+        best.map(|(j, _)| j)
+    }
+
+    /// Mutable access to entry `i` (merging reshapes the neighbours of the removed pair).
+    #[inline]
+    pub(crate) fn get_mut(&mut self, i: usize) -> &mut Reversal {
+        &mut self.entries[i]
+    }
+
+    /// Remove the interior pair `(j, j+1)`; the entries above move down by two.
+    pub(crate) fn remove_pair(&mut self, j: usize) {
+        debug_assert!(j >= 1 && j + 1 < self.len);
         self.entries.copy_within(j + 2..self.len, j);
         self.len -= 2;
     }

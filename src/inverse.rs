@@ -6,7 +6,7 @@
 //! do), and invert that one branch in closed form inside a table cell. `forward(inverse(T)) = T` to round-off
 //! for every reachable `T`; unreachable targets saturate at the input range and are flagged. No allocation.
 use crate::cbh::{Hysteresis, branch_scale, push_reversal};
-use crate::everett::Hit;
+use crate::everett::{Hit, Strip};
 use crate::history::Reversal;
 
 /// Result of an inverse query.
@@ -92,6 +92,14 @@ impl InverseInput {
     }
 }
 
+/// Input where the straight line from `(u0, y0)` to `(u1, y1)` reaches `target` (clamped to the segment).
+fn line_inverse(u0: f64, y0: f64, u1: f64, y1: f64, target: f64) -> f64 {
+    if y1 == y0 {
+        return u1;
+    }
+    u0 + (u1 - u0) * ((target - y0) / (y1 - y0)).clamp(0.0, 1.0)
+}
+
 impl<S: AsRef<[f64]>, const N: usize> Hysteresis<S, N> {
     /// The input whose `step` would output `target`, without changing the state. NaN target → NaN input.
     #[inline(always)]
@@ -127,7 +135,7 @@ impl<S: AsRef<[f64]>, const N: usize> Hysteresis<S, N> {
             && !(u_c == st.history.top().u && st.history.len() > 1)
         {
             let mut s = *st;
-            push_reversal(&self.asc, &self.desc, &mut s);
+            push_reversal(&self.asc, &self.desc, &mut s, (self.hi, self.y_hi));
             scratch = s;
             &scratch.history
         } else {
@@ -154,7 +162,7 @@ impl<S: AsRef<[f64]>, const N: usize> Hysteresis<S, N> {
             };
             let inside = if up { target <= end_y } else { target >= end_y };
             if inside {
-                let (input, hit) = self.invert_branch(level, target, up, end_u);
+                let (input, hit) = self.invert_branch(level, target, up, (end_u, end_y));
                 // The shortcut holds for the newest reversal's branch when moving its way (no turn, no wipe-out).
                 let fast = match hit {
                     Some((hit, t_tri, r_next))
@@ -204,41 +212,44 @@ impl<S: AsRef<[f64]>, const N: usize> Hysteresis<S, N> {
     fn new_reversal_at(&self, u: f64, y: f64, below: &Reversal, up: bool) -> Reversal {
         let mut hint = 0;
         if up {
-            let strip = self.asc.strip(u);
+            let strip: Strip = self.asc.strip(u);
             let e = self.asc.everett(&strip, below.u, &mut hint);
-            Reversal {
-                u,
-                y,
-                k: branch_scale(below.y - y, e),
-                strip,
-                via: None,
-            }
+            Reversal::scaled(u, y, strip, branch_scale(below.y - y, e))
         } else {
             let strip = self.desc.strip(-u);
             let e = self.desc.everett(&strip, -below.u, &mut hint);
-            Reversal {
-                u,
-                y,
-                k: branch_scale(y - below.y, e),
-                strip,
-                via: None,
-            }
+            Reversal::scaled(u, y, strip, branch_scale(y - below.y, e))
         }
     }
 
-    /// Input on `r`'s branch where the output equals `target` (inside the branch's output range).
+    /// Input on `r`'s branch where the output equals `target` (inside the branch's output range); `end` is the
+    /// branch's closure target `(input, output)`. With the input, the table cell it was found in (for the
+    /// shortcut; None for straight pieces and flat tables).
     #[inline(always)]
     fn invert_branch(
         &self,
         r: &Reversal,
         target: f64,
         up: bool,
-        end_u: f64,
+        end: (f64, f64),
     ) -> (f64, Option<(Hit, f64, f64)>) {
+        let end_u = end.0;
+        // Straight-line pieces (see `Reversal::linear`) invert in closed form.
+        let second = matches!(r.via, Some(v) if (up && target > v.y) || (!up && target < v.y));
+        match r.via {
+            Some(v) if second && v.linear => {
+                return (line_inverse(v.u, v.y, end.0, end.1, target), None);
+            }
+            Some(v) if !second && r.linear => {
+                return (line_inverse(r.u, r.y, v.u, v.y, target), None);
+            }
+            None if r.linear => return (line_inverse(r.u, r.y, end.0, end.1, target), None),
+            _ => {}
+        }
         // Increment along the branch, in the family's rising orientation.
         let dy = if up { target - r.y } else { r.y - target };
         let e = match r.via {
-            Some(v) if (up && target > v.y) || (!up && target < v.y) => {
+            Some(v) if second => {
                 if v.k > 0.0 {
                     v.e + (if up { target - v.y } else { v.y - target }) / v.k
                 } else {

@@ -13,8 +13,9 @@ pub const MAX_CURVES: usize = 4096;
 pub const MAX_NODES: usize = 1 << 16;
 /// Most stored values (curves × grid nodes) in one family of a table: 128 MiB of `f64`.
 pub const MAX_TABLE_VALUES: usize = 1 << 24;
-/// Largest magnitude of a table input or output. Products of two input differences must stay finite
-/// (`(2e150)² < f64::MAX`); data beyond it belong in other units.
+/// Largest magnitude of a table input or output, and of a friction model's largest torque
+/// (`|c0| + Σ |a_k| + |b_k|`). Products of two input differences must stay finite (`(2e150)² < f64::MAX`) and a
+/// friction torque subtracted from any finite reference stays finite; data beyond it belong in other units.
 pub const MAX_MAGNITUDE: f64 = 1e150;
 /// Most samples one call may generate (angle previews, simulated runs): 128 MiB per `f64` column.
 pub const MAX_GENERATED_SAMPLES: usize = 1 << 24;

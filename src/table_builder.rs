@@ -319,6 +319,28 @@ pub fn build_tables(
         }
     }
 
+    // Every measured curve runs inside the major loop (within the closure tolerance): one whose output leaves it
+    // is not a first-order curve between these major branches, and its table values would lie outside the
+    // operator's output range.
+    for (family, fam, sign) in [(Ascending, &asc, 1.0), (Descending, &desc, -1.0)] {
+        for c in fam.iter() {
+            let (e_min, e_max) =
+                c.e.iter()
+                    .fold((0.0f64, 0.0f64), |(a, b), &v| (a.min(v), b.max(v)));
+            for output in [c.y0, c.y0 + sign * e_min, c.y0 + sign * e_max] {
+                if output < y_lo - tol_close || output > y_hi + tol_close {
+                    return Err(TableError::OutsideMajorLoop {
+                        family,
+                        curve: c.index,
+                        output,
+                        lo: y_lo,
+                        hi: y_hi,
+                    });
+                }
+            }
+        }
+    }
+
     let node_tol = opts.node_tolerance * span_y;
     let mut curves = asc_reports;
     curves.extend(desc_reports);

@@ -147,6 +147,8 @@ def _parser() -> argparse.ArgumentParser:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
+    """Run a subcommand. Problems with the user's data, arguments or files end with exit status 2 and one line
+    naming the file and the problem, never a traceback."""
     args = _parser().parse_args(argv)
     try:
         if args.command == "demo":
@@ -174,6 +176,14 @@ def main(argv: Sequence[str] | None = None) -> int:
     except BmrError as exc:
         print(f"bmr {args.command}: error: {exc}", file=sys.stderr)
         return 2
+    except OSError as exc:
+        # A file the command had to read or write (the helpers name theirs in a BmrError; this is the rest).
+        where = f"{exc.filename!r}: " if exc.filename else ""
+        print(f"bmr {args.command}: error: {where}{exc.strerror or exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print(f"bmr {args.command}: interrupted", file=sys.stderr)
+        return 130
 
 
 if __name__ == "__main__":

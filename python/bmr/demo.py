@@ -20,8 +20,9 @@ from typing import Any
 
 import numpy as np
 
-from bmr._core import Compensator, VirtualActuator
+from bmr._core import PRESETS, BmrError, Compensator, VirtualActuator
 from bmr.data.bundle import Bundle, Run, write_bundle
+from bmr.data.files import check_output_folder, write_text
 from bmr.diagnosis.procedure import diagnose
 from bmr.identification.procedure import identify
 from bmr.report.demo_report import write_report
@@ -95,15 +96,42 @@ def _durations(quick: bool) -> dict[str, float]:
 
 def run_demo(out: str | Path = "bmr-demo", *, preset: str = "bmr2013", seed: int = 0, quick: bool = False,
              progress: bool = True, diagnose: bool = True) -> DemoResult:
-    """Run the whole programme and write figures, ``metrics.json`` and ``report.html`` into ``out``."""
+    """Run the whole programme and write figures, ``metrics.json`` and ``report.html`` into ``out``. Arguments
+    and the output folder are checked before anything runs; a failed run leaves no empty folder behind."""
+    t_start = time.perf_counter()
+    if preset not in PRESETS:
+        raise BmrError(f"unknown virtual actuator preset {preset!r}; available: {', '.join(PRESETS)}")
+    out = check_output_folder(out, "demo output folder")
+    created = not out.exists()
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise BmrError(f"cannot create demo output folder {str(out)!r}: {exc.strerror or exc}") from None
+    try:
+        return _run_demo(out, t_start, preset, seed, quick, progress, diagnose)
+    except BaseException:
+        # Leave nothing behind for a run that produced nothing.
+        if created and out.is_dir() and not any(out.iterdir()):
+            out.rmdir()
+        raise
+
+
+def _run_demo(out: Path, t_start: float, preset: str, seed: int, quick: bool, progress: bool,
+              diagnose: bool) -> DemoResult:
     from tqdm import tqdm
 
-    t_start = time.perf_counter()
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
     stages = ["simulate the identification and evaluation experiments", "identify friction and CBH tables",
               "control experiments with the compensator in the loop", "figures", "diagnosis", "report"]
     bar = tqdm(total=len(stages), file=sys.stderr, desc="bmr demo", unit="stage", disable=not progress)
+    try:
+        return _stages(out, t_start, preset, seed, quick, diagnose, bar, stages)
+    finally:
+        # An error is printed below a closed bar, never on top of a running one.
+        bar.close()
+
+
+def _stages(out: Path, t_start: float, preset: str, seed: int, quick: bool, diagnose: bool, bar: Any,
+            stages: list[str]) -> DemoResult:
 
     def stage(i: int) -> None:
         bar.set_postfix_str(stages[i])
@@ -143,10 +171,9 @@ def run_demo(out: str | Path = "bmr-demo", *, preset: str = "bmr2013", seed: int
         # Wall-clock time is the one thing a seed does not fix: keep it with the other timings.
         metrics["timing_s"]["diagnosis"] = metrics["diagnosis"].pop("wall_time_s", None)
     metrics["timing_s"]["wall"] = round(time.perf_counter() - t_start, 3)
-    (out / "metrics.json").write_text(json.dumps(metrics, indent=2) + "\n")
+    write_text(out / "metrics.json", json.dumps(metrics, indent=2) + "\n")
     write_report(out / "report.html", metrics, figures, diagnosis)
     bar.update(1)
-    bar.close()
     return DemoResult(out, bundle, model, cases, metrics, figures, diagnosis, time.perf_counter() - t_start)
 
 

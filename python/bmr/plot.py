@@ -10,8 +10,6 @@ from __future__ import annotations
 
 import base64
 import io
-import os
-import tempfile
 from contextlib import contextmanager
 from pathlib import Path
 from typing import Any, Iterator, Sequence
@@ -119,23 +117,14 @@ def thin(*arrays: Any, n: int = 6000) -> list[Any]:
 
 
 def save(fig: Any, path: str | Path) -> Path:
-    """Write ``fig`` as PNG to ``path`` (written to a temporary file in the same folder, then renamed: a reader
-    never sees a half-written figure) and close it."""
+    """Write ``fig`` as PNG to ``path`` atomically (a reader never sees a half-written figure) and close it."""
+    from bmr.data.files import write_atomic
+
     plt = _pyplot()
-    p = Path(path)
-    fd, tmp = tempfile.mkstemp(prefix=f".{p.name}.", suffix=".tmp", dir=p.parent)
     try:
-        with os.fdopen(fd, "wb") as fh:
-            fig.savefig(fh, format="png")
-            fh.flush()
-            os.fsync(fh.fileno())
-        os.replace(tmp, p)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+        return write_atomic(path, lambda fh: fig.savefig(fh, format="png"))
     finally:
         plt.close(fig)
-    return p
 
 
 def png_base64(fig: Any) -> str:

@@ -43,9 +43,16 @@ pub struct RotorDrive {
     theta_rad: f64,
 }
 
+/// `theta` in [0, 2π) (`rem_euclid` rounds tiny negative angles up to exactly 2π).
+#[inline]
+fn wrap(theta: f64) -> f64 {
+    let t = theta.rem_euclid(TAU);
+    if t >= TAU { 0.0 } else { t }
+}
+
 impl RotorDrive {
     pub fn new(params: DriveParams, dt_s: f64) -> Self {
-        let theta_rad = params.theta0_rad.rem_euclid(TAU);
+        let theta_rad = wrap(params.theta0_rad);
         RotorDrive {
             params,
             dt_s,
@@ -54,7 +61,7 @@ impl RotorDrive {
     }
 
     pub fn reset(&mut self) {
-        self.theta_rad = self.params.theta0_rad.rem_euclid(TAU);
+        self.theta_rad = wrap(self.params.theta0_rad);
     }
 
     pub(crate) fn save_state(&self, out: &mut Vec<u64>) {
@@ -89,10 +96,6 @@ impl RotorDrive {
     #[inline]
     pub fn advance(&mut self) {
         let next = self.theta_rad + self.speed_rad_s() * self.dt_s;
-        self.theta_rad = next.rem_euclid(TAU);
-        // rem_euclid can round up to exactly TAU for tiny negative inputs.
-        if self.theta_rad >= TAU {
-            self.theta_rad = 0.0;
-        }
+        self.theta_rad = wrap(next);
     }
 }

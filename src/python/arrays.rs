@@ -10,7 +10,7 @@ use crate::from_curves::CurveData;
 pub(crate) const DETACH_LEN: usize = 4096;
 
 /// Any 1-D array-like of numbers as `Vec<f64>` (ints and lists accepted).
-pub(crate) fn to_vec(a: PyArrayLike1<'_, f64, AllowTypeChange>) -> Vec<f64> {
+fn to_vec(a: PyArrayLike1<'_, f64, AllowTypeChange>) -> Vec<f64> {
     a.as_array().iter().copied().collect()
 }
 

@@ -486,8 +486,13 @@ impl PyCompensator {
         let model_cls = py.import("bmr")?.getattr("Model")?;
         let model = if model.is_instance(&model_cls)? {
             model.clone()
-        } else {
+        } else if model.is_instance_of::<pyo3::types::PyString>() || model.hasattr("__fspath__")? {
             model_cls.call_method1("load", (model,))?
+        } else {
+            return Err(pyo3::exceptions::PyTypeError::new_err(format!(
+                "model: expected a bmr.Model or the path of a model file, got {}",
+                model.get_type().name()?
+            )));
         };
         let kw = PyDict::new(py);
         if let Some(k) = kwargs {

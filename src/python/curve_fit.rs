@@ -1,10 +1,11 @@
 //! `bmr._core.fit_curve`: one raw measured curve binned on the input axis and fitted monotonically.
-use numpy::{AllowTypeChange, PyArray1, PyArrayLike1};
+use numpy::PyArray1;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
 use crate::curve_fit::binned_curve;
 use crate::python::BmrError;
+use crate::python::arrays::extract_f64_array;
 
 /// A curve fitted from raw samples: bin nodes, the monotone fit at them, and what the data did against the
 /// curve's direction (output units unless stated).
@@ -105,8 +106,8 @@ impl PyCurveFit {
 #[pyo3(signature = (u, y, direction, *, pilot=16))]
 fn fit_curve(
     py: Python<'_>,
-    u: PyArrayLike1<'_, f64, AllowTypeChange>,
-    y: PyArrayLike1<'_, f64, AllowTypeChange>,
+    u: &Bound<'_, PyAny>,
+    y: &Bound<'_, PyAny>,
     direction: &str,
     pilot: usize,
 ) -> PyResult<PyCurveFit> {
@@ -119,8 +120,14 @@ fn fit_curve(
             )));
         }
     };
-    let u: Vec<f64> = u.as_array().iter().map(|&x| sign * x).collect();
-    let y: Vec<f64> = y.as_array().iter().map(|&x| sign * x).collect();
+    let u: Vec<f64> = extract_f64_array(u, "u")?
+        .into_iter()
+        .map(|x| sign * x)
+        .collect();
+    let y: Vec<f64> = extract_f64_array(y, "y")?
+        .into_iter()
+        .map(|x| sign * x)
+        .collect();
     if u.len() != y.len() {
         return Err(BmrError::new_err(format!(
             "fit_curve: {} inputs but {} outputs",

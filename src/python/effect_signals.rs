@@ -1,6 +1,6 @@
 //! Batch signals of the effects the diagnosis fits and learns: creep relaxations, the accommodation shift and
 //! the candidate library of run signals ([`crate::creep`], [`crate::accommodation`], [`crate::discrepancy`]).
-use numpy::{AllowTypeChange, PyArray1, PyArray2, PyArrayLike1};
+use numpy::{PyArray1, PyArray2};
 use pyo3::prelude::*;
 use pyo3::types::PyTuple;
 
@@ -8,7 +8,7 @@ use crate::accommodation::Accommodation;
 use crate::creep::relaxation_columns;
 use crate::discrepancy::{CANDIDATES, candidate_library, library_width};
 use crate::python::BmrError;
-use crate::python::arrays::{DETACH_LEN, to_vec};
+use crate::python::arrays::{DETACH_LEN, extract_f64_array};
 
 fn finite(v: &[f64], what: &str) -> PyResult<()> {
     match v.iter().position(|x| !x.is_finite()) {
@@ -37,12 +37,12 @@ fn matrix<'py>(
 #[pyfunction]
 fn creep_columns<'py>(
     py: Python<'py>,
-    v: PyArrayLike1<'py, f64, AllowTypeChange>,
-    taus_s: PyArrayLike1<'py, f64, AllowTypeChange>,
+    v: Bound<'py, PyAny>,
+    taus_s: Bound<'py, PyAny>,
     dt_s: f64,
 ) -> PyResult<Bound<'py, PyArray2<f64>>> {
-    let v = to_vec(v);
-    let taus = to_vec(taus_s);
+    let v = extract_f64_array(&v, "v")?;
+    let taus = extract_f64_array(&taus_s, "taus_s")?;
     finite(&v, "v")?;
     if !(dt_s > 0.0 && dt_s.is_finite()) || taus.iter().any(|t| !(*t > 0.0 && t.is_finite())) {
         return Err(BmrError::new_err(format!(
@@ -68,8 +68,8 @@ fn creep_columns<'py>(
 #[allow(clippy::too_many_arguments)]
 fn accommodation_shift<'py>(
     py: Python<'py>,
-    u: PyArrayLike1<'py, f64, AllowTypeChange>,
-    v: PyArrayLike1<'py, f64, AllowTypeChange>,
+    u: Bound<'py, PyAny>,
+    v: Bound<'py, PyAny>,
     kappa: f64,
     cycles: f64,
     lo: f64,
@@ -78,7 +78,7 @@ fn accommodation_shift<'py>(
     saturation_tol: f64,
     y_mid: f64,
 ) -> PyResult<Bound<'py, PyArray1<f64>>> {
-    let (u, v) = (to_vec(u), to_vec(v));
+    let (u, v) = (extract_f64_array(&u, "u")?, extract_f64_array(&v, "v")?);
     finite(&u, "u")?;
     finite(&v, "v")?;
     if u.len() != v.len() {
@@ -112,15 +112,21 @@ fn accommodation_shift<'py>(
 #[pyo3(signature = (t_s, u, y, *, deadband, theta_rad=None, harmonics=0))]
 fn candidate_signals<'py>(
     py: Python<'py>,
-    t_s: PyArrayLike1<'py, f64, AllowTypeChange>,
-    u: PyArrayLike1<'py, f64, AllowTypeChange>,
-    y: PyArrayLike1<'py, f64, AllowTypeChange>,
+    t_s: Bound<'py, PyAny>,
+    u: Bound<'py, PyAny>,
+    y: Bound<'py, PyAny>,
     deadband: f64,
-    theta_rad: Option<PyArrayLike1<'py, f64, AllowTypeChange>>,
+    theta_rad: Option<Bound<'py, PyAny>>,
     harmonics: usize,
 ) -> PyResult<Bound<'py, PyArray2<f64>>> {
-    let (t, u, y) = (to_vec(t_s), to_vec(u), to_vec(y));
-    let th = theta_rad.map(to_vec);
+    let (t, u, y) = (
+        extract_f64_array(&t_s, "t_s")?,
+        extract_f64_array(&u, "u")?,
+        extract_f64_array(&y, "y")?,
+    );
+    let th = theta_rad
+        .map(|t| extract_f64_array(&t, "theta_rad"))
+        .transpose()?;
     for (a, name) in [(&t, "t_s"), (&u, "u"), (&y, "y")] {
         finite(a, name)?;
     }

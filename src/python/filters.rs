@@ -1,11 +1,11 @@
 //! Batch versions of the per-sample filters (`crate::filters`) for the Python diagnosis: `lag`, `lead`, `delay`,
 //! `heating_state`. Each runs the very filter the plant and the compensator step, over a whole array.
-use numpy::{AllowTypeChange, PyArray1, PyArrayLike1};
+use numpy::PyArray1;
 use pyo3::prelude::*;
 
 use crate::filters::{DelayLine, Heating, Lag, Lead};
 use crate::python::BmrError;
-use crate::python::arrays::{DETACH_LEN, to_numpy, to_vec};
+use crate::python::arrays::{DETACH_LEN, extract_f64_array, to_numpy};
 
 fn check(what: &str, value: f64, positive: bool) -> PyResult<f64> {
     let ok = value.is_finite() && if positive { value > 0.0 } else { value >= 0.0 };
@@ -39,13 +39,13 @@ fn map_array<'py>(
 #[pyo3(signature = (x, tau_s, dt_s, *, initial=None))]
 fn lag<'py>(
     py: Python<'py>,
-    x: PyArrayLike1<'py, f64, AllowTypeChange>,
+    x: &Bound<'py, PyAny>,
     tau_s: f64,
     dt_s: f64,
     initial: Option<f64>,
 ) -> PyResult<Bound<'py, PyArray1<f64>>> {
     let (tau_s, dt_s) = (check("tau_s", tau_s, false)?, check("dt_s", dt_s, true)?);
-    let x = to_vec(x);
+    let x = extract_f64_array(x, "x")?;
     let y0 = initial.unwrap_or(x.first().copied().unwrap_or(0.0));
     Ok(map_array(py, x, move |mut x| {
         let mut f = Lag::new(tau_s, dt_s, y0);
@@ -60,13 +60,13 @@ fn lag<'py>(
 #[pyo3(signature = (y, tau_s, dt_s, *, initial=None))]
 fn lead<'py>(
     py: Python<'py>,
-    y: PyArrayLike1<'py, f64, AllowTypeChange>,
+    y: &Bound<'py, PyAny>,
     tau_s: f64,
     dt_s: f64,
     initial: Option<f64>,
 ) -> PyResult<Bound<'py, PyArray1<f64>>> {
     let (tau_s, dt_s) = (check("tau_s", tau_s, false)?, check("dt_s", dt_s, true)?);
-    let y = to_vec(y);
+    let y = extract_f64_array(y, "y")?;
     let y0 = initial.unwrap_or(y.first().copied().unwrap_or(0.0));
     Ok(map_array(py, y, move |mut y| {
         let mut f = Lead::new(tau_s, dt_s, y0);
@@ -80,7 +80,7 @@ fn lead<'py>(
 #[pyo3(signature = (x, delay_s, dt_s, *, fill=None))]
 fn delay<'py>(
     py: Python<'py>,
-    x: PyArrayLike1<'py, f64, AllowTypeChange>,
+    x: &Bound<'py, PyAny>,
     delay_s: f64,
     dt_s: f64,
     fill: Option<f64>,
@@ -89,7 +89,7 @@ fn delay<'py>(
         check("delay_s", delay_s, false)?,
         check("dt_s", dt_s, true)?,
     );
-    let x = to_vec(x);
+    let x = extract_f64_array(x, "x")?;
     let fill = fill.unwrap_or(x.first().copied().unwrap_or(0.0));
     // A delay as long as the signal already outputs only `fill`: no need for a longer line.
     let samples = (libm::round(delay_s / dt_s)).min(x.len() as f64) as usize;
@@ -106,7 +106,7 @@ fn delay<'py>(
 #[pyo3(signature = (current_a, tau_s, dt_s, full_current_a, *, initial=0.0))]
 fn heating_state<'py>(
     py: Python<'py>,
-    current_a: PyArrayLike1<'py, f64, AllowTypeChange>,
+    current_a: &Bound<'py, PyAny>,
     tau_s: f64,
     dt_s: f64,
     full_current_a: f64,
@@ -116,7 +116,7 @@ fn heating_state<'py>(
     let dt_s = check("dt_s", dt_s, true)?;
     let full = check("full_current_a", full_current_a, true)?;
     let initial = check("initial", initial.abs(), false).map(|_| initial)?;
-    let x = to_vec(current_a);
+    let x = extract_f64_array(current_a, "current_a")?;
     Ok(map_array(py, x, move |mut x| {
         let mut h = Heating::new(tau_s, dt_s, full, initial);
         x.iter_mut().for_each(|v| *v = h.step(*v));

@@ -1,11 +1,11 @@
 //! `bmr.Friction`: angle-periodic seal friction `c0 + (1 + g|I|)·Σ a_k sin kθ + b_k cos kθ` (N·mm), and
 //! `friction_series`, the batch evaluator of the one friction series for fitted models of any order.
-use numpy::{AllowTypeChange, PyArray1, PyArrayLike1};
+use numpy::PyArray1;
 use pyo3::prelude::*;
 use pyo3::types::PyTuple;
 
 use crate::friction::{Friction, MAX_MAGNITUDE, MAX_ORDER, harmonic_series};
-use crate::python::arrays::{DETACH_LEN, extract_f64_array, to_numpy, to_vec};
+use crate::python::arrays::{DETACH_LEN, extract_f64_array, to_numpy};
 use crate::python::{BmrError, bmr_err};
 
 pub(crate) type Model = Friction<MAX_ORDER>;
@@ -15,16 +15,6 @@ pub(crate) type Model = Friction<MAX_ORDER>;
 #[derive(Clone)]
 pub(crate) struct PyFriction {
     pub(crate) f: Model,
-}
-
-/// A 1-D float array argument.
-fn angle_array(theta: &Bound<'_, PyAny>, what: &str) -> PyResult<Vec<f64>> {
-    let arr: PyArrayLike1<'_, f64, AllowTypeChange> = theta.extract().map_err(|_| {
-        BmrError::new_err(format!(
-            "{what}: theta must be a float or a 1-D array of angles (rad)"
-        ))
-    })?;
-    Ok(to_vec(arr))
 }
 
 fn map_detached(
@@ -97,7 +87,7 @@ impl PyFriction {
         if let (Ok(x), Some(c)) = (theta.extract::<f64>(), scalar_current) {
             return Ok(f.eval_at(x, c).into_pyobject(py)?.into_any());
         }
-        let th = angle_array(theta, "Friction(theta, current_a)")?;
+        let th = extract_f64_array(theta, "theta")?;
         let out = match (current_a, scalar_current) {
             (_, Some(c)) => {
                 let n = th.len();
@@ -109,7 +99,7 @@ impl PyFriction {
                 }
             }
             (Some(c), None) => {
-                let cur = angle_array(c, "Friction(theta, current_a): current_a")?;
+                let cur = extract_f64_array(c, "current_a")?;
                 if cur.len() != th.len() {
                     return Err(BmrError::new_err(format!(
                         "Friction(theta, current_a): {} angles but {} currents",
@@ -202,11 +192,12 @@ impl PyFriction {
 #[pyo3(signature = (theta_rad, c0, a, b))]
 fn friction_series<'py>(
     py: Python<'py>,
-    theta_rad: PyArrayLike1<'py, f64, AllowTypeChange>,
+    theta_rad: &Bound<'py, PyAny>,
     c0: f64,
-    a: Vec<f64>,
-    b: Vec<f64>,
+    a: &Bound<'py, PyAny>,
+    b: &Bound<'py, PyAny>,
 ) -> PyResult<Bound<'py, PyArray1<f64>>> {
+    let (a, b) = (extract_f64_array(a, "a")?, extract_f64_array(b, "b")?);
     if a.len() != b.len() {
         return Err(BmrError::new_err(format!(
             "friction_series: {} sine but {} cosine coefficients",
@@ -220,7 +211,7 @@ fn friction_series<'py>(
             "friction_series: coefficients must be finite with |c0| + Σ|a_k| + |b_k| ≤ {MAX_MAGNITUDE:e}"
         )));
     }
-    let th = to_vec(theta_rad);
+    let th = extract_f64_array(theta_rad, "theta_rad")?;
     let n = th.len();
     let run = move || {
         th.iter()

@@ -1,6 +1,6 @@
 //! Python bindings of the identification least squares: `fit_friction_order`, `EverettModel`, `fit_everett`,
 //! `EverettRegression`.
-use numpy::{AllowTypeChange, PyArray1, PyArray2, PyArrayLike1, PyArrayMethods};
+use numpy::{PyArray1, PyArray2, PyArrayMethods};
 use pyo3::prelude::*;
 use pyo3::types::PyTuple;
 
@@ -9,31 +9,43 @@ use crate::identification::{
     EverettFit, EverettFitOptions, EverettGrid, EverettInput, EverettModel, EverettRegression,
     EverettRun, fit_everett as fit_everett_rs, fit_friction,
 };
-use crate::python::arrays::{curves_to_py, to_vec};
+use crate::python::arrays::{curves_to_py, extract_f64_array};
 use crate::python::hysteresis::PyHysteresis;
 use crate::python::{BmrError, identification_err};
 use crate::table_builder::BuildOptions;
 
 /// A 1-D float array argument (lists and integer arrays accepted).
-type Array<'py> = PyArrayLike1<'py, f64, AllowTypeChange>;
+/// (Floats or integers, as a numpy array or a sequence; anything else is a TypeError naming the argument.)
+type Array<'py> = Bound<'py, PyAny>;
 /// One training run as passed from Python: input, output, row weights, offset column, and optionally the
 /// initial history (inputs after negative saturation that set the run's state) and the run's gain.
 #[derive(FromPyObject)]
 enum RunArrays<'py> {
-    Full((Array<'py>, Array<'py>, Array<'py>, usize, Vec<f64>, f64)),
-    WithHistory((Array<'py>, Array<'py>, Array<'py>, usize, Vec<f64>)),
+    Full((Array<'py>, Array<'py>, Array<'py>, usize, Array<'py>, f64)),
+    WithHistory((Array<'py>, Array<'py>, Array<'py>, usize, Array<'py>)),
     Plain((Array<'py>, Array<'py>, Array<'py>, usize)),
 }
 /// The same run copied out of Python (so the fit can run without the interpreter lock).
 type RunData = (Vec<f64>, Vec<f64>, Vec<f64>, usize, Vec<f64>, f64);
 
 impl RunArrays<'_> {
-    fn into_data(self) -> RunData {
-        match self {
-            RunArrays::Full((u, y, w, o, h, g)) => (to_vec(u), to_vec(y), to_vec(w), o, h, g),
-            RunArrays::WithHistory((u, y, w, o, h)) => (to_vec(u), to_vec(y), to_vec(w), o, h, 1.0),
-            RunArrays::Plain((u, y, w, o)) => (to_vec(u), to_vec(y), to_vec(w), o, Vec::new(), 1.0),
-        }
+    /// Run `i`'s arrays, checked and named as `runs[i] ...` in errors.
+    fn into_data(self, i: usize) -> PyResult<RunData> {
+        let (u, y, w, o, h, g) = match self {
+            RunArrays::Full((u, y, w, o, h, g)) => (u, y, w, o, Some(h), g),
+            RunArrays::WithHistory((u, y, w, o, h)) => (u, y, w, o, Some(h), 1.0),
+            RunArrays::Plain((u, y, w, o)) => (u, y, w, o, None, 1.0),
+        };
+        Ok((
+            extract_f64_array(&u, &format!("runs[{i}] input"))?,
+            extract_f64_array(&y, &format!("runs[{i}] output"))?,
+            extract_f64_array(&w, &format!("runs[{i}] weights"))?,
+            o,
+            h.map(|h| extract_f64_array(&h, &format!("runs[{i}] history")))
+                .transpose()?
+                .unwrap_or_default(),
+            g,
+        ))
     }
 }
 
@@ -119,8 +131,8 @@ fn fit_friction_order(
     torque_nmm: Array<'_>,
     order: usize,
 ) -> PyResult<PyFrictionOrderFit> {
-    let theta = to_vec(theta_rad);
-    let torque = to_vec(torque_nmm);
+    let theta = extract_f64_array(&theta_rad, "theta_rad")?;
+    let torque = extract_f64_array(&torque_nmm, "torque_nmm")?;
     let inner = py
         .detach(|| fit_friction(&theta, &torque, order))
         .map_err(|e| identification_err("friction fit", e))?;
@@ -142,9 +154,9 @@ impl PyEverettModel {
     #[new]
     #[pyo3(signature = (grid, masses, offset))]
     fn new(grid: Array<'_>, masses: Array<'_>, offset: f64) -> PyResult<Self> {
-        let grid =
-            EverettGrid::new(to_vec(grid)).map_err(|e| identification_err("EverettModel", e))?;
-        let inner = EverettModel::new(grid, to_vec(masses), offset)
+        let grid = EverettGrid::new(extract_f64_array(&grid, "grid")?)
+            .map_err(|e| identification_err("EverettModel", e))?;
+        let inner = EverettModel::new(grid, extract_f64_array(&masses, "masses")?, offset)
             .map_err(|e| identification_err("EverettModel", e))?;
         Ok(Self { inner })
     }
@@ -222,10 +234,13 @@ impl PyEverettModel {
         py: Python<'py>,
         u: Array<'py>,
         offset: Option<f64>,
-        history: Option<Vec<f64>>,
+        history: Option<Array<'py>>,
     ) -> PyResult<Bound<'py, PyArray1<f64>>> {
-        let u = to_vec(u);
-        let history = history.unwrap_or_default();
+        let u = extract_f64_array(&u, "u")?;
+        let history = history
+            .map(|h| extract_f64_array(&h, "history"))
+            .transpose()?
+            .unwrap_or_default();
         if let Some(i) = u.iter().position(|v| !v.is_finite()) {
             return Err(crate::python::BmrError::new_err(format!(
                 "input sample {i} is not finite ({})",
@@ -257,8 +272,11 @@ impl PyEverettModel {
         free_offset: bool,
         gain: f64,
     ) -> PyResult<(Vec<f64>, f64, f64)> {
-        let (u, y) = (to_vec(u), to_vec(y));
-        let w = weight.map_or_else(|| vec![1.0; u.len()], to_vec);
+        let (u, y) = (extract_f64_array(&u, "u")?, extract_f64_array(&y, "y")?);
+        let w = match weight {
+            Some(w) => extract_f64_array(&w, "weight")?,
+            None => vec![1.0; u.len()],
+        };
         if y.len() != u.len() || w.len() != u.len() {
             return Err(BmrError::new_err(format!(
                 "best_initial_state: {} inputs, {} outputs, {} weights",
@@ -346,9 +364,13 @@ fn fit_everett<'py>(
     ridge: f64,
     max_iter: usize,
 ) -> PyResult<PyEverettFit> {
-    let grid =
-        EverettGrid::new(to_vec(grid)).map_err(|e| identification_err("Everett table fit", e))?;
-    let data: Vec<RunData> = runs.into_iter().map(RunArrays::into_data).collect();
+    let grid = EverettGrid::new(extract_f64_array(&grid, "grid")?)
+        .map_err(|e| identification_err("Everett table fit", e))?;
+    let data: Vec<RunData> = runs
+        .into_iter()
+        .enumerate()
+        .map(|(i, run)| run.into_data(i))
+        .collect::<PyResult<_>>()?;
     let options = EverettFitOptions {
         smoothing,
         ridge,
@@ -470,12 +492,19 @@ impl PyEverettRegression {
         ridge: f64,
         max_iter: usize,
     ) -> PyResult<Self> {
-        let grid = EverettGrid::new(to_vec(grid))
+        let grid = EverettGrid::new(extract_f64_array(&grid, "grid")?)
             .map_err(|e| identification_err("Everett table fit", e))?;
         let data: Vec<(Vec<f64>, Vec<f64>, usize)> = inputs
             .into_iter()
-            .map(|(u, w, o)| (to_vec(u), to_vec(w), o))
-            .collect();
+            .enumerate()
+            .map(|(i, (u, w, o))| {
+                Ok((
+                    extract_f64_array(&u, &format!("inputs[{i}] input"))?,
+                    extract_f64_array(&w, &format!("inputs[{i}] weights"))?,
+                    o,
+                ))
+            })
+            .collect::<PyResult<_>>()?;
         let options = EverettFitOptions {
             smoothing,
             ridge,
@@ -511,7 +540,11 @@ impl PyEverettRegression {
         outputs: Vec<Array<'py>>,
         warm_start: Option<Vec<bool>>,
     ) -> PyResult<PyEverettFit> {
-        let ys: Vec<Vec<f64>> = outputs.into_iter().map(to_vec).collect();
+        let ys: Vec<Vec<f64>> = outputs
+            .iter()
+            .enumerate()
+            .map(|(i, y)| extract_f64_array(y, &format!("outputs[{i}]")))
+            .collect::<PyResult<_>>()?;
         let fit = py
             .detach(|| {
                 let views: Vec<&[f64]> = ys.iter().map(Vec::as_slice).collect();

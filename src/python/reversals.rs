@@ -1,13 +1,13 @@
 //! `find_reversals` and `reversal_order`: the dead-band reversal machines of [`crate::reversals`] over arrays.
-use numpy::{AllowTypeChange, PyArray1, PyArrayLike1};
+use numpy::PyArray1;
 use pyo3::prelude::*;
 
 use crate::python::BmrError;
-use crate::python::arrays::DETACH_LEN;
+use crate::python::arrays::{DETACH_LEN, extract_f64_array};
 use crate::reversals::{ReversalFinder, ReversalOrder};
 
-fn finite_input(u: &PyArrayLike1<'_, f64, AllowTypeChange>, what: &str) -> PyResult<Vec<f64>> {
-    let v: Vec<f64> = u.as_array().iter().copied().collect();
+fn finite_input(u: &Bound<'_, PyAny>, what: &str) -> PyResult<Vec<f64>> {
+    let v = extract_f64_array(u, "u")?;
     if let Some(i) = v.iter().position(|x| !x.is_finite()) {
         return Err(BmrError::new_err(format!(
             "{what}: input sample {i} is not finite ({})",
@@ -24,7 +24,7 @@ fn finite_input(u: &PyArrayLike1<'_, f64, AllowTypeChange>, what: &str) -> PyRes
 #[pyo3(signature = (u, deadband))]
 fn find_reversals<'py>(
     py: Python<'py>,
-    u: PyArrayLike1<'py, f64, AllowTypeChange>,
+    u: &Bound<'py, PyAny>,
     deadband: f64,
 ) -> PyResult<Bound<'py, PyArray1<i64>>> {
     let mut finder = ReversalFinder::new(deadband).ok_or_else(|| {
@@ -32,7 +32,7 @@ fn find_reversals<'py>(
             "reversal dead-band must be positive and finite, got {deadband}"
         ))
     })?;
-    let u = finite_input(&u, "find_reversals")?;
+    let u = finite_input(u, "find_reversals")?;
     let mut scan = || -> Vec<i64> {
         u.iter()
             .filter_map(|&x| finder.push(x).map(|r| r.index as i64))
@@ -53,7 +53,7 @@ fn find_reversals<'py>(
 #[pyo3(signature = (u, lo, hi, deadband=None, *, saturation_tol=None))]
 fn reversal_order<'py>(
     py: Python<'py>,
-    u: PyArrayLike1<'py, f64, AllowTypeChange>,
+    u: &Bound<'py, PyAny>,
     lo: f64,
     hi: f64,
     deadband: Option<f64>,
@@ -68,7 +68,7 @@ fn reversal_order<'py>(
              (lo={lo}, hi={hi}, deadband={db}, saturation_tol={tol})"
         ))
     })?;
-    let u = finite_input(&u, "reversal_order")?;
+    let u = finite_input(u, "reversal_order")?;
     let mut scan = || -> Vec<i64> { u.iter().map(|&x| i64::from(counter.push(x))).collect() };
     let out = if u.len() > DETACH_LEN {
         py.detach(scan)

@@ -72,6 +72,47 @@ proptest! {
     }
 }
 
+fn extreme_value() -> impl Strategy<Value = f64> {
+    prop_oneof![
+        2 => -1e3f64..1e3,
+        1 => Just(f64::MAX),
+        1 => Just(-f64::MAX),
+        1 => Just(1.7e308),
+        1 => Just(1e150),
+        1 => Just(-1e150),
+        1 => Just(5e-324),
+        1 => Just(f64::NAN),
+        1 => prop::num::f64::ANY,
+    ]
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 1_000, ..ProptestConfig::default() })]
+
+    /// Whatever friction and converter gain construct, every command is finite and a fault commands zero current:
+    /// coefficients whose sum cannot be evaluated finitely and gains that would need infinite volts are refused.
+    #[test]
+    fn extreme_parameters_never_give_a_non_finite_command(
+        c0 in extreme_value(), a in prop::collection::vec(extreme_value(), 0..4),
+        b in prop::collection::vec(extreme_value(), 0..4), gain in extreme_value(),
+        refs in prop::collection::vec((extreme_value(), extreme_value()), 1..20), paper in any::<bool>(),
+    ) {
+        let Ok(f) = Friction::<12>::from_coefficients(c0, &a, &b) else { return Ok(()) };
+        prop_assert!(c0.abs() + a.iter().chain(&b).map(|x| x.abs()).sum::<f64>() <= bmr::friction::MAX_MAGNITUDE);
+        let fwd = forward();
+        let inv = if paper { InverseKind::Paper(fwd.paper_inverse().unwrap()) } else { InverseKind::Exact };
+        let Ok(mut c) = Comp::new(fwd, inv, f, gain, 1.25) else { return Ok(()) };
+        for (r, th) in refs {
+            let cmd = c.step(r, th);
+            prop_assert!(cmd.current_a.is_finite() && cmd.volt1_v.is_finite() && cmd.volt2_v.is_finite(),
+                         "{:?}", cmd);
+            prop_assert!(!cmd.fault || cmd.current_a == 0.0);
+            prop_assert_eq!(cmd.fault, !(r.is_finite() && th.is_finite()));
+            prop_assert_eq!(c.forward().state().input(), cmd.current_a);
+        }
+    }
+}
+
 #[test]
 fn exact_compensator_tracks_reachable_references_to_round_off() {
     let mut c = compensator(false, 1.25);

@@ -292,3 +292,158 @@ fn angle_preview_is_bounded() {
     assert!(a.theta_ahead(MAX_GENERATED_SAMPLES + 1).is_err());
     assert_eq!(a.theta_ahead(10).unwrap().len(), 10);
 }
+
+#[test]
+fn a_branch_over_flat_tables_stays_continuous_and_invertible() {
+    // Ascending curves flat after their reversal while the descending ones fall (families that disagree, as
+    // after a running maximum clips measured dips): no scale of the flat tables can close the branch on its
+    // target. It used to stay flat and jump at the wipe-out, and the inverse returned the jump's input for
+    // targets inside it. Now the branch is a straight line to its target.
+    let a: Curves = vec![
+        (vec![-1.0, 0.0, 1.0], vec![0.0, 0.0, 2.0]),
+        (vec![0.0, 0.6, 1.0], vec![1.0, 1.0, 2.0]),
+    ];
+    let d: Curves = vec![
+        (vec![1.0, -1.0], vec![2.0, 0.0]),
+        (vec![0.0, -1.0], vec![1.0, 0.0]),
+    ];
+    let mut h = build(&a, &d).unwrap();
+    h.step(0.5);
+    let y_max = h.output();
+    let y_min = h.step(0.2);
+    assert!(y_max - y_min > 0.1, "{y_min} .. {y_max}");
+    let mut prev = y_min;
+    let steps = 300;
+    for k in 1..=steps {
+        let u = 0.2 + 0.3 * k as f64 / steps as f64;
+        let before = h.clone();
+        let y = h.step(u);
+        assert!(y >= prev, "not monotone at {u}");
+        assert!(
+            y - prev <= 4.0 * (y_max - y_min) / steps as f64,
+            "jump of {} at {u}",
+            y - prev
+        );
+        // Every output on the way is reachable by the exact inverse.
+        let mut probe = before;
+        let inv = probe.step_inverse(y);
+        assert!(
+            !inv.saturated && (inv.input - u).abs() < 1e-9,
+            "{inv:?} for {y} at {u}"
+        );
+        prev = y;
+    }
+    assert_eq!(h.output(), y_max, "return-point memory");
+    // The state words carry the straight branch.
+    let words = h.snapshot().to_words();
+    assert_eq!(h.state_from_words(&words).unwrap().to_words(), words);
+}
+
+#[test]
+fn merging_a_full_memory_keeps_the_output_continuous_at_later_wipe_outs() {
+    // A full 6-point memory merges the nested pair (a2, b2) away; rising again past a3 (the reversal above the
+    // merged pair) used to continue on b1's branch, which does not pass through a3's output: the output jumped
+    // there and the exact inverse could not reach the outputs inside the jump.
+    let (a, d) = common::measure_first_order(40, 9);
+    let mut h: Hysteresis<Vec<f64>, 6> =
+        Hysteresis::from_curve_data(&a, &d, &BuildOptions::default(), Initial::Negative).unwrap();
+    let path = [0.9, -0.8, 0.6, -0.2, 0.55, 0.3]; // a1, b1, a2, b2 (small excursion a2-b2), a3, b3
+    for &u in &path {
+        let steps = 40;
+        let from = h.state().input();
+        for s in 1..=steps {
+            h.step(from + (u - from) * s as f64 / steps as f64);
+        }
+    }
+    assert_eq!(
+        h.state().history().len(),
+        6,
+        "memory full: [anchor, a1, b1, a2, b2, a3] + turning at b3"
+    );
+    let (y_lo, y_hi) = h.output_range();
+    let span = y_hi - y_lo;
+    // Rise from b3 through a3 (0.55) up to a1 (0.9): the merge happens at the turn.
+    let mut prev = (h.state().input(), h.output());
+    let n = 2000;
+    let mut steepest = 0.0f64;
+    for k in 1..=n {
+        let u = 0.3 + 0.6 * k as f64 / n as f64;
+        let before = h.clone();
+        let y = h.step(u);
+        steepest = steepest.max((y - prev.1) / (u - prev.0));
+        assert!(
+            y >= prev.1 && y - prev.1 <= 0.01 * span,
+            "step of {} at {u} (from {} at {})",
+            y - prev.1,
+            prev.1,
+            prev.0
+        );
+        let mut probe = before;
+        let inv = probe.step_inverse(y);
+        assert!(
+            !inv.saturated && (probe.output() - y).abs() <= 1e-9 * span,
+            "inverse of {y} at {u}: {inv:?}"
+        );
+        prev = (u, y);
+    }
+    assert!(steepest.is_finite());
+}
+
+#[test]
+fn a_curve_leaving_the_major_loop_is_refused() {
+    // Found by fuzzing (table_build): an ascending family whose second curve climbs to 1e70 while the major
+    // branch ends at 814.875 was accepted; the derived descending family then held -1e70 and the operator did not
+    // rebuild from its own curves.
+    let asc: Curves = vec![
+        (vec![-100000.0, -272.0625], vec![-273.125, 814.875]),
+        (vec![-285.125, -273.125], vec![272.0, 1.0000000000000002e70]),
+    ];
+    let err = outcome(build(&asc, &[])).unwrap_err();
+    assert!(
+        matches!(
+            err,
+            TableError::OutsideMajorLoop {
+                family: FamilyKind::Ascending,
+                curve: 1,
+                ..
+            }
+        ),
+        "{err}"
+    );
+    assert!(err.to_string().contains("outside the major loop"), "{err}");
+    // The same family inside the loop builds and rebuilds from its own curves.
+    let asc: Curves = vec![
+        (vec![-100000.0, -272.0625], vec![-273.125, 814.875]),
+        (vec![-285.125, -273.125], vec![272.0, 800.0]),
+    ];
+    let h = build(&asc, &[]).unwrap();
+    let (a, d) = h.curves();
+    outcome(build(&a, &d)).unwrap();
+}
+
+#[test]
+fn an_actuator_started_just_below_angle_zero_saves_a_state_it_can_load() {
+    // Found by fuzzing (plant_config): `drive.theta0_rad` of -1e-17 wrapped to exactly 2π, outside the state's
+    // [0, 2π), so the actuator's own saved state (and its pickle) was refused.
+    for theta0 in [
+        -1e-17,
+        -5e-324,
+        -0.0,
+        core::f64::consts::TAU,
+        -core::f64::consts::TAU,
+    ] {
+        let mut config = preset("bmr2013").unwrap();
+        config.set("drive.theta0_rad", theta0).unwrap();
+        let mut act = VirtualActuator::new(config, 3).unwrap();
+        let saved = act.save_state();
+        act.load_state(&saved).unwrap();
+        let s = act.step(0.2);
+        assert!(
+            (0.0..core::f64::consts::TAU).contains(&s.theta_rad),
+            "{theta0}: {}",
+            s.theta_rad
+        );
+        act.reset();
+        act.load_state(&act.save_state()).unwrap();
+    }
+}

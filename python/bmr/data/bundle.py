@@ -36,7 +36,8 @@ from typing import Any, Callable, Iterable, Iterator
 import numpy as np
 import pandas as pd
 
-from bmr._core import BmrError
+from bmr._core import BmrError, BundleError
+from bmr.data.files import check_output_folder, contained, read_json, write_atomic, write_text
 from bmr.data.quantities import ACTUATOR, Quantities
 
 FORMAT_V1 = "bmr-bundle/1"
@@ -79,9 +80,9 @@ class Run:
 
     def __post_init__(self) -> None:
         if self.kind not in RUN_KINDS:
-            raise BmrError(f"run {self.name!r}: unknown kind {self.kind!r}; expected one of {', '.join(RUN_KINDS)}")
+            raise BundleError(f"run {self.name!r}: unknown kind {self.kind!r}; expected one of {', '.join(RUN_KINDS)}")
         if self.role is not None and self.role not in ROLES:
-            raise BmrError(f"run {self.name!r}: unknown role {self.role!r}; expected one of {', '.join(ROLES)}")
+            raise BundleError(f"run {self.name!r}: unknown role {self.role!r}; expected one of {', '.join(ROLES)}")
         if not isinstance(self.quantities, Quantities):
             raise TypeError(f"run {self.name!r}: quantities must be a bmr.data.quantities.Quantities, "
                             f"got {type(self.quantities).__name__}")
@@ -97,7 +98,7 @@ class Run:
 
     def column(self, name: str) -> np.ndarray:
         if name not in self.data.columns:
-            raise BmrError(f"run {self.name!r} has no column {name!r} (columns: {', '.join(self.data.columns)})")
+            raise BundleError(f"run {self.name!r} has no column {name!r} (columns: {', '.join(self.data.columns)})")
         return self.data[name].to_numpy(dtype=float)
 
     @property
@@ -171,16 +172,16 @@ class Bundle:
         rate = self.sample_rate_hz
         # Any real number (numpy scalars included), but not a bool: `true` in a manifest is not 1 Hz.
         if isinstance(rate, bool) or not isinstance(rate, numbers.Real) or not (math.isfinite(rate) and rate > 0):
-            raise BmrError(f"sample_rate_hz must be a positive finite number of Hz, got {rate!r}")
+            raise BundleError(f"sample_rate_hz must be a positive finite number of Hz, got {rate!r}")
         self.sample_rate_hz = float(rate)
         names = [r.name for r in self.runs]
         dupes = sorted({n for n in names if names.count(n) > 1})
         if dupes:
-            raise BmrError(f"duplicate run names in bundle: {', '.join(dupes)}")
+            raise BundleError(f"duplicate run names in bundle: {', '.join(dupes)}")
         for r in self.runs:
             if r.quantities != self.quantities:
-                raise BmrError(f"run {r.name!r} holds {r.quantities.describe()} but the bundle declares "
-                               f"{self.quantities.describe()}")
+                raise BundleError(f"run {r.name!r} holds {r.quantities.describe()} but the bundle declares "
+                                  f"{self.quantities.describe()}")
 
     @property
     def device(self) -> str:
@@ -213,19 +214,19 @@ class Bundle:
         for r in self.runs:
             if r.name == name:
                 return r
-        raise BmrError(f"no run named {name!r} in bundle (runs: {', '.join(r.name for r in self.runs)})")
+        raise BundleError(f"no run named {name!r} in bundle (runs: {', '.join(r.name for r in self.runs)})")
 
     def by_kind(self, *kinds: str) -> list[Run]:
         for k in kinds:
             if k not in RUN_KINDS:
-                raise BmrError(f"unknown run kind {k!r}; expected one of {', '.join(RUN_KINDS)}")
+                raise BundleError(f"unknown run kind {k!r}; expected one of {', '.join(RUN_KINDS)}")
         return [r for r in self.runs if r.kind in kinds]
 
     def decimated(self, factor: int) -> "Bundle":
         """Every ``factor``-th sample of every run (no filtering: for quasi-static logs sampled far above the
         dynamics of interest). Run metadata is kept; the sample rate is divided by ``factor``."""
         if not (isinstance(factor, int) and factor >= 1):
-            raise BmrError(f"decimation factor must be an integer >= 1, got {factor!r}")
+            raise BundleError(f"decimation factor must be an integer >= 1, got {factor!r}")
         if factor == 1:
             return self
         runs = [Run(r.name, r.kind, r.data.iloc[::factor].reset_index(drop=True), dict(r.meta), r.quantities,
@@ -258,20 +259,21 @@ def validate_run_data(name: str, data: pd.DataFrame, quantities: Quantities = AC
     if missing:
         hint = ("units belong in the names, e.g. torque_nmm" if quantities.is_actuator
                 else f"the bundle declares {quantities.describe()}")
-        raise BmrError(
+        raise BundleError(
             f"run {name!r}: missing required column(s) {', '.join(missing)} "
             f"(have: {', '.join(map(str, data.columns))}; {hint})"
         )
     if len(data) < 2:
-        raise BmrError(f"run {name!r}: needs at least 2 samples, has {len(data)}")
+        raise BundleError(f"run {name!r}: needs at least 2 samples, has {len(data)}")
     for c in [c for c in (*required, *OPTIONAL_COLUMNS) if c in data.columns]:
+        _check_numeric_column(name, c, data[c])
         try:
             values = data[c].to_numpy(dtype=float)
         except (TypeError, ValueError) as exc:
-            raise BmrError(f"run {name!r}: column {c!r} is not numeric ({exc})") from None
+            raise BundleError(f"run {name!r}: column {c!r} is not numeric ({exc})") from None
         bad = np.flatnonzero(~np.isfinite(values))
         if bad.size:
-            raise BmrError(
+            raise BundleError(
                 f"run {name!r}: column {c!r} has {bad.size} non-finite value(s), first at row {int(bad[0])} "
                 f"(value {values[bad[0]]!r}); drop or repair those rows before loading"
             )
@@ -279,60 +281,92 @@ def validate_run_data(name: str, data: pd.DataFrame, quantities: Quantities = AC
     back = np.flatnonzero(np.diff(t) <= 0)
     if back.size:
         i = int(back[0])
-        raise BmrError(
+        raise BundleError(
             f"run {name!r}: time t_s must strictly increase; row {i + 1} has t_s={t[i + 1]!r} after {t[i]!r}"
         )
 
 
+def _check_numeric_column(run: str, column: str, values: pd.Series) -> None:
+    """Numbers only: date-times, durations, booleans and complex numbers would turn into plausible-looking
+    floats (nanoseconds since 1970, 0/1, real parts) without a word."""
+    kind = values.dtype.kind
+    problem = {
+        "M": "holds date-times; bundle columns are numbers in the unit of their name (t_s: seconds since the "
+             "start of the run), convert them before loading",
+        "m": "holds durations; bundle columns are numbers in the unit of their name (t_s: seconds), convert them "
+             "with .dt.total_seconds() before loading",
+        "b": "holds booleans, not measurements in the unit of its name",
+        "c": "holds complex numbers; store the real-valued measurement in the unit of its name",
+    }.get(kind)
+    if problem is None and kind == "O" and len(values) and any(isinstance(v, (bool, complex)) for v in values[:1000]):
+        problem = "holds booleans or complex numbers, not measurements in the unit of its name"
+    if problem is not None:
+        raise BundleError(f"run {run!r}: column {column!r} {problem}")
+
+
 def read_bundle(path: str | Path) -> Bundle:
-    """Read ``path/manifest.json`` and every run it lists; every problem is a BmrError naming file and field."""
+    """Read ``path/manifest.json`` and every run it lists; every problem is a ``BundleError`` naming file and field.
+    Run files must lie inside the bundle folder."""
     root = Path(path)
     manifest_path = root / "manifest.json"
+    if root.exists() and not root.is_dir():
+        raise BundleError(f"bundle folder {str(root)!r} is a file; a bundle is a folder holding manifest.json")
     if not root.is_dir():
-        raise BmrError(f"bundle folder {str(root)!r} does not exist")
+        raise BundleError(f"bundle folder {str(root)!r} does not exist")
     if not manifest_path.is_file():
-        raise BmrError(f"{str(root)!r} is not a bundle: no manifest.json in it")
-    try:
-        manifest = json.loads(manifest_path.read_text())
-    except json.JSONDecodeError as exc:
-        raise BmrError(f"{manifest_path}: not valid JSON ({exc})") from None
+        raise BundleError(f"{str(root)!r} is not a bundle: no manifest.json in it")
+    manifest = read_json(manifest_path, "bundle manifest", error=BundleError)
     if not isinstance(manifest, dict):
-        raise BmrError(f"{manifest_path}: expected a JSON object")
+        raise BundleError(f"{manifest_path}: expected a JSON object")
     fmt = manifest.get("format")
     if fmt not in FORMATS:
         if isinstance(fmt, str) and fmt.startswith("bmr-bundle/"):
-            raise BmrError(f"{manifest_path}: format {fmt!r} is not supported by this bmr (reads "
-                           f"{' and '.join(map(repr, FORMATS))}); upgrade bmr to read it")
-        raise BmrError(f"{manifest_path}: missing or unknown 'format' {fmt!r}; expected one of "
-                       f"{', '.join(map(repr, FORMATS))}")
+            raise BundleError(f"{manifest_path}: format {fmt!r} is not supported by this bmr (reads "
+                              f"{' and '.join(map(repr, FORMATS))}); upgrade bmr to read it")
+        raise BundleError(f"{manifest_path}: missing or unknown 'format' {fmt!r}; expected one of "
+                          f"{', '.join(map(repr, FORMATS))}")
     if fmt == FORMAT_V1:
         quantities = ACTUATOR
     else:
-        quantities = Quantities.from_dict(manifest.get("quantities"), f"{manifest_path}: quantities")
+        try:
+            quantities = Quantities.from_dict(manifest.get("quantities"), f"{manifest_path}: quantities")
+        except BmrError as exc:
+            raise BundleError(str(exc)) from None
     runs_spec = manifest.get("runs")
     if not isinstance(runs_spec, list) or not runs_spec:
-        raise BmrError(f"{manifest_path}: 'runs' must be a non-empty list")
+        raise BundleError(f"{manifest_path}: 'runs' must be a non-empty list")
     runs = []
     for i, spec in enumerate(runs_spec):
         if not isinstance(spec, dict) or not all(k in spec for k in ("name", "kind", "file")):
-            raise BmrError(f"{manifest_path}: runs[{i}] needs 'name', 'kind' and 'file'")
-        file = root / spec["file"]
+            raise BundleError(f"{manifest_path}: runs[{i}] needs 'name', 'kind' and 'file'")
+        for key in ("name", "kind", "file"):
+            if not isinstance(spec[key], str):
+                raise BundleError(f"{manifest_path}: runs[{i}].{key} must be a string, got {spec[key]!r}")
+        file = contained(root, spec["file"], f"{manifest_path}: runs[{i}] ({spec['name']!r}) file",
+                         error=BundleError)
         if not file.is_file():
-            raise BmrError(f"{manifest_path}: runs[{i}] ({spec['name']!r}) file {spec['file']!r} does not exist")
+            raise BundleError(f"{manifest_path}: runs[{i}] ({spec['name']!r}) file {spec['file']!r} does not exist")
         data = _read_table(file)
         role = spec.get("role") if fmt != FORMAT_V1 else None
+        if role is not None and not isinstance(role, str):
+            raise BundleError(f"{manifest_path}: runs[{i}].role must be a string, got {role!r}")
         meta = {k: v for k, v in spec.items() if k not in ("name", "kind", "file", "role")}
-        runs.append(Run(str(spec["name"]), str(spec["kind"]), data, meta, quantities,
-                        str(role) if role is not None else None))
+        try:
+            runs.append(Run(spec["name"], spec["kind"], data, meta, quantities, role))
+        except BmrError as exc:
+            raise BundleError(f"{manifest_path}: runs[{i}]: {exc}") from None
     device_key = "actuator" if fmt == FORMAT_V1 else "device"
-    return Bundle(
-        actuator=str(manifest.get(device_key, "")),
-        sample_rate_hz=manifest.get("sample_rate_hz", float("nan")),
-        runs=runs,
-        meta={k: v for k, v in manifest.items()
-              if k not in ("format", device_key, "sample_rate_hz", "quantities", "runs")},
-        quantities=quantities,
-    )
+    try:
+        return Bundle(
+            actuator=str(manifest.get(device_key, "")),
+            sample_rate_hz=manifest.get("sample_rate_hz", float("nan")),
+            runs=runs,
+            meta={k: v for k, v in manifest.items()
+                  if k not in ("format", device_key, "sample_rate_hz", "quantities", "runs")},
+            quantities=quantities,
+        )
+    except BmrError as exc:
+        raise BundleError(f"{manifest_path}: {exc}") from None
 
 
 def manifest_format(bundle: Bundle) -> str:
@@ -353,16 +387,25 @@ def write_bundle(bundle: Bundle, path: str | Path, *, fmt: str = "csv",
     ``on_run_written(run)`` is called after each run's file is written (progress reporting).
     """
     if fmt not in ("csv", "parquet"):
-        raise BmrError(f"unknown bundle file format {fmt!r}; use 'csv' or 'parquet'")
-    root = Path(path)
-    root.mkdir(parents=True, exist_ok=True)
+        raise BundleError(f"unknown bundle file format {fmt!r}; use 'csv' or 'parquet'")
+    root = check_output_folder(path, "bundle folder", error=BundleError)
+    files = [f"{run.name}.{fmt}" for run in bundle.runs]
+    for run, file in zip(bundle.runs, files):
+        if Path(file).name != file or file.startswith("."):
+            raise BundleError(f"run {run.name!r}: the name must be usable as a file name inside the bundle folder "
+                              "(no path separators, not starting with a dot)")
+    try:
+        root.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise BundleError(f"cannot create bundle folder {str(root)!r}: {exc.strerror or exc}") from None
     specs = []
-    for run in bundle.runs:
-        file = f"{run.name}.{fmt}"
+    # Each run file is written atomically; the manifest, written last, is what makes the new runs the bundle's.
+    for run, file in zip(bundle.runs, files):
         if fmt == "csv":
-            run.data.to_csv(root / file, index=False)
+            text = run.data.to_csv(index=False)
+            write_text(root / file, text, error=BundleError)
         else:
-            run.data.to_parquet(root / file, index=False)
+            write_atomic(root / file, lambda fh, run=run: run.data.to_parquet(fh, index=False), error=BundleError)
         if on_run_written is not None:
             on_run_written(run)
         role = {"role": run.role} if run.role is not None else {}
@@ -373,7 +416,7 @@ def write_bundle(bundle: Bundle, path: str | Path, *, fmt: str = "csv",
     else:
         head = {"format": FORMAT, "device": bundle.actuator, "quantities": bundle.quantities.to_dict()}
     manifest = {**head, "sample_rate_hz": float(bundle.sample_rate_hz), **bundle.meta, "runs": specs}
-    (root / "manifest.json").write_text(json.dumps(manifest, indent=2, sort_keys=False) + "\n")
+    write_text(root / "manifest.json", json.dumps(manifest, indent=2, sort_keys=False) + "\n", error=BundleError)
     return root
 
 
@@ -385,5 +428,5 @@ def _read_table(file: Path) -> pd.DataFrame:
         if suffix in (".parquet", ".pq"):
             return pd.read_parquet(file)
     except Exception as exc:  # noqa: BLE001 - any reader failure becomes a clear bundle error
-        raise BmrError(f"{file}: cannot be read as {suffix[1:]} ({exc})") from None
-    raise BmrError(f"{file}: unsupported run file type {suffix!r} (bundles hold .csv or .parquet)")
+        raise BundleError(f"{file}: cannot be read as {suffix[1:]} ({exc})") from None
+    raise BundleError(f"{file}: unsupported run file type {suffix!r} (bundles hold .csv or .parquet)")

@@ -15,6 +15,7 @@ bundle's units with ``units`` (any unit of the column's dimension in :mod:`bmr.d
 from __future__ import annotations
 
 import math
+import numbers
 from pathlib import Path
 from typing import Any, Iterable, Mapping
 
@@ -86,6 +87,7 @@ def read_table(
     without an encoder). ``sample_rate_hz``: builds ``t_s`` from the sample index when the file has no time.
     Missing required columns, unknown units, unknown names and unequal lengths are ``BmrError``s.
     """
+    _check_arguments(mapping, units, defaults, sample_rate_hz)
     file = Path(path)
     if not file.is_file():
         raise BundleError(f"{str(file)!r} does not exist")
@@ -157,6 +159,27 @@ def bundle_from_files(
     if sample_rate_hz is None:
         sample_rate_hz = nominal_sample_rate(runs[0].t)
     return Bundle(actuator=actuator, sample_rate_hz=float(sample_rate_hz), runs=runs)
+
+
+def _check_arguments(mapping: Any, units: Any, defaults: Any, sample_rate_hz: Any) -> None:
+    """Wrong argument types are TypeErrors naming the argument; values out of range are BmrErrors."""
+    for arg, value in (("mapping", mapping), ("units", units), ("defaults", defaults)):
+        if value is not None and not isinstance(value, Mapping):
+            raise TypeError(f"{arg}: expected a dict {{bundle column: ...}}, got {type(value).__name__}")
+    for arg, value in (("mapping", mapping), ("units", units)):
+        for k, v in (value or {}).items():
+            if not isinstance(k, str) or not isinstance(v, str):
+                raise TypeError(f"{arg}: expected bundle column names mapped to strings, got {k!r}: {v!r}")
+    for k, v in (defaults or {}).items():
+        if not isinstance(k, str) or isinstance(v, bool) or not isinstance(v, numbers.Real):
+            raise TypeError(f"defaults[{k!r}]: expected a number in the column's unit, got {v!r}")
+        if not math.isfinite(v):
+            raise BundleError(f"defaults[{k!r}] must be finite, got {v!r}")
+    if sample_rate_hz is not None:
+        if isinstance(sample_rate_hz, bool) or not isinstance(sample_rate_hz, numbers.Real):
+            raise TypeError(f"sample_rate_hz: expected a number of Hz, got {sample_rate_hz!r}")
+        if not (math.isfinite(sample_rate_hz) and sample_rate_hz > 0):
+            raise BundleError(f"sample_rate_hz must be positive and finite, got {sample_rate_hz!r}")
 
 
 def _lookup(tables: list[Table], name: str) -> np.ndarray | None:

@@ -38,7 +38,8 @@ class Table:
     """One measurement from a lab file. ``columns`` maps names to equal-length float arrays, ``units`` a column to
     the unit the file states for it, ``time_column`` the format's time axis (None: find it by name), ``source``
     names the file (and the table inside it) in messages, ``aliases`` maps other spellings (lower case) to
-    column names."""
+    column names, ``not_numbers`` names the file's columns that hold something other than real numbers (date-times,
+    durations, booleans, complex numbers) and what they hold: naming one is an error that says so."""
 
     name: str
     columns: dict[str, np.ndarray]
@@ -47,6 +48,7 @@ class Table:
     time_column: str | None = None
     meta: dict[str, Any] = field(default_factory=dict)
     aliases: dict[str, list[str]] = field(default_factory=dict)
+    not_numbers: dict[str, str] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         if not self.columns:
@@ -74,6 +76,10 @@ class Table:
         targets = sorted(set(hits) | set(self.aliases.get(low, [])))
         if len(targets) > 1:
             raise BundleError(f"{self.source}: column {name!r} is ambiguous ({', '.join(targets)}); use the full name")
+        if not targets:
+            for key, what in self.not_numbers.items():
+                if key.lower() == low:
+                    raise BundleError(f"{self.source}: column {key!r} holds {what}")
         return targets[0] if targets else None
 
     def column(self, name: str, role: str = "column") -> tuple[str, np.ndarray]:
@@ -137,13 +143,26 @@ def _read_bytes(path: Path) -> bytes:
 
 
 # ------------------------------------------------------------------------------------------ generic readers
+# Column kinds that are not measurements, and what to do about them: naming such a column is an error saying so.
+_NOT_NUMBERS = {
+    "M": "date-times; convert them to seconds (e.g. (t - t[0]).dt.total_seconds()) before reading",
+    "m": "durations; convert them to seconds (e.g. .dt.total_seconds()) before reading",
+    "b": "booleans, not measurements",
+    "c": "complex numbers; keep the real-valued measurement",
+}
+
+
 def _frame_table(path: Path, df: pd.DataFrame, units: Mapping[str, str] | None = None) -> Table:
     columns: dict[str, np.ndarray] = {}
     found_units: dict[str, str] = dict(units or {})
     aliases: dict[str, list[str]] = {}
+    not_numbers: dict[str, str] = {}
     for c in df.columns:
         series = df[c]
         if series.dtype.kind not in "iuf":
+            what = _NOT_NUMBERS.get(series.dtype.kind)
+            if what is not None:
+                not_numbers[split_name_unit(str(c))[0]] = what
             continue  # text, dates and flags are not signals
         name, u = split_name_unit(str(c))
         if name in columns:
@@ -154,7 +173,7 @@ def _frame_table(path: Path, df: pd.DataFrame, units: Mapping[str, str] | None =
             aliases.setdefault(str(c).strip().lower(), []).append(name)
     if not columns:
         raise BundleError(f"{path}: no numeric columns (columns: {', '.join(map(str, df.columns))})")
-    return Table(path.stem, columns, str(path), found_units, aliases=aliases)
+    return Table(path.stem, columns, str(path), found_units, aliases=aliases, not_numbers=not_numbers)
 
 
 @dataclass(frozen=True)

@@ -31,7 +31,8 @@ from typing import Any, Callable
 
 import numpy as np
 
-from bmr._core import BmrError, VirtualActuator
+from bmr._core import BmrError, ModelFileError, VirtualActuator
+from bmr.data.files import check_output_file, write_text
 from bmr.data.bundle import Bundle, read_bundle
 from bmr.diagnosis.discrepancy import candidate_library, learn
 from bmr.diagnosis.effects import ANGLE_EFFECTS, LIBRARY, PHYSICAL
@@ -40,7 +41,6 @@ from bmr.diagnosis.noise import from_residual
 from bmr.diagnosis.extended_model import ExtendedModel, extensions_from_selection, with_extensions
 from bmr.diagnosis.residuals import prepare, signal_label, structure
 from bmr.diagnosis.selection import MIN_EXCESS, NOISE_MARGIN, Fitter, forward_selection, t975
-from bmr.files import write_text_atomic
 from bmr.identification.procedure import identify
 from bmr.identification.model import LOOP_STAGES, Model
 from bmr.report.diagnosis import figures, html_page, html_section
@@ -135,11 +135,12 @@ class Diagnosis:
         return html_section(self)
 
     def write_report(self, path: str | Path) -> Path:
-        return write_text_atomic(path, html_page(self), what="report")
+        """Write the HTML report (atomically)."""
+        return write_text(path, html_page(self), what="report")
 
     def write_json(self, path: str | Path) -> Path:
-        return write_text_atomic(path, json.dumps(self.to_dict(), indent=1, allow_nan=False) + "\n",
-                                 what="diagnosis")
+        """Write the ``bmr-diagnosis/1`` JSON (atomically)."""
+        return write_text(path, json.dumps(self.to_dict(), indent=1, allow_nan=False) + "\n", what="diagnosis")
 
     def __repr__(self) -> str:
         unit = self.quantities.output.unit
@@ -442,6 +443,13 @@ def closed_loop_gain(d: Diagnosis, plant: Callable[[], Any] | None = None, *, sa
 def run_cli(args: Any) -> int:
     """``bmr diagnose BUNDLE [--model M] [--json OUT] [--report OUT.html] [--model-out OUT.json]``: print the
     named cause and the selection, write the JSON, the HTML report and the extended model file on request."""
+    # Outputs that cannot be written fail now, not after the whole diagnosis.
+    if args.json_out:
+        check_output_file(args.json_out, "diagnosis JSON")
+    if args.report:
+        check_output_file(args.report, "report")
+    if args.model_out:
+        check_output_file(args.model_out, "model file", error=ModelFileError)
     d = diagnose(args.bundle, args.model, folds=args.folds, seed=args.seed)
     q = d.quantities
     u = q.output.unit
@@ -483,7 +491,7 @@ def run_cli(args: Any) -> int:
     if args.report:
         d.write_report(args.report)
         print(f"  wrote {args.report}")
-    if getattr(args, "model_out", None):
+    if args.model_out:
         d.extended_model.save(args.model_out)
         print(f"  wrote {args.model_out} (bmr.Compensator.from_model, bmr export)")
     return 0

@@ -18,7 +18,11 @@ File layout (JSON)::
 ``quantities`` says what the tables map (input and output in their units; the friction series, in output units,
 needs an angle). ``bmr-model/1`` files (the same without ``quantities``) load as the BMR actuator's model
 (current A → torque N·mm, angle rad). ``sha256`` is the digest of the canonical JSON of everything else: a
-damaged file is reported as such. Loading a missing, unknown or newer format is an error that names the format.
+damaged file is reported as such. Loading a missing, unknown or newer format is an error that names the format
+found; every other problem is a ``bmr.ModelFileError`` naming the field. Non-finite numbers are stored as ``null``
+(a friction score that could not be computed reads back as infinity). Files are written atomically, and a model
+that cannot be read back is refused before anything is written: every model that saves, loads, and saves again to
+the same bytes.
 
 ``extensions`` are the effects a diagnosis added (names and parameters from the effect vocabulary,
 ``bmr.effect_parameters(model_entries=True)``; an unknown name or an out-of-range parameter is an error at load
@@ -32,6 +36,7 @@ import copy
 import hashlib
 import json
 import math
+import numbers
 import re
 import warnings
 from pathlib import Path
@@ -40,9 +45,9 @@ from typing import Any, Sequence
 import numpy as np
 
 from bmr import _core
-from bmr._core import BmrError, Compensator, Hysteresis
+from bmr._core import BmrError, Compensator, Hysteresis, ModelFileError, ResourceLimitError
+from bmr.data.files import read_json, write_text
 from bmr.data.quantities import ACTUATOR, Quantities
-from bmr.files import write_text_atomic
 from bmr.identification.friction import FrictionFit
 
 __all__ = ["FORMAT", "LOOP_STAGES", "Model"]
@@ -87,9 +92,9 @@ class Model:
     ) -> None:
         if not isinstance(quantities, Quantities):
             raise TypeError(f"quantities must be a bmr.data.quantities.Quantities, got {type(quantities).__name__}")
-        if not (isinstance(converter_gain_a_per_v, (int, float)) and math.isfinite(converter_gain_a_per_v)
+        if not (_is_number(converter_gain_a_per_v) and math.isfinite(converter_gain_a_per_v)
                 and converter_gain_a_per_v > 0):
-            raise BmrError(f"converter_gain_a_per_v must be positive and finite, got {converter_gain_a_per_v!r}")
+            raise BmrError(f"converter_gain_a_per_v must be positive and finite (A/V), got {converter_gain_a_per_v!r}")
         self.hysteresis = hysteresis
         self.friction = friction
         # The first-order curves the hysteresis was built from (saved instead of its resampled tables: the build
@@ -108,7 +113,7 @@ class Model:
         self.limits = {quantities.input.column: [float(lo), float(hi)],
                        quantities.output.column: [float(ylo), float(yhi)]}
         for key, value in (limits or {}).items():
-            self.limits[key] = [float(v) for v in value]
+            self.limits[key] = _limit(key, value, "limits")
 
     @classmethod
     def from_curves(cls, ascending: Sequence[tuple[Any, Any]], descending: Sequence[tuple[Any, Any]],
@@ -155,7 +160,7 @@ class Model:
         Inputs outside the table's input range: ``out_of_range="clamp"`` (default: the operator saturates, as
         the real-time core does) or ``"extrapolate"`` (the output continues along the major branch's end slope
         beyond each end; the memory still saturates). ``input_excess`` counts such samples."""
-        i_a = np.ascontiguousarray(current, dtype=float)
+        i_a = _real_array(current, "current")
         if i_a.ndim != 1:
             raise BmrError(f"current must be one-dimensional, got shape {i_a.shape}")
         bad = np.flatnonzero(~np.isfinite(i_a))
@@ -177,7 +182,7 @@ class Model:
             s_lo, s_hi = self.end_slopes()
             y = y + s_hi * np.maximum(i_a - hi, 0.0) + s_lo * np.minimum(i_a - lo, 0.0)
         if theta is not None:
-            th = np.asarray(theta, dtype=float)
+            th = _real_array(theta, "theta")
             if th.shape != i_a.shape:
                 raise BmrError(f"theta has shape {th.shape} but current has {i_a.shape}")
             y = y + self.friction_torque(th)
@@ -333,7 +338,7 @@ class Model:
         digest = _digest(self.to_dict())[:16]
         title = f"bmr compensator of model {digest} (stages: {names})"
         text = _core.export_source(comp, language, title=title, prefix=prefix)
-        return write_text_atomic(path, text, what=f"{language} source")
+        return write_text(path, text, what=f"{language} source")
 
     def current_curves(self) -> tuple[list[tuple[np.ndarray, np.ndarray]], list[tuple[np.ndarray, np.ndarray]]]:
         """The paper's current curves (torque → current) from the stored torque curves."""
@@ -362,18 +367,39 @@ class Model:
         }
 
     def save(self, path: str | Path) -> Path:
-        """Write the model as ``bmr-model/2`` JSON (with its sha256 digest)."""
-        content = self.to_dict()
-        content["sha256"] = _digest(content)
-        text = _compact_number_lists(json.dumps(content, indent=1, allow_nan=False)) + "\n"
-        return write_text_atomic(path, text, what="model file")
+        """Write the model as ``bmr-model/2`` JSON (with its sha256 digest), atomically. A model whose file would
+        not load (its tables do not rebuild from the stored curves, say) is refused before anything is written."""
+        try:
+            content = self.to_dict()
+            content["sha256"] = _digest(content)
+            text = json.dumps(content, indent=1, allow_nan=False)
+        except RecursionError:
+            raise ModelFileError(f"cannot save the model to {str(path)!r}: its meta is nested too deeply") from None
+        try:
+            Model.from_dict(json.loads(text), source="model to save")
+        except BmrError as exc:
+            raise ModelFileError(f"cannot save the model to {str(path)!r}: it would not load back ({exc})") from None
+        return write_text(path, _compact_number_lists(text) + "\n", what="model file", error=ModelFileError)
 
     @classmethod
     def from_dict(cls, content: Any, *, source: str = "model") -> "Model":
-        """Rebuild a model from ``bmr-model/1`` or ``/2`` content; every problem is a ``BmrError`` naming the
+        """Rebuild a model from ``bmr-model/1`` or ``/2`` content; every problem is a ``ModelFileError`` naming the
         field."""
+        try:
+            return cls._from_dict(content, source)
+        except RecursionError:
+            raise ModelFileError(f"{source}: nested too deeply to be a model") from None
+        except (ModelFileError, ResourceLimitError):
+            raise
+        except BmrError as exc:
+            msg = str(exc)
+            raise ModelFileError(msg if msg.startswith(source) else f"{source}: {msg}") from None
+
+    @classmethod
+    def _from_dict(cls, content: Any, source: str) -> "Model":
+        err = ModelFileError
         if not isinstance(content, dict):
-            raise BmrError(f"{source}: expected a JSON object, got {type(content).__name__}")
+            raise err(f"{source}: expected a JSON object, got {type(content).__name__}")
         fmt = content.get("format")
         if fmt not in FORMATS:
             if isinstance(fmt, str) and fmt.startswith(_FAMILY):
@@ -382,62 +408,74 @@ class Model:
                 except ValueError:
                     version = None
                 if version is not None and version > _VERSION:
-                    raise BmrError(f"{source}: format {fmt!r} is newer than this bmr reads ({FORMAT!r}); "
-                                   "upgrade bmr")
-            raise BmrError(f"{source}: missing or unknown 'format' {fmt!r}; expected {FORMAT!r}")
+                    raise err(f"{source}: format {fmt!r} is newer than this bmr reads ({FORMAT!r}); upgrade bmr")
+            raise err(f"{source}: missing or unknown 'format' {fmt!r}; expected {FORMAT!r}")
         if "sha256" in content:
             body = {k: v for k, v in content.items() if k != "sha256"}
             try:
                 ok = _digest(body) == content["sha256"]
-            except ValueError:
+            except (TypeError, ValueError):
                 ok = False
             if not ok:
-                raise BmrError(f"{source}: content does not match its sha256 digest (the file is corrupted or "
-                               "was edited; delete the 'sha256' field to load an edited file)")
+                raise err(f"{source}: content does not match its sha256 digest (the file is corrupted or was "
+                          "edited; delete the 'sha256' field to load an edited file)")
         hyst = content.get("hysteresis")
         if not isinstance(hyst, dict) or "ascending" not in hyst or "descending" not in hyst:
-            raise BmrError(f"{source}: 'hysteresis' must hold 'ascending' and 'descending' curve lists")
+            raise err(f"{source}: 'hysteresis' must hold 'ascending' and 'descending' curve lists")
         asc = _curves(hyst["ascending"], f"{source}: hysteresis.ascending")
         desc = _curves(hyst["descending"], f"{source}: hysteresis.descending")
+        initial = hyst.get("initial", "negative")
+        if initial not in ("negative", "positive"):
+            raise err(f"{source}: hysteresis.initial must be 'negative' or 'positive', got {initial!r}")
         friction = _friction(content.get("friction"), source)
         quantities = (ACTUATOR if fmt == "bmr-model/1"
                       else Quantities.from_dict(content.get("quantities"), f"{source}: quantities"))
         gain = content.get("converter_gain_a_per_v", 0.125)
-        limits = content.get("limits") or {}
+        if not (_is_number(gain) and math.isfinite(gain) and gain > 0):
+            raise err(f"{source}: converter_gain_a_per_v must be a positive number (A/V), got {gain!r}")
+        limits = content.get("limits")
+        if limits is None:
+            limits = {}
         if not isinstance(limits, dict):
-            raise BmrError(f"{source}: 'limits' must be an object")
-        for key, val in limits.items():
-            if (not isinstance(val, list) or len(val) != 2
-                    or not all(isinstance(v, (int, float)) and math.isfinite(v) for v in val)):
-                raise BmrError(f"{source}: limits.{key} must be [low, high] finite numbers, got {val!r}")
+            raise err(f"{source}: 'limits' must be an object")
+        limits = {key: _limit(key, val, f"{source}: limits") for key, val in limits.items()}
         ext = content.get("extensions", [])
-        if not isinstance(ext, list) or not all(isinstance(e, dict) and "name" in e for e in ext):
-            raise BmrError(f"{source}: 'extensions' must be a list of objects with a 'name'")
+        if not isinstance(ext, list):
+            raise err(f"{source}: 'extensions' must be a list")
+        for k, e in enumerate(ext):
+            if not (isinstance(e, dict) and isinstance(e.get("name"), str)):
+                raise err(f"{source}: extensions[{k}] must be an object with a 'name' string")
+        meta = content.get("meta")
+        if meta is None:
+            meta = {}
+        if not isinstance(meta, dict):
+            raise err(f"{source}: 'meta' must be an object")
         build = _build_options(hyst.get("build") or {}, f"{source}: hysteresis.build")
         try:
             _core.check_extensions(ext)
         except BmrError as exc:
-            raise BmrError(f"{source}: extensions: {exc}") from None
+            raise err(f"{source}: extensions: {exc}") from None
         try:
-            h = Hysteresis.from_curves(asc, desc, initial=str(hyst.get("initial", "negative")), **build)
+            h = Hysteresis.from_curves(asc, desc, initial=initial, **build)
+        except ResourceLimitError as exc:
+            raise ResourceLimitError(f"{source}: hysteresis tables: {exc}") from None
         except BmrError as exc:
-            raise BmrError(f"{source}: hysteresis tables rejected: {exc}") from None
-        model = cls(h, friction, limits=limits, converter_gain_a_per_v=gain, extensions=ext,
-                    meta=content.get("meta") or {}, curves=(asc, desc), quantities=quantities)
+            raise err(f"{source}: hysteresis tables rejected: {exc}") from None
+        model = cls(h, friction, limits=limits, converter_gain_a_per_v=gain, extensions=ext, meta=meta,
+                    curves=(asc, desc), quantities=quantities)
         model._build = build
         return model
 
     @classmethod
     def load(cls, path: str | Path) -> "Model":
-        """Read a ``bmr-model/1`` or ``bmr-model/2`` file."""
+        """Read a ``bmr-model/1`` or ``bmr-model/2`` file; every problem is a ``ModelFileError`` naming the file
+        and the field."""
         p = Path(path)
+        if p.is_dir():
+            raise ModelFileError(f"model file {str(p)!r} is a folder")
         if not p.is_file():
-            raise BmrError(f"model file {str(p)!r} does not exist")
-        try:
-            content = json.loads(p.read_text())
-        except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-            raise BmrError(f"{p}: not a valid model file (JSON error: {exc})") from None
-        return cls.from_dict(content, source=str(p))
+            raise ModelFileError(f"model file {str(p)!r} does not exist")
+        return cls.from_dict(read_json(p, "model file", error=ModelFileError), source=str(p))
 
     def __repr__(self) -> str:
         q = self.quantities
@@ -483,54 +521,101 @@ def _build_options(value: Any, where: str) -> dict[str, Any]:
 def _curves(value: Any, where: str) -> list[tuple[np.ndarray, np.ndarray]]:
     # A family may be empty (derived from the other one).
     if not isinstance(value, list):
-        raise BmrError(f"{where} must be a list of [[u...], [y...]] curves")
+        raise ModelFileError(f"{where} must be a list of [[u...], [y...]] curves")
     out = []
     for k, c in enumerate(value):
         if not (isinstance(c, list) and len(c) == 2 and isinstance(c[0], list) and isinstance(c[1], list)):
-            raise BmrError(f"{where}[{k}] must be [[u...], [y...]]")
-        try:
-            u = np.asarray(c[0], dtype=float)
-            y = np.asarray(c[1], dtype=float)
-        except (TypeError, ValueError):
-            raise BmrError(f"{where}[{k}] holds non-numeric values") from None
-        if u.shape != y.shape or u.ndim != 1 or u.size < 2:
-            raise BmrError(f"{where}[{k}]: u and y need the same length ≥ 2 (got {u.size} and {y.size})")
+            raise ModelFileError(f"{where}[{k}] must be [[u...], [y...]]")
+        if not all(_is_number(v) for v in c[0]) or not all(_is_number(v) for v in c[1]):
+            raise ModelFileError(f"{where}[{k}] holds values that are not numbers")
+        u = np.asarray(c[0], dtype=float)
+        y = np.asarray(c[1], dtype=float)
+        if u.shape != y.shape or u.size < 2:
+            raise ModelFileError(f"{where}[{k}]: u and y need the same length ≥ 2 (got {u.size} and {y.size})")
         bad = np.flatnonzero(~(np.isfinite(u) & np.isfinite(y)))
         if bad.size:
-            raise BmrError(f"{where}[{k}] sample {int(bad[0])} is not finite")
+            raise ModelFileError(f"{where}[{k}] sample {int(bad[0])} is not finite")
         out.append((u, y))
     return out
 
 
 def _friction(value: Any, source: str) -> FrictionFit | None:
+    err = ModelFileError
     if value is None:
         return None
     if not isinstance(value, dict) or not all(k in value for k in ("c0", "a", "b")):
-        raise BmrError(f"{source}: 'friction' must be null or hold 'c0', 'a' and 'b'")
+        raise err(f"{source}: 'friction' must be null or hold 'c0', 'a' and 'b'")
+    if not (_is_number(value["c0"]) and _number_list(value["a"]) and _number_list(value["b"])):
+        raise err(f"{source}: friction c0, a and b must be numbers (N·mm)")
     try:
         fit = FrictionFit.from_coefficients(float(value["c0"]), value["a"], value["b"])
-    except (TypeError, ValueError):
-        raise BmrError(f"{source}: friction coefficients must be numbers") from None
+    except BmrError as exc:
+        raise err(f"{source}: friction: {exc}") from None
     se = value.get("stderr")
-    if isinstance(se, dict):
-        try:
-            # Unknown uncertainties are stored as null.
-            fit.c0_stderr = _num(se.get("c0"))
-            fit.a_stderr = np.array([_num(v) for v in se.get("a", fit.a_stderr)], dtype=float)
-            fit.b_stderr = np.array([_num(v) for v in se.get("b", fit.b_stderr)], dtype=float)
-        except (TypeError, ValueError):
-            raise BmrError(f"{source}: friction.stderr must hold numbers") from None
+    if se is not None:
+        if not isinstance(se, dict):
+            raise err(f"{source}: friction.stderr must be an object")
+        c0_se, a_se, b_se = se.get("c0"), se.get("a", [None] * fit.order), se.get("b", [None] * fit.order)
+        # Unknown uncertainties are stored as null.
+        if not (_number_or_null(c0_se) and _number_list(a_se, nulls=True) and _number_list(b_se, nulls=True)):
+            raise err(f"{source}: friction.stderr must hold numbers or null")
+        fit.c0_stderr = _num(c0_se)
+        fit.a_stderr = np.array([_num(v) for v in a_se], dtype=float)
+        fit.b_stderr = np.array([_num(v) for v in b_se], dtype=float)
         if fit.a_stderr.shape != fit.a.shape or fit.b_stderr.shape != fit.b.shape:
-            raise BmrError(f"{source}: friction.stderr must have one entry per coefficient")
+            raise err(f"{source}: friction.stderr must have one entry per coefficient")
     if "residual_rms_nmm" in value:
+        if not _number_or_null(value["residual_rms_nmm"]):
+            raise err(f"{source}: friction.residual_rms_nmm must be a number or null")
         fit.residual_rms_nmm = _num(value["residual_rms_nmm"])
-    if isinstance(value.get("n"), int):
+    if "n" in value:
+        if isinstance(value["n"], bool) or not isinstance(value["n"], int) or value["n"] < 0:
+            raise err(f"{source}: friction.n must be a count of samples, got {value['n']!r}")
         fit.n = value["n"]
-    if isinstance(value.get("criterion"), str):
+    if "criterion" in value:
+        if not isinstance(value["criterion"], str):
+            raise err(f"{source}: friction.criterion must be a string")
         fit.criterion = value["criterion"]
-    if isinstance(value.get("scores"), dict):
-        fit.scores = {int(k): float(v) for k, v in value["scores"].items()}
+    scores = value.get("scores")
+    if scores is not None:
+        if not isinstance(scores, dict) or not all(
+                isinstance(k, str) and k.isdigit() and _number_or_null(v) for k, v in scores.items()):
+            raise err(f"{source}: friction.scores must map harmonic orders to numbers or null")
+        # A score that could not be computed (infinite) is stored as null.
+        fit.scores = {int(k): float("inf") if v is None else float(v) for k, v in scores.items()}
     return fit
+
+
+def _is_number(v: Any) -> bool:
+    """A real number (numpy scalars included), not a bool."""
+    return isinstance(v, numbers.Real) and not isinstance(v, (bool, np.bool_))
+
+
+def _number_or_null(v: Any) -> bool:
+    return v is None or _is_number(v)
+
+
+def _number_list(v: Any, *, nulls: bool = False) -> bool:
+    return isinstance(v, (list, tuple)) and all(_number_or_null(x) if nulls else _is_number(x) for x in v)
+
+
+def _limit(key: Any, value: Any, where: str) -> list[float]:
+    """``[low, high]`` finite numbers with ``low < high``."""
+    if (not isinstance(key, str) or not isinstance(value, (list, tuple)) or len(value) != 2
+            or not all(_is_number(v) and math.isfinite(v) for v in value)):
+        raise ModelFileError(f"{where}.{key} must be [low, high] finite numbers, got {value!r}")
+    low, high = float(value[0]), float(value[1])
+    if not low < high:
+        raise ModelFileError(f"{where}.{key} must have low < high, got [{low}, {high}]")
+    return [low, high]
+
+
+def _real_array(x: Any, name: str) -> np.ndarray:
+    """Real numbers as a float array; booleans and complex numbers are a TypeError naming the argument."""
+    a = np.asarray(x)
+    if a.dtype.kind not in "iuf":
+        raise TypeError(f"{name}: expected real numbers, got an array of {a.dtype}")
+    return np.ascontiguousarray(a, dtype=float)
 
 
 # A list of numbers as indented by json.dumps: opening bracket, then a newline (JSON strings cannot hold raw

@@ -20,8 +20,9 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from bmr._core import BmrError
+from bmr._core import BmrError, ModelFileError
 from bmr.data.bundle import Bundle, Run, read_bundle
+from bmr.data.files import check_output_file
 from bmr.data.quantities import Quantities
 from bmr.identification.accounting import SampleAccount
 from bmr.identification.forc import FirstOrderCurves, extract_first_order_curves
@@ -351,6 +352,7 @@ def identify(
 def run_cli(args: Any) -> int:
     """``bmr identify BUNDLE [--method M] [--intervals N] [--smoothing S] -o model.json``: identify, save, print
     the report."""
+    check_output_file(args.out, "model file", error=ModelFileError)
     bundle = read_bundle(args.bundle)
     model = identify(bundle, method=args.method, n_intervals=args.intervals, smoothing=args.smoothing)
     model.save(args.out)

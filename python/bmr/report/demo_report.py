@@ -7,6 +7,8 @@ import html
 from pathlib import Path
 from typing import Any
 
+from bmr.data.files import write_text
+
 FIGURE_TEXT = {
     "fig11": "Off-state: zero current, motor on. The torque is the seal friction, periodic in the rotor angle.",
     "fig12": "Friction identified by linear least squares (eq 22) on the off-state run, order chosen from the data.",
@@ -89,5 +91,5 @@ N·mm), and {pc['improvement_over_uncompensated']:.1f}× smaller (RMS) than the 
 {diag_html}
 </body></html>
 """
-    Path(path).write_text(body)
+    write_text(path, body)
     return Path(path)

@@ -10,7 +10,7 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from bmr._core import BmrError
+from bmr._core import ExcitationError
 from bmr.data.bundle import Bundle, Run
 from bmr.simulation.experiments import FULL_CURRENT_A, OPENING_RATE_A_PER_S, custom, ramp_path, simulate_bundle
 
@@ -42,10 +42,10 @@ def minor_loop_vertices(full_a: float = FULL_CURRENT_A, *, centres: int = 7, dep
     """Reversal currents: for each of ``centres`` levels across ±0.75·full, a nest of ``depth`` shrinking minor
     loops (swing ``swing_a``, default full/4), approached from alternating saturations."""
     if not (isinstance(centres, int) and centres >= 1 and isinstance(depth, int) and depth >= 1):
-        raise BmrError(f"centres and depth must be positive integers, got {centres!r}, {depth!r}")
+        raise ExcitationError(f"centres and depth must be positive integers, got {centres!r}, {depth!r}")
     swing = full_a / 4.0 if swing_a is None else float(swing_a)
     if not (0 < swing < full_a):
-        raise BmrError(f"swing_a must lie in (0, full_a), got {swing_a!r}")
+        raise ExcitationError(f"swing_a must lie in (0, full_a), got {swing_a!r}")
     out: list[float] = []
     for i, c in enumerate(np.linspace(-0.75 * full_a, 0.75 * full_a, centres)):
         out.append(full_a if i % 2 == 0 else -full_a)
@@ -65,7 +65,7 @@ def minor_loops(actuator: Any, *, rate_a_per_s: float = 1.0, name: str = "minor_
     """A ``custom`` run of nested minor loops (:func:`minor_loop_vertices`) at ``rate_a_per_s`` on ``actuator``
     (a ``bmr.VirtualActuator``), opening with the usual excursion to both saturations."""
     if not (np.isfinite(rate_a_per_s) and rate_a_per_s > 0):
-        raise BmrError(f"rate_a_per_s must be positive, got {rate_a_per_s!r}")
+        raise ExcitationError(f"rate_a_per_s must be positive, got {rate_a_per_s!r}")
     vertices = minor_loop_vertices(full_a, **kwargs)
     body = ramp_path(0.0, vertices, rate_a_per_s / actuator.sample_rate_hz)
     run = custom(actuator, body, name=name, full_a=full_a, opening_rate_a_per_s=opening_rate_a_per_s)

@@ -24,8 +24,9 @@ from typing import Any, Callable, Mapping, Sequence
 import numpy as np
 import pandas as pd
 
-from bmr._core import BmrError, VirtualActuator
+from bmr._core import BmrError, ExcitationError, VirtualActuator
 from bmr.data.bundle import Bundle, Run, write_bundle
+from bmr.data.files import check_output_folder
 
 FULL_CURRENT_A = 1.25
 """Saturating nominal current of the protocols (±10 units of 0.125 A on the paper's rig)."""
@@ -70,7 +71,7 @@ def ramp_path(start: float, vertices: Sequence[float], step: float) -> np.ndarra
     paths on a grid stay on it). Zero-length segments are skipped.
     """
     if not (np.isfinite(step) and step > 0):
-        raise BmrError(f"ramp step must be positive and finite, got {step!r}")
+        raise ExcitationError(f"ramp step must be positive and finite, got {step!r}")
     parts = []
     a = float(start)
     for b in vertices:
@@ -99,7 +100,7 @@ def opening_path(sample_rate_hz: float, *, full_a: float = FULL_CURRENT_A,
 
 def _check_positive(name: str, value: float) -> None:
     if not (isinstance(value, (int, float, np.floating, np.integer)) and np.isfinite(value) and value > 0):
-        raise BmrError(f"{name} must be a positive finite number, got {value!r}")
+        raise ExcitationError(f"{name} must be a positive finite number, got {value!r}")
 
 
 class _SplitMix64:
@@ -124,9 +125,9 @@ def _multipeak_vertices(seed: int, duration_s: float, lo: float, hi: float, rate
     """Random alternating peaks in [lo, hi] with log-uniform rates: ``[(peak, rate), ...]`` covering the duration."""
     r_lo, r_hi = float(rate_range[0]), float(rate_range[1])
     if not (0 < r_lo <= r_hi and np.isfinite(r_hi)):
-        raise BmrError(f"rate range must satisfy 0 < low <= high, got {rate_range!r}")
+        raise ExcitationError(f"rate range must satisfy 0 < low <= high, got {rate_range!r}")
     if not (hi > lo and 0 < min_swing < (hi - lo)):
-        raise BmrError(f"multi-peak needs lo < hi and 0 < min_swing < hi - lo (got {lo}, {hi}, {min_swing})")
+        raise ExcitationError(f"multi-peak needs lo < hi and 0 < min_swing < hi - lo (got {lo}, {hi}, {min_swing})")
     rng = _SplitMix64(seed)
     value = 0.0 if lo <= 0.0 <= hi else lo
     rising = rng.uniform() < 0.5
@@ -248,7 +249,7 @@ def multi_step(actuator: VirtualActuator, *, levels_a: Sequence[float] | None = 
         levels_a = up + down + back
     levels = np.asarray(levels_a, dtype=float)
     if levels.ndim != 1 or levels.size == 0 or not np.all(np.isfinite(levels)):
-        raise BmrError("levels_a must be a non-empty sequence of finite currents (A)")
+        raise ExcitationError("levels_a must be a non-empty sequence of finite currents (A)")
     _check_positive("duration_s", duration_s)
     fs = actuator.sample_rate_hz
     hold = max(1, int(round(duration_s * fs / levels.size)))
@@ -260,7 +261,7 @@ def multi_step(actuator: VirtualActuator, *, levels_a: Sequence[float] | None = 
 
 def _reversal_grid(reversals: int, full_a: float) -> np.ndarray:
     if not (isinstance(reversals, (int, np.integer)) and 2 <= reversals <= 1001):
-        raise BmrError(f"reversals must be an integer in [2, 1001], got {reversals!r}")
+        raise ExcitationError(f"reversals must be an integer in [2, 1001], got {reversals!r}")
     return np.linspace(-full_a, full_a, int(reversals))
 
 
@@ -342,10 +343,10 @@ def custom(actuator: VirtualActuator, current_a: Sequence[float] | np.ndarray, *
     """Any excitation (kind ``custom``): the opening excursion, then ``current_a`` (A) sample by sample."""
     body = np.asarray(current_a, dtype=float)
     if body.ndim != 1 or body.size == 0:
-        raise BmrError("current_a must be a non-empty 1-D array of currents (A)")
+        raise ExcitationError("current_a must be a non-empty 1-D array of currents (A)")
     bad = np.flatnonzero(~np.isfinite(body))
     if bad.size:
-        raise BmrError(f"current_a[{int(bad[0])}] = {body[bad[0]]!r} is not finite")
+        raise ExcitationError(f"current_a[{int(bad[0])}] = {body[bad[0]]!r} is not finite")
     cur, k = _with_opening(actuator, body, opening_rate_a_per_s, full_a)
     return _record(actuator, name, "custom", cur, k)
 
@@ -364,10 +365,10 @@ def tracking(actuator: VirtualActuator, compensator: Any, reference_nmm: np.ndar
     """
     ref = np.asarray(reference_nmm, dtype=float)
     if ref.ndim != 1 or ref.size < 2:
-        raise BmrError("reference_nmm must be a 1-D array of at least 2 torques (N·mm)")
+        raise ExcitationError("reference_nmm must be a 1-D array of at least 2 torques (N·mm)")
     bad = np.flatnonzero(~np.isfinite(ref))
     if bad.size:
-        raise BmrError(f"reference_nmm[{int(bad[0])}] = {ref[bad[0]]!r} is not finite")
+        raise ExcitationError(f"reference_nmm[{int(bad[0])}] = {ref[bad[0]]!r} is not finite")
     _check_positive("opening_duration_s", opening_duration_s)
     fs = actuator.sample_rate_hz
     reach = max(1000.0, 2.5 * float(np.max(np.abs(ref)))) if opening_reference_nmm is None else opening_reference_nmm
@@ -501,6 +502,10 @@ def run_cli(args: Any) -> int:
     t0 = time.perf_counter()
     effects = list(args.effect or [])
     overrides = _parse_overrides(getattr(args, "override", None) or [])
+    # Everything that can be wrong is found before the progress bar starts: the output folder, the effects and
+    # the parameters (an actuator built once with them).
+    check_output_folder(args.out, "bundle folder")
+    VirtualActuator(args.preset, effects=effects or None, overrides=overrides or None)
     # Plan length: the set without a compensator.
     n_runs = len(_plan(bool(args.quick), None, BUNDLE_SAMPLE_RATE_HZ))
     with tqdm(total=2 * n_runs, file=sys.stderr, unit="step", desc="bmr simulate") as bar:

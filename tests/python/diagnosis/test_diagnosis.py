@@ -136,6 +136,28 @@ def test_extended_compensator_tracks_better_on_the_plant(lag_diagnosis: Diagnosi
     assert errs["extended"] < 0.5 * errs["nominal"], errs
 
 
+def test_failed_json_and_report_writes_leave_the_previous_files(lag_diagnosis: Diagnosis, tmp_path: Path,
+                                                                 monkeypatch: pytest.MonkeyPatch) -> None:
+    # The diagnosis JSON and the report used to be written in place: a failure mid-write (disk full) left a
+    # truncated file where the previous one was.
+    import os
+
+    paths = [tmp_path / "d.json", tmp_path / "r.html"]
+    for p in paths:
+        p.write_text("previous")
+
+    def full_disk(fd: int) -> None:
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(os, "fsync", full_disk)
+    for write, p in zip((lag_diagnosis.write_json, lag_diagnosis.write_report), paths):
+        with pytest.raises(bmr.BmrError, match="No space left on device"):
+            write(p)
+    monkeypatch.undo()
+    assert [p.read_text() for p in paths] == ["previous", "previous"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["d.json", "r.html"], "no temporary file left behind"
+
+
 def test_json_html_model_file_and_extended_simulation(lag_diagnosis: Diagnosis, tmp_path: Path) -> None:
     d = lag_diagnosis
     doc = json.loads(d.write_json(tmp_path / "d.json").read_text())

@@ -58,7 +58,17 @@ SANE: dict[str, object] = {
     "n": 10, "preset": "bmr2013", "seed": 0, "sample_rate_hz": 1000.0, "effects": None, "overrides": None,
     "friction": None, "inverse": "exact", "converter_gain": 0.125, "current_limit": 1.25,
     "torque_ref_nmm": 100 * U, "c0": 1.0, "a": [0.5], "b": [0.2], "amplitude": [1.0], "phase": [0.3],
+    "inputs": [(U, np.ones_like(U), 0)], "outputs": [10 * U], "warm_start": None, "deadband": 0.05, "lo": -1.0,
+    "hi": 1.0, "saturation_tol": None, "y": 10 * U, "weight": None, "free_offset": True, "gain": 1.0,
+    "tolerance": 1e-3, "direction": "ascending", "pilot": 16, "gain_per_a": 0.0, "extensions": None,
+    "dt_s": 1e-3, "full_torque_nmm": None, "full_current_a": 1.25, "columns": None, "out": None, "heating": 0.0,
+    "t0_s": 0.0, "x": U, "delay_s": 3e-3, "fill": None, "tau_s": 0.01, "model_entries": False, "language": "c",
+    "title": "bmr compensator", "prefix": "bmr", "core_nmm": 100 * U, "field_nmm": 100 * U, "curvature": 0.2,
+    "scale_nmm": 300.0, "torque_ref_ahead_nmm": 50.0, "theta_ahead_rad": 0.3, "slope_ref": None, "rest_s": 0.0,
+    "kappa": 0.1, "cycles": 5.0, "deadband": 0.05, "y_mid": 0.0, "t_s": np.arange(300) / 1000.0, "harmonics": 0,
+    "v": 10 * U, "taus_s": np.array([0.01, 0.1]),
 }
+SANE["subdivisions"] = 2
 # Per-callable values where the generic ones do not fit (scalars for single steps, objects for methods).
 SPECIFIC: dict[str, dict[str, object]] = {
     "VirtualActuator.step": {"current_a": 0.3},
@@ -66,6 +76,12 @@ SPECIFIC: dict[str, dict[str, object]] = {
     "EverettModel.simulate": {"offset": None},
     "VirtualActuator.true_friction": {"theta_rad": TH},
 }
+
+
+def _model() -> object:
+    import bmr
+
+    return bmr.Model.from_curves(_family(1.0), _family(-1.0))
 
 
 def _reduce_args(obj: object) -> tuple:
@@ -80,33 +96,76 @@ def _targets() -> list[tuple[str, object, dict[str, object]]]:
     comp = core.Compensator(_hysteresis(), core.Friction(1.0, [0.5], [0.2]))
     asc, an, ac, desc, dn, dc, ylo, yhi, state = _reduce_args(h)
     vargs = _reduce_args(va)
+    paper = core.Compensator(_hysteresis(), core.Friction(1.0, [0.5], [0.2]), inverse="paper")
+    paper.run(100 * U, TH)
+    comp_args = dict(zip(("hysteresis", "friction", "inverse", "converter_gain", "current_limit", "extensions",
+                          "dt_s", "full_torque_nmm", "state"), _reduce_args(paper)))
+    (comp_state,) = _reduce_args(paper.snapshot())
+    command = _reduce_args(comp.step(50.0, 0.3))
     targets: list[tuple[str, object, dict[str, object]]] = [
         ("Hysteresis.from_curves", core.Hysteresis.from_curves, {}),
         ("Hysteresis.step", _hysteresis().step, {"u": 0.3}),
         ("Hysteresis.run", _hysteresis().run, {}),
         ("Hysteresis.reset", _hysteresis().reset, {}),
+        ("Hysteresis.compressed", _hysteresis().compressed, {}),
+        ("Hysteresis.run_rate_dependent", _hysteresis().run_rate_dependent, {"tau_s": 0.01}),
+        ("VirtualActuator.start_run", core.VirtualActuator().start_run, {}),
+        ("VirtualDevice", core.VirtualDevice, {"preset": "piezo", "sample_rate_hz": None}),
+        ("VirtualDevice.run", core.VirtualDevice().run, {"u": 50 * U}),
+        ("VirtualDevice.start_run", core.VirtualDevice().start_run, {}),
+        ("accommodation_shift", core.accommodation_shift, {"saturation_tol": 0.002}),
+        ("candidate_signals", core.candidate_signals, {"theta_rad": None}),
+        ("creep_columns", core.creep_columns, {}),
+        ("fit_curve", core.fit_curve, {"u": np.linspace(0, 1, 200), "y": np.linspace(0, 1, 200) ** 2}),
         ("Hysteresis.restore", _hysteresis().restore, {"state": _hysteresis().snapshot()}),
         ("fit_friction_order", core.fit_friction_order, {}),
         ("fit_everett", core.fit_everett, {}),
+        ("EverettRegression", core.EverettRegression, {}),
+        ("EverettRegression.fit", core.EverettRegression(np.linspace(-1, 1, 9), [(U, np.ones_like(U), 0)]).fit, {}),
+        ("find_reversals", core.find_reversals, {}),
+        ("reversal_order", core.reversal_order, {"deadband": 0.05}),
         ("EverettModel", core.EverettModel, {}),
         ("EverettModel.everett", _everett().everett, {}),
         ("EverettModel.simulate", _everett().simulate, {}),
+        ("EverettModel.best_initial_state", _everett().best_initial_state, {}),
         ("EverettModel.first_order_curves", _everett().first_order_curves, {}),
+        ("EverettModel.hysteresis", _everett().hysteresis, {}),
         ("VirtualActuator", core.VirtualActuator, {}),
         ("VirtualActuator.run", va.run, {}),
         ("VirtualActuator.step", va.step, {}),
         ("VirtualActuator.theta_ahead", va.theta_ahead, {}),
         ("VirtualActuator.true_friction", va.true_friction, {}),
         ("Friction", core.Friction, {}),
+        ("Friction.__call__", lambda theta: core.Friction(1.0, [0.5], [0.2])(theta), {"theta": TH}),
         ("Friction.from_amplitude_phase", core.Friction.from_amplitude_phase, {}),
         ("Compensator", core.Compensator, {"hysteresis": _hysteresis()}),
         ("Compensator.step", comp.step, {}),
+        ("Compensator.step_ahead", comp.step_ahead, {}),
+        ("Compensator.step_into", comp.step_into, {"torque_ref_nmm": 50.0, "theta_rad": 0.3, "out": np.zeros(7)}),
+        ("Compensator.from_model", core.Compensator.from_model, {"model": _model()}),
+        ("ExtendedSimulation", core.ExtendedSimulation, {"hysteresis": _hysteresis()}),
+        ("ExtendedSimulation.run", core.ExtendedSimulation(_hysteresis(), dt_s=1e-3, full_current_a=1.25).run, {}),
+        ("check_extensions", core.check_extensions, {"extensions": [{"name": "coil_lag", "params": {"tau_s": 0.01}}]}),
+        ("delay", core.delay, {}),
+        ("effect_parameters", core.effect_parameters, {}),
+        ("export_source", core.export_source, {"compensator": comp}),
+        ("friction_series", core.friction_series, {}),
+        ("heating_state", core.heating_state, {"current_a": U, "tau_s": 0.1, "initial": 0.0}),
+        ("lag", core.lag, {}),
+        ("lead", core.lead, {}),
+        ("output_map", core.output_map, {}),
+        ("output_map_inverse", core.output_map_inverse, {}),
         ("Compensator.run", comp.run, {}),
         ("Compensator.reset", comp.reset, {}),
+        ("Compensator.restore", comp.restore, {"state": comp.snapshot()}),
         ("_rebuild_hysteresis", core._rebuild_hysteresis,
          dict(asc=asc, asc_nodes=an, asc_curves=ac, desc=desc, desc_nodes=dn, desc_curves=dc, y_lo=ylo, y_hi=yhi,
               state=state)),
         ("_rebuild_hysteresis_state", core._rebuild_hysteresis_state, {"state": state}),
+        ("_rebuild_compensator", core._rebuild_compensator, comp_args),
+        ("_rebuild_compensator_state", core._rebuild_compensator_state, {"state": comp_state}),
+        ("Command", core.Command,
+         dict(zip(("current_a", "coil1_a", "coil2_a", "volt1_v", "volt2_v", "saturated", "fault"), command))),
         ("_rebuild_virtual_actuator", core._rebuild_virtual_actuator,
          dict(zip(("preset", "seed", "sample_rate_hz", "effects", "overrides", "state"), vargs))),
     ]
@@ -118,7 +177,8 @@ def _params(fn: object) -> list[inspect.Parameter]:
         sig = inspect.signature(fn)
     except (TypeError, ValueError):
         return []
-    return [p for p in sig.parameters.values() if p.name not in ("self", "$self")]
+    return [p for p in sig.parameters.values()
+            if p.name not in ("self", "$self") and p.kind not in (p.VAR_POSITIONAL, p.VAR_KEYWORD)]
 
 
 def _call(fn: object, params: list[inspect.Parameter], values: dict[str, object]) -> None:
@@ -131,12 +191,31 @@ def _call(fn: object, params: list[inspect.Parameter], values: dict[str, object]
     fn(*args, **kwargs)
 
 
+def _bindings_with_arguments() -> set[str]:
+    """Every function and method of the module that takes arguments (so a new binding cannot escape the sweep)."""
+    names = set()
+    for attr in dir(core):
+        obj = getattr(core, attr)
+        if inspect.isclass(obj) and not issubclass(obj, BaseException):
+            if _params(obj):
+                names.add(attr)
+            for m in dir(obj):
+                if not m.startswith("_") and callable(getattr(obj, m)) and _params(getattr(obj, m)):
+                    names.add(f"{attr}.{m}")
+        elif callable(obj) and not inspect.isclass(obj) and _params(obj):
+            names.add(attr)
+    return names
+
+
 def main() -> int:
     # A silent conversion (complex to real, say) is a finding too.
     warnings.simplefilter("error")
     allowed = (core.BmrError, OverflowError)
     calls = 0
-    for name, fn, specific in _targets():
+    targets = _targets()
+    for name in sorted(_bindings_with_arguments() - {t[0] for t in targets}):
+        print(json.dumps({"call": name, "problem": "binding not in the sweep: add it to _targets()"}), flush=True)
+    for name, fn, specific in targets:
         params = _params(fn)
         base = {p.name: SANE[p.name] for p in params if p.name in SANE}
         base.update(SPECIFIC.get(name, {}))
@@ -164,7 +243,10 @@ def main() -> int:
                     print(json.dumps({"call": name, "arg": p.name, "value": repr(value)[:60],
                                       "problem": f"{type(exc).__name__}: {exc}"[:300]}), flush=True)
     # Pickled data is data too: damaged pickles of every picklable object give errors, never panics.
-    for obj in (_hysteresis(), _hysteresis().snapshot(), core.VirtualActuator(), _everett()):
+    paper = core.Compensator(_hysteresis(), core.Friction(1.0, [0.5], [0.2]), inverse="paper")
+    paper.run(100 * U, TH)
+    for obj in (_hysteresis(), _hysteresis().snapshot(), core.VirtualActuator(), _everett(), paper,
+                paper.snapshot(), core.Friction(1.0, [0.5], [0.2]), paper.step(10.0, 0.2)):
         blob = pickle.dumps(obj)
         for i in range(0, len(blob), max(1, len(blob) // 200)):
             for b in (0, 0xFF, 0x7F):

@@ -73,13 +73,31 @@ def test_limits_are_documented_in_the_module() -> None:
 
 
 def test_table_errors_have_their_own_class_and_speak_the_users_terms() -> None:
+    # Was "reversal is not a grid node (at index 1)", an internal term with the index after sorting.
     asc, desc = _family(1.0, 4), _family(-1.0, 4)
     asc.insert(1, (asc[1][0] + 1e-13, asc[1][1]))
     with pytest.raises(core.TableError, match=r"ascending curves 1 and 2 start at reversal inputs"):
         core.Hysteresis.from_curves(asc, desc)
-    big = [(u * 4e154, y) for u, y in _family(1.0, 4)], [(u * 4e154, y) for u, y in _family(-1.0, 4)]
+
+
+@pytest.mark.parametrize("scale", [4e154, 1e308])
+def test_inputs_beyond_the_supported_magnitude_are_a_range_error(scale: float) -> None:
+    # 4e154 was accepted and then returned inf; 1e308 gave the internal "fewer than 2 grid nodes".
+    big = [(u * scale, y) for u, y in _family(1.0, 4)], [(u * scale, y) for u, y in _family(-1.0, 4)]
     with pytest.raises(core.TableError, match="supported magnitude"):
         core.Hysteresis.from_curves(*big)
+    assert core.LIMITS["magnitude"] == 1e150
+
+
+FRICTION = core.Friction(3.0, [2.0, -1.0], [0.5, 0.25])
+REF = 180.0 * np.sin(np.linspace(0, 17, 500))
+ANGLE = np.linspace(0.0, 40.0, 500)
+
+
+def _compensator(inverse: str) -> core.Compensator:
+    c = core.Compensator(_hysteresis(), FRICTION, inverse=inverse, converter_gain=0.25, current_limit=0.9)
+    c.run(REF, ANGLE)
+    return c
 
 
 def _sample_objects() -> dict[str, object]:
@@ -93,6 +111,11 @@ def _sample_objects() -> dict[str, object]:
         "HysteresisState": h.snapshot(),
         "VirtualActuator": va,
         "EverettModel": core.EverettModel(np.linspace(-1, 1, 9), np.linspace(0.0, 0.2, 36), -3.0),
+        "Compensator": _compensator("exact"),
+        "PaperCompensator": _compensator("paper"),
+        "CompensatorState": _compensator("paper").snapshot(),
+        "Friction": FRICTION,
+        "Command": _compensator("exact").step(-40.0, 1.0),
     }
 
 
@@ -110,6 +133,19 @@ def _continue(obj: object) -> object:
         return obj.run(u)
     if isinstance(obj, core.EverettModel):
         return obj.simulate(u)
+    if isinstance(obj, core.Compensator):
+        return {**obj.run(200 * u, 7 * u), "settings": np.array([obj.converter_gain, obj.current_limit]),
+                "inverse": np.array([obj.inverse])}
+    if isinstance(obj, core.CompensatorState):
+        c = _compensator("paper")  # same tables and inverse; restore then continue
+        c.run(-REF, ANGLE)
+        c.restore(obj)
+        return c.run(200 * u, 7 * u)
+    if isinstance(obj, core.Friction):
+        return obj(np.linspace(-7, 7, 99))
+    if isinstance(obj, core.Command):
+        return np.array([obj.current_a, obj.coil1_a, obj.coil2_a, obj.volt1_v, obj.volt2_v, obj.saturated,
+                         obj.fault])
     raise AssertionError(type(obj))
 
 
@@ -120,8 +156,11 @@ def _equal(a: object, b: object) -> bool:
 
 
 @pytest.mark.parametrize("how", ["copy", "deepcopy", "pickle"])
-@pytest.mark.parametrize("name", ["Hysteresis", "HysteresisState", "VirtualActuator", "EverettModel"])
+@pytest.mark.parametrize("name", ["Hysteresis", "HysteresisState", "VirtualActuator", "EverettModel", "Compensator",
+                                  "PaperCompensator", "CompensatorState", "Friction", "Command"])
 def test_objects_copy_and_pickle_and_continue_bit_for_bit(name: str, how: str) -> None:
+    # Compensators, friction, their states and commands could not be copied or pickled (users send compensators
+    # to worker processes).
     original = _sample_objects()[name]
     twin = {"copy": copy.copy, "deepcopy": copy.deepcopy,
             "pickle": lambda o: pickle.loads(pickle.dumps(o))}[how](original)
@@ -136,6 +175,21 @@ def test_a_pickled_state_restores_only_into_its_own_tables() -> None:
         other.restore(s)
     with pytest.raises(core.BmrError):
         core._rebuild_hysteresis_state(b"\x00" * 24)
+
+
+def test_a_pickled_compensator_state_restores_only_into_a_compensator_like_its_own() -> None:
+    paper = pickle.loads(pickle.dumps(_compensator("paper").snapshot()))
+    exact = pickle.loads(pickle.dumps(_compensator("exact").snapshot()))
+    with pytest.raises(core.TableError, match="does not belong"):
+        _compensator("exact").restore(paper)
+    with pytest.raises(core.TableError, match="does not belong"):
+        _compensator("paper").restore(exact)
+    other = core.Compensator(core.Hysteresis.from_curves(_family(1.0, 5), _family(-1.0, 5)), inverse="paper")
+    with pytest.raises(core.TableError, match="does not belong"):
+        other.restore(paper)
+    # Damaged state bytes are refused when unpickled or, at the latest, when restored.
+    with pytest.raises(core.BmrError):
+        _compensator("paper").restore(core._rebuild_compensator_state(b"\x00" * 56))
 
 
 def _race(run_long, call_other) -> list[BaseException]:
@@ -159,13 +213,17 @@ def _race(run_long, call_other) -> list[BaseException]:
     return seen
 
 
-@pytest.mark.parametrize("name", ["Hysteresis", "VirtualActuator"])
+@pytest.mark.parametrize("name", ["Hysteresis", "VirtualActuator", "Compensator"])
 def test_a_call_during_a_gil_released_run_says_the_object_is_in_use(name: str) -> None:
     # Used to be "RuntimeError: Already borrowed".
     if name == "Hysteresis":
         obj = _hysteresis()
         u = np.sin(np.linspace(0, 2000, 4_000_000))
         run_long, call_other = (lambda: obj.run(u)), (lambda: obj.step(0.1))
+    elif name == "Compensator":
+        obj = core.Compensator(_hysteresis(), FRICTION)
+        u = np.sin(np.linspace(0, 2000, 2_000_000))
+        run_long, call_other = (lambda: obj.run(150 * u, u)), (lambda: obj.step(10.0, 0.1))
     else:
         obj = core.VirtualActuator()
         u = np.sin(np.linspace(0, 200, 300_000))
