@@ -255,9 +255,12 @@ class FieldPath:
     def hysteresis(self) -> Any:
         """A fresh ``bmr.Hysteresis`` of the core."""
         if self.tables is None and self.curvature == 0.0 and not self.reidentify:
-            asc, desc = self.model.hysteresis.curves()
-        else:
-            asc, desc = self.core_curves()
+            # The nominal core is the model's own operator: built once, not rebuilt from its stored curves (which
+            # hold derived and added curves a second build need not accept).
+            h = copy.copy(self.model.hysteresis)
+            h.reset(initial="negative")
+            return h
+        asc, desc = self.core_curves()
         try:
             return Hysteresis.from_curves(list(asc), list(desc), initial="negative")
         except BmrError as exc:
