@@ -259,21 +259,7 @@ impl<S: AsRef<[f64]>, const N: usize, const K: usize> Compensator<S, N, K> {
     /// core input `core_a`; returns the field torque before the gains.
     #[inline]
     fn after_core(&mut self, core_nmm: f64, core_a: f64) -> f64 {
-        if let Some(r) = &mut self.stages.rate {
-            r.observe(core_nmm);
-        }
-        let crept = match &mut self.stages.creep {
-            Some(c) => c.step(core_nmm),
-            None => core_nmm,
-        };
-        let mut field = match &self.stages.output_map {
-            Some(m) => m.forward(crept),
-            None => crept,
-        };
-        if let Some(a) = &mut self.stages.accommodation {
-            field += a.step(core_a, field);
-        }
-        field
+        self.stages.after_core(core_nmm, core_a)
     }
     /// Delay (whole samples) the reference must be taken ahead by (`time_delay`; 0 without it).
     pub fn preview_samples(&self) -> usize {

@@ -149,20 +149,7 @@ impl<S: AsRef<[f64]>, D: AsRef<[f64]> + AsMut<[f64]>, const N: usize, const K: u
             None => field_a,
         };
         let core_nmm = self.core.step(core_a);
-        if let Some(r) = &mut self.stages.rate {
-            r.observe(core_nmm);
-        }
-        let crept = match &mut self.stages.creep {
-            Some(c) => c.step(core_nmm),
-            None => core_nmm,
-        };
-        let mut field = match &self.stages.output_map {
-            Some(m) => m.forward(crept),
-            None => crept,
-        };
-        if let Some(a) = &mut self.stages.accommodation {
-            field += a.step(core_a, field);
-        }
+        let mut field = self.stages.after_core(core_nmm, core_a);
         let terms = self.friction.angle_terms(theta_rad);
         if let Some(t) = &mut self.stages.thermal {
             field *= t.forward(coil);

@@ -707,6 +707,30 @@ impl StageState {
 }
 
 impl Stages {
+    /// Advance the stages after the hysteretic core (rate dependence observes the core, then creep, the output
+    /// map and accommodation) for the core output `core_nmm` reached at core input `core_a`; the field torque
+    /// before the gains. One chain for the compensator's forward model and the extended simulation.
+    #[inline]
+    pub fn after_core(&mut self, core_nmm: f64, core_a: f64) -> f64 {
+        if let Some(r) = &mut self.rate {
+            r.observe(core_nmm);
+        }
+        let crept = match &mut self.creep {
+            Some(c) => c.step(core_nmm),
+            None => core_nmm,
+        };
+        let mut field = match &self.output_map {
+            Some(m) => m.forward(crept),
+            None => crept,
+        };
+        if let Some(a) = &mut self.accommodation {
+            field += a.step(core_a, field);
+        }
+        field
+    }
+}
+
+impl Stages {
     /// Read stage states written by [`StageState::to_words`] for stages configured like these, from `words`
     /// (advanced past them); `None` if they do not fit this configuration or a value is not finite.
     pub fn state_from_words(&self, words: &mut &[u64]) -> Option<StageState> {
