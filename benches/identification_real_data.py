@@ -89,15 +89,7 @@ def bench_plant() -> dict:
         b = bmr.Bundle("bench", 500.0, [runs[k] for k in sel])
         out[label] = {m: predict(bmr.identify(b, method=m), held).rms for m in ("forc", "lstsq")}
     # A run from an unknown state that reaches saturation only at its end.
-    plant.reset()
-    plant.drive(P.ramps([0.0, P.LO, 0.6, -0.2, 0.3], 0.5, 500.0)[1], 0.002)
-    v = [0.0]
-    for k in range(6):
-        v += [0.9 - 0.05 * k, -0.8 + 0.1 * k]
-    train = P.record(plant, "drift", "custom", v + [P.HI, -0.3], rng, fresh=False)
-    plant.reset()
-    plant.drive(P.ramps([0.0, 0.4, -0.5], 0.5, 500.0)[1], 0.002)
-    held2 = P.record(plant, "multipeak", "multipeak", P.multipeak_vertices(5), rng, fresh=False)
+    train, held2 = P.unknown_start_runs(plant, rng)
     b = bmr.Bundle("drift", 500.0, [train])
     out["unknown_start"] = {}
     for state in ("estimate", "saturation"):

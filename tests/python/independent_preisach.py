@@ -164,3 +164,18 @@ def record(plant: Plant, name: str, kind: str, vertices: list[float], rng: np.ra
     t, u = ramps(vertices, rate, fs)
     y = plant.drive(u, 1.0 / fs) + rng.normal(0.0, noise, u.size)
     return run(name, kind, t, u, y)
+
+
+def unknown_start_runs(plant: Plant, rng: np.random.Generator) -> tuple[Run, Run]:
+    """A training run that starts where unrecorded excitation left the plant and reaches positive saturation only
+    in its last cycle (never negative saturation), and a held-out multi-peak run, also from an unrecorded state."""
+    plant.reset()
+    plant.drive(ramps([0.0, LO, 0.6, -0.2, 0.3], 0.5, 500.0)[1], 0.002)
+    v = [0.0]
+    for k in range(6):
+        v += [0.9 - 0.05 * k, -0.8 + 0.1 * k]
+    train = record(plant, "drift", "custom", v + [HI, -0.3], rng, fresh=False)
+    plant.reset()
+    plant.drive(ramps([0.0, 0.4, -0.5], 0.5, 500.0)[1], 0.002)
+    held = record(plant, "multipeak", "multipeak", multipeak_vertices(5), rng, fresh=False)
+    return train, held

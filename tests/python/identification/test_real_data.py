@@ -142,15 +142,7 @@ def test_a_run_that_starts_away_from_saturation():
     # 8 % of the samples and a useless table; estimating the initial state uses every sample.
     rng = np.random.default_rng(2)
     plant = P.Plant(lag_s=0.03)
-    plant.reset()
-    plant.drive(P.ramps([0.0, P.LO, 0.6, -0.2, 0.3], 0.5, 500.0)[1], 0.002)
-    v = [0.0]
-    for k in range(6):
-        v += [0.9 - 0.05 * k, -0.8 + 0.1 * k]
-    train = P.record(plant, "drift", "custom", v + [P.HI, -0.3], rng, fresh=False)
-    plant.reset()
-    plant.drive(P.ramps([0.0, 0.4, -0.5], 0.5, 500.0)[1], 0.002)
-    held = P.record(plant, "multipeak", "multipeak", P.multipeak_vertices(5), rng, fresh=False)
+    train, held = P.unknown_start_runs(plant, rng)
     bundle = bmr.Bundle("drift", 500.0, [train])
     rms = {}
     for state in ("estimate", "saturation"):
