@@ -246,35 +246,34 @@ impl<S: AsRef<[f64]>, const N: usize> Hysteresis<S, N> {
             None if r.linear => return (line_inverse(r.u, r.y, end.0, end.1, target), None),
             _ => {}
         }
-        // Increment along the branch, in the family's rising orientation.
+        // Increment along the branch, in the family's rising orientation, and the input where the piece ends.
         let dy = if up { target - r.y } else { r.y - target };
-        let e = match r.via {
+        let (e, piece_end) = match r.via {
             Some(v) if second => {
-                if v.k > 0.0 {
+                let e = if v.k > 0.0 {
                     v.e + (if up { target - v.y } else { v.y - target }) / v.k
                 } else {
                     f64::INFINITY
-                }
+                };
+                (e, end_u)
             }
-            _ => {
-                if r.k > 0.0 {
-                    dy / r.k
-                } else {
-                    f64::INFINITY
-                }
-            }
+            // The first piece ends at the via point: a target at its output must not search past it (round-off
+            // can put `dy / k` a hair above `v.e`, and where the table is flat beyond `v` the search would run on
+            // to the closure target).
+            Some(v) => (if r.k > 0.0 { (dy / r.k).min(v.e) } else { v.e }, v.u),
+            None => (if r.k > 0.0 { dy / r.k } else { f64::INFINITY }, end_u),
         };
         if e.is_infinite() {
-            return (end_u, None);
+            return (piece_end, None);
         }
         let s = &r.strip;
         let tri = s.tri;
         if up {
             let (u, hit) = self.asc.everett_inverse_cell(s, e, self.state.hint_a);
-            (u.min(end_u), hit.map(|h| (h, tri, s.r_next)))
+            (u.min(piece_end), hit.map(|h| (h, tri, s.r_next)))
         } else {
             let (u, hit) = self.desc.everett_inverse_cell(s, e, self.state.hint_d);
-            ((-u).max(end_u), hit.map(|h| (h, tri, s.r_next)))
+            ((-u).max(piece_end), hit.map(|h| (h, tri, s.r_next)))
         }
     }
 

@@ -447,3 +447,145 @@ fn an_actuator_started_just_below_angle_zero_saves_a_state_it_can_load() {
         act.load_state(&act.save_state()).unwrap();
     }
 }
+
+#[test]
+fn an_inverse_to_a_via_points_output_stays_on_the_first_piece() {
+    // A merged branch whose first piece ends at its via point, over a table that is flat beyond it: a target
+    // equal to the via point's output put `dy / k` a hair above the piece's increment by round-off, and the
+    // search ran past the via point to the closure target (an output error of 40 % of the span). Found by
+    // fuzzing (fuzz/corpus/table_build/regression-via-point-inverse); the steps and targets are that input's.
+    let a: Curves = vec![
+        (
+            vec![
+                -0.001,
+                -0.0009966666666666668,
+                -0.0009933333333333333,
+                -0.00099,
+            ],
+            vec![
+                -0.9964904249637598,
+                -0.9964904249637598,
+                -0.9964751659418631,
+                -0.9962581487415546,
+            ],
+        ),
+        (
+            vec![-0.0009966666666666668, -0.0009933333333333333, -0.00099],
+            vec![
+                -0.9962734077634513,
+                -0.9962581487415546,
+                -0.9962581487415546,
+            ],
+        ),
+        (
+            vec![-0.0009933333333333333, -0.00099],
+            vec![-0.9962581487415546, -0.9962581487415546],
+        ),
+    ];
+    let d: Curves = vec![
+        (
+            vec![
+                -0.00099,
+                -0.0009933333333333333,
+                -0.0009966666666666668,
+                -0.001,
+            ],
+            vec![
+                -0.9962581487415546,
+                -0.9962581487415546,
+                -0.9962734077634513,
+                -0.9964904249637598,
+            ],
+        ),
+        (
+            vec![-0.0009933333333333333, -0.0009966666666666668, -0.001],
+            vec![
+                -0.9964751659418631,
+                -0.9964904249637598,
+                -0.9964904249637598,
+            ],
+        ),
+        (
+            vec![-0.0009966666666666668, -0.001],
+            vec![-0.9964904249637598, -0.9964904249637598],
+        ),
+    ];
+    let mut h = Hysteresis::<Vec<f64>, 8>::from_curve_data(
+        &a,
+        &d,
+        &BuildOptions::default(),
+        Initial::Descending(-1028.0625),
+    )
+    .unwrap();
+    let (y_lo, y_hi) = h.output_range();
+    // (is an inverse, input or target)
+    let ops: &[(bool, f64)] = &[
+        (true, -0.9964021599993218),
+        (true, -0.9964021599993218),
+        (false, 1.0000000000000003e+130),
+        (true, -0.9962447587005099),
+        (true, -0.9962447587005099),
+        (false, -0.0009894235294117648),
+        (true, -0.9962453031062126),
+        (true, -0.9962447587005099),
+        (true, -0.9962447587005099),
+        (true, -0.9964532490719907),
+        (true, -0.9963802987078202),
+        (false, -0.0009952529640650035),
+        (true, -0.9962360056775701),
+        (true, -0.9964721161321272),
+        (true, -0.9964721161321272),
+        (true, -0.9963458140090856),
+        (true, -0.9963801626063945),
+        (true, -0.9963803072141593),
+        (true, -0.9964775474296462),
+        (true, -0.9963799074162213),
+        (true, -0.9964611174356635),
+        (true, -0.9962753645086122),
+        (true, -0.9963802731888028),
+        (true, -0.9964754548702262),
+        (true, -0.9963453206414176),
+        (true, -0.9963801626063945),
+        (true, -0.9963802987078202),
+        (false, -0.0009952529640650035),
+        (true, -0.9963802987078202),
+        (false, -0.0009952507667658503),
+        (true, -0.9963802987078202),
+        (true, -0.9964109045159225),
+        (true, -0.9964109045159225),
+        (true, -0.9963194443578579),
+        (true, -0.9964721161321272),
+        (true, -0.9964721161321272),
+        (true, -0.9963458140090856),
+        (true, -0.9963801626063945),
+        (true, -0.9963824763306313),
+        (true, -0.9964775474296462),
+        (true, -0.9963799074162213),
+        (true, -0.9964605730299607),
+        (true, -0.9962753645086122),
+        (true, -0.9963802731888028),
+        (true, -0.9964754548702262),
+        (true, -0.9963453206414176),
+        (true, -0.9963801626063945),
+        (true, -0.9963802987078202),
+        (false, -0.0009952588235294117),
+        (true, -0.9963801626063945),
+        (false, -0.0009952613870450903),
+        (true, -0.9963802987078202),
+    ];
+    for (i, &(inverse, v)) in ops.iter().enumerate() {
+        if !inverse {
+            h.step(v);
+            continue;
+        }
+        let mut forward = h.clone();
+        let inv = h.step_inverse(v);
+        if !inv.saturated {
+            let y = forward.step(inv.input);
+            assert!(
+                (y - v).abs() <= 1e-9 * (y_hi - y_lo),
+                "operation {i}: forward(inverse({v})) = {y}"
+            );
+        }
+    }
+}
