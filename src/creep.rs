@@ -159,11 +159,17 @@ impl Creep {
     /// One sample: core output `v` held over this period → output at its end.
     #[inline]
     pub fn step(&mut self, v: f64) -> f64 {
+        v + self.fraction * self.relaxation(v)
+    }
+
+    /// One sample of the spectrum alone: `Σᵢ wᵢ (xᵢ − v)`, what [`Creep::step`] adds per unit `fraction`.
+    #[inline]
+    pub fn relaxation(&mut self, v: f64) -> f64 {
         let mut lagged = 0.0;
         for i in 0..self.n {
             lagged += self.weight[i] * (self.relax[i].step(v) - v);
         }
-        v + self.fraction * lagged
+        lagged
     }
 
     /// The core output `v` that makes [`Creep::step`] return `y` this sample (the inverse), without changing the
@@ -181,24 +187,23 @@ impl Creep {
     }
 }
 
-/// Relaxation signals of a core output `v`: for each time constant `taus_s[j]`, `xⱼ − v` with `xⱼ` the exact
-/// first-order lag of `v` starting at rest at `v[0]` — the columns a diagnosis fits creep weights on (the creep
-/// output is `v + Σⱼ cⱼ (xⱼ − v)`, `cⱼ = fraction·wⱼ`). Written row-major into `out` (`v.len() × taus_s.len()`).
-/// `false` (nothing written) when the sizes differ, `dt_s` is not positive or a time constant is not positive.
-pub fn relaxation_columns(v: &[f64], taus_s: &[f64], dt_s: f64, out: &mut [f64]) -> bool {
+/// The relaxation signal of a core output `v` over an equal-weight spectrum: `out[i]` is the mean over
+/// `taus_s` of `xⱼ − v[i]`, `xⱼ` the exact first-order lag of `v` from rest at `v[0]` — the column a diagnosis
+/// fits the creep fraction on (creep output `v + fraction·out`, [`Creep::relaxation`] sample by sample).
+/// `false` (nothing written) when the sizes differ, `dt_s` is not positive, or `taus_s` is empty, longer than
+/// [`MAX_CREEP_TERMS`] or holds a time constant that is not positive and finite.
+pub fn mean_relaxation(v: &[f64], taus_s: &[f64], dt_s: f64, out: &mut [f64]) -> bool {
     let m = taus_s.len();
-    let positive = |x: f64| x > 0.0;
-    if out.len() != v.len() * m || !positive(dt_s) || !taus_s.iter().all(|&t| positive(t)) {
+    if out.len() != v.len() || m > MAX_CREEP_TERMS {
         return false;
     }
-    let Some(&v0) = v.first() else {
-        return true;
+    let equal = [1.0; MAX_CREEP_TERMS];
+    let v0 = v.first().copied().unwrap_or(0.0);
+    let Some(mut c) = Creep::with_spectrum(0.0, taus_s, &equal[..m], dt_s, v0) else {
+        return false;
     };
-    for (j, &tau) in taus_s.iter().enumerate() {
-        let mut x = Lag::new(tau, dt_s, v0);
-        for (i, &vi) in v.iter().enumerate() {
-            out[i * m + j] = x.step(vi) - vi;
-        }
+    for (o, &vi) in out.iter_mut().zip(v) {
+        *o = c.relaxation(vi);
     }
     true
 }
@@ -274,16 +279,24 @@ mod tests {
     }
 
     #[test]
-    fn relaxation_columns_are_the_single_term_operator() {
+    fn mean_relaxation_is_the_operator_per_unit_fraction() {
         let dt = 1e-2;
         let v: [f64; 50] = core::array::from_fn(|i| libm::sin(0.2 * i as f64));
-        let mut out = [0.0; 100];
-        assert!(relaxation_columns(&v, &[0.1, 1.0], dt, &mut out));
-        let mut c = Creep::with_spectrum(0.5, &[1.0], &[1.0], dt, v[0]).unwrap();
+        let mut out = [0.0; 50];
+        assert!(mean_relaxation(&v, &[0.1, 1.0], dt, &mut out));
+        let mut c = Creep::with_spectrum(0.5, &[0.1, 1.0], &[1.0, 1.0], dt, v[0]).unwrap();
         for (i, &vi) in v.iter().enumerate() {
-            assert!((c.step(vi) - (vi + 0.5 * out[2 * i + 1])).abs() < 1e-12);
+            assert!((c.step(vi) - (vi + 0.5 * out[i])).abs() < 1e-12);
         }
-        assert!(!relaxation_columns(&v, &[0.0], dt, &mut out[..50]));
+        assert!(!mean_relaxation(&v, &[0.0], dt, &mut out));
+        assert!(!mean_relaxation(&v, &[], dt, &mut out));
+        assert!(!mean_relaxation(&v, &[1.0], dt, &mut out[..49]));
+        assert!(!mean_relaxation(
+            &v,
+            &[1.0; MAX_CREEP_TERMS + 1],
+            dt,
+            &mut out
+        ));
     }
 
     #[test]

@@ -57,7 +57,7 @@ __all__ = [
     "accommodation_shift",
     "candidate_signals",
     "check_extensions",
-    "creep_columns",
+    "creep_relaxation",
     "delay",
     "export_source",
     "friction_series",
@@ -443,8 +443,9 @@ def heating_state(current_a: _ArrayLike, tau_s: float, dt_s: float, full_current
                   initial: float = 0.0) -> np.ndarray:
     """Coil heating state (1 = steady full current) driven by ``(I/I_full)²`` with time constant ``tau_s``."""
 
-def creep_columns(v: _ArrayLike, taus_s: _ArrayLike, dt_s: float) -> np.ndarray:
-    """``n × len(taus_s)`` relaxation signals ``lag(v, τⱼ) − v`` (exact lags from rest at ``v[0]``)."""
+def creep_relaxation(v: _ArrayLike, taus_s: _ArrayLike, dt_s: float) -> np.ndarray:
+    """Mean over ``taus_s`` of ``lag(v, τ) − v`` per sample (exact lags from rest at ``v[0]``): the creep output of
+    an equal-weight spectrum is ``v + fraction · relaxation``."""
 
 def accommodation_shift(u: _ArrayLike, v: _ArrayLike, *, kappa: float, cycles: float, lo: float, hi: float,
                         deadband: float, saturation_tol: float, y_mid: float) -> np.ndarray:

@@ -5,7 +5,7 @@ use pyo3::prelude::*;
 use pyo3::types::PyTuple;
 
 use crate::accommodation::Accommodation;
-use crate::creep::relaxation_columns;
+use crate::creep::{MAX_CREEP_TERMS, mean_relaxation};
 use crate::discrepancy::{CANDIDATES, candidate_library, library_width};
 use crate::python::BmrError;
 use crate::python::arrays::{DETACH_LEN, extract_f64_array};
@@ -31,33 +31,33 @@ fn matrix<'py>(
     Ok(PyArray2::from_owned_array(py, a))
 }
 
-/// Creep relaxation signals of a core output ``v`` sampled every ``dt_s``: an ``n × len(taus_s)`` array whose
-/// column ``j`` is ``lag(v, taus_s[j]) − v`` (exact first-order lag from rest at ``v[0]``). The creep output is
-/// ``v + columns @ c`` with ``c = fraction · weights``.
+/// Creep relaxation signal of a core output ``v`` sampled every ``dt_s``: the mean over ``taus_s`` of
+/// ``lag(v, τ) − v`` (exact first-order lags from rest at ``v[0]``), one value per sample. The creep output of an
+/// equal-weight spectrum over ``taus_s`` is ``v + fraction · relaxation``.
 #[pyfunction]
-fn creep_columns<'py>(
+fn creep_relaxation<'py>(
     py: Python<'py>,
     v: Bound<'py, PyAny>,
     taus_s: Bound<'py, PyAny>,
     dt_s: f64,
-) -> PyResult<Bound<'py, PyArray2<f64>>> {
+) -> PyResult<Bound<'py, PyArray1<f64>>> {
     let v = extract_f64_array(&v, "v")?;
     let taus = extract_f64_array(&taus_s, "taus_s")?;
     finite(&v, "v")?;
-    if !(dt_s > 0.0 && dt_s.is_finite()) || taus.iter().any(|t| !(*t > 0.0 && t.is_finite())) {
+    let mut out = vec![0.0; v.len()];
+    let run = |out: &mut [f64]| mean_relaxation(&v, &taus, dt_s, out);
+    let ok = if v.len() > DETACH_LEN {
+        py.detach(|| run(&mut out))
+    } else {
+        run(&mut out)
+    };
+    if !ok {
         return Err(BmrError::new_err(format!(
-            "creep_columns needs dt_s > 0 and positive finite time constants (dt_s={dt_s}, taus_s={taus:?})"
+            "creep_relaxation needs dt_s > 0 and 1 to {MAX_CREEP_TERMS} positive finite time constants \
+             (dt_s={dt_s}, taus_s={taus:?})"
         )));
     }
-    let (n, m) = (v.len(), taus.len());
-    let mut out = vec![0.0; n * m];
-    let run = |out: &mut [f64]| relaxation_columns(&v, &taus, dt_s, out);
-    if n > DETACH_LEN {
-        py.detach(|| run(&mut out));
-    } else {
-        run(&mut out);
-    }
-    matrix(py, out, n, m)
+    Ok(PyArray1::from_vec(py, out))
 }
 
 /// Accommodation shift (output units) along input ``u`` and core output ``v``: the minor-loop drift of
@@ -159,7 +159,7 @@ fn candidate_signals<'py>(
 }
 
 pub(crate) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
-    m.add_function(wrap_pyfunction!(creep_columns, m)?)?;
+    m.add_function(wrap_pyfunction!(creep_relaxation, m)?)?;
     m.add_function(wrap_pyfunction!(accommodation_shift, m)?)?;
     m.add_function(wrap_pyfunction!(candidate_signals, m)?)?;
     let items: Vec<Bound<'_, PyTuple>> = CANDIDATES

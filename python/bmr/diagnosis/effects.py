@@ -431,8 +431,13 @@ class Creep(Effect):
     def adjust_path(self, path, value):
         return path.with_correction(self, value, (value[2],))
 
-    def _bank(self, data: Any, y_field: np.ndarray, model: Any) -> tuple[list[float], np.ndarray]:
-        taus = self._taus(data)
+    @staticmethod
+    def _spectrum(value: Any) -> list[float]:
+        lo, hi = value[0], value[1]
+        return [t for t in CREEP_TAUS_S if lo * (1 - 1e-9) <= t <= hi * (1 + 1e-9)]
+
+    def columns(self, data, value, y_field, model):
+        taus = self._spectrum(value)
 
         def make() -> np.ndarray:
             # Relaxations carry the run's whole history: before the evaluated span (the opening excursion) the
@@ -442,24 +447,15 @@ class Creep(Effect):
             cols = []
             for y, v0, r in zip(_split(data, y_field), before, data.runs):
                 v = np.concatenate([v0[:r.start], y])
-                cols.append(_core.creep_columns(np.ascontiguousarray(v), taus, r.dt_s)[r.start:])
-            return np.vstack(cols)
+                cols.append(_core.creep_relaxation(v, taus, r.dt_s)[r.start:])
+            return np.concatenate(cols)[:, None]
 
-        return taus, data.cache.get(("creep_bank", _fingerprint(y_field)), make)
+        return data.cache.get(("creep", _fingerprint(y_field), tuple(taus)), make)
 
-    def columns(self, data, value, y_field, model):
-        taus, bank = self._bank(data, y_field, model)
-        lo, hi = value[0], value[1]
-        sel = [j for j, t in enumerate(taus) if lo * (1 - 1e-9) <= t <= hi * (1 + 1e-9)]
-        return bank[:, sel].mean(axis=1)[:, None]
-
-    @staticmethod
-    def remove(y, value, beta, run):
-        lo, hi = value[0], value[1]
-        taus = [t for t in CREEP_TAUS_S if lo * (1 - 1e-9) <= t <= hi * (1 + 1e-9)]
+    @classmethod
+    def remove(cls, y, value, beta, run):
         # The relaxation of the measured output approximates that of the core output (second order in fraction).
-        cols = _core.creep_columns(np.ascontiguousarray(y), taus, run.dt)
-        return y - beta[0] * cols.mean(axis=1)
+        return y - beta[0] * _core.creep_relaxation(np.asarray(y, dtype=float), cls._spectrum(value), run.dt)
 
     def params(self, value, beta, path):
         return {"fraction": float(beta[0]), "tau_min_s": float(value[0]), "tau_max_s": float(value[1])}

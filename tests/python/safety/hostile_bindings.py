@@ -115,7 +115,7 @@ def _targets() -> list[tuple[str, object, dict[str, object]]]:
         ("VirtualDevice.start_run", core.VirtualDevice().start_run, {}),
         ("accommodation_shift", core.accommodation_shift, {"saturation_tol": 0.002}),
         ("candidate_signals", core.candidate_signals, {"theta_rad": None}),
-        ("creep_columns", core.creep_columns, {}),
+        ("creep_relaxation", core.creep_relaxation, {}),
         ("fit_curve", core.fit_curve, {"u": np.linspace(0, 1, 200), "y": np.linspace(0, 1, 200) ** 2}),
         ("Hysteresis.restore", _hysteresis().restore, {"state": _hysteresis().snapshot()}),
         ("fit_friction_order", core.fit_friction_order, {}),
