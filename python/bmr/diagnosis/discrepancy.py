@@ -42,6 +42,8 @@ MAX_TERMS = 5
 # Signals more correlated than this with an earlier one of the library are left out of the regression.
 COLLINEAR = 0.999
 _RIDGE = 1e-8
+# Rows per chunk of the moment sums in `learn` (bounds its temporaries to a few MB).
+_CHUNK_ROWS = 16384
 
 
 def unit_text(template: str, input_unit: str, output_unit: str) -> str:
@@ -259,40 +261,56 @@ def learn(library: CandidateLibrary, residual: np.ndarray, block: np.ndarray, fo
     (``block``: the fold of each sample). ``noise``: the noise floor (output units) that scales the thresholds."""
     x = np.asarray(library.matrix, dtype=float)
     r = np.asarray(residual, dtype=float)
-    scale = np.sqrt(np.mean(x * x, axis=0)) if x.size else np.zeros(x.shape[1])
-    usable = scale > 1e-300
-    names = [n for n, ok in zip(library.names, usable) if ok]
-    units = [u for u, ok in zip(library.units, usable) if ok]
-    docs = [d for d, ok in zip(library.docs, usable) if ok]
+    block = np.asarray(block)
+    n, width = x.shape
+    # Every moment below is accumulated over row chunks: the library is samples × ~60 terms, and full-size
+    # temporaries of it (squares, centred copies, scaled copies) would each cost as much memory as the library.
+    chunks = [(a, min(a + _CHUNK_ROWS, n)) for a in range(0, n, _CHUNK_ROWS)]
+    sumsq = np.zeros(width)
+    for a, b in chunks:
+        sumsq += np.einsum("ij,ij->j", x[a:b], x[a:b])
+    scale = np.sqrt(sumsq / n) if n else np.zeros(width)
+    cols = np.flatnonzero(scale > 1e-300)
     # Near-duplicate signals (|u| of a one-sided input is u; the model output of a nearly linear device follows u)
     # would share a term with opposite, unstable coefficients: keep the first of each near-collinear group.
-    zc = x[:, usable] - x[:, usable].mean(axis=0)
-    norm = np.sqrt(np.sum(zc * zc, axis=0))
+    mean = x.mean(axis=0)[cols] if n else np.zeros(cols.size)
+    inner = np.zeros((cols.size, cols.size))
+    for a, b in chunks:
+        zc = x[a:b, cols] - mean
+        inner += zc.T @ zc
+    norm = np.sqrt(np.maximum(np.diag(inner), 0.0))
     keep_cols: list[int] = []
-    for j in range(zc.shape[1]):
+    for j in range(cols.size):
         if norm[j] <= 1e-12 * max(float(np.max(norm)), 1e-300):
             continue
-        if all(abs(float(zc[:, j] @ zc[:, i])) < COLLINEAR * norm[j] * norm[i] for i in keep_cols):
+        if all(abs(float(inner[j, i])) < COLLINEAR * norm[j] * norm[i] for i in keep_cols):
             keep_cols.append(j)
-    idx = np.flatnonzero(usable)[keep_cols]
-    usable = np.zeros_like(usable)
+    idx = cols[keep_cols]
+    usable = np.zeros(width, dtype=bool)
     usable[idx] = True
     names = [library.names[i] for i in idx]
     units = [library.units[i] for i in idx]
     docs = [library.docs[i] for i in idx]
-    z = np.column_stack([np.ones(r.size), x[:, usable] / scale[usable]])
-    p = z.shape[1]
+    # Per fold: the Gram matrix of [1, scaled terms], its products with the residual, the residual's square sum.
+    p = 1 + idx.size
     gram = np.zeros((folds, p, p))
     cross = np.zeros((folds, p))
     sq = np.zeros(folds)
     count = np.zeros(folds)
-    for k in range(folds):
-        rows = block == k
-        zk, rk = z[rows], r[rows]
-        gram[k] = zk.T @ zk
-        cross[k] = zk.T @ rk
-        sq[k] = rk @ rk
-        count[k] = rows.sum()
+    for a, b in chunks:
+        z = np.empty((b - a, p))
+        z[:, 0] = 1.0
+        np.divide(x[a:b, idx], scale[idx], out=z[:, 1:])
+        rc, bc = r[a:b], block[a:b]
+        for k in range(folds):
+            rows = bc == k
+            if not rows.any():
+                continue
+            zk, rk = z[rows], rc[rows]
+            gram[k] += zk.T @ zk
+            cross[k] += zk.T @ rk
+            sq[k] += rk @ rk
+            count[k] += np.count_nonzero(rows)
     m = _Moments(gram, cross, sq, count)
     ths = [noise * t for t in thresholds]
     every = np.arange(folds)

@@ -286,13 +286,24 @@ class FieldPath:
         _, core = h.run_rate_dependent(np.ascontiguousarray(u), tau_s=self.rate_tau_s, dt_s=dt_s)
         return np.asarray(core, dtype=float)
 
-    def simulate(self, runs: Sequence[Any], hysteresis: Any = None) -> list[np.ndarray]:
-        """Field output of every run (full length), each from negative saturation."""
-        h = hysteresis if hysteresis is not None else self.hysteresis()
+    def drive_inputs(self, runs: Sequence[Any]) -> list[np.ndarray]:
+        """:meth:`drive_input` of every run (contiguous, read-only: what :meth:`simulate` may be given back)."""
         out = []
         for r in runs:
-            h.reset(initial="negative")
             u = np.ascontiguousarray(self.drive_input(r.current_a, r.dt_s))
+            u.flags.writeable = False
+            out.append(u)
+        return out
+
+    def simulate(self, runs: Sequence[Any], hysteresis: Any = None,
+                 inputs: Sequence[np.ndarray] | None = None) -> list[np.ndarray]:
+        """Field output of every run (full length), each from negative saturation. ``inputs``: this path's
+        :meth:`drive_inputs` of ``runs`` when the caller already has them (they depend on the delay and lag only)."""
+        h = hysteresis if hysteresis is not None else self.hysteresis()
+        out = []
+        for i, r in enumerate(runs):
+            h.reset(initial="negative")
+            u = inputs[i] if inputs is not None else np.ascontiguousarray(self.drive_input(r.current_a, r.dt_s))
             if self.rate_tau_s > 0.0:
                 core, _ = h.run_rate_dependent(u, tau_s=self.rate_tau_s, dt_s=r.dt_s)
             else:

@@ -111,6 +111,10 @@ class Fitter:
         self.measured = data.torque - data.friction_nmm
         self.reidentifier = Reidentifier(model, protocol, data)
         self._fields = BoundedCache(max_entries=max_fields, max_bytes=max_fields * 8 * data.n_eval + 1)
+        # The drive inputs of the two most recent (delay, lag) pairs: later rounds re-simulate many paths (other
+        # effects, re-identified tables) behind the same selected input stages.
+        full = sum(r.current_a.size for r in data.runs)
+        self._drives = BoundedCache(max_entries=2, max_bytes=2 * 8 * full + 1)
         self._fits = BoundedCache(max_entries=512, max_bytes=16 << 20)
         self.simulations = 0  # field paths simulated (for the benchmarks)
 
@@ -124,7 +128,8 @@ class Fitter:
             return self._fields[key]
         self.simulations += 1
         try:
-            ys = path.simulate(self.data.runs)
+            inputs = self._drives.get((path.delay_s, path.lag_tau_s), lambda: path.drive_inputs(self.data.runs))
+            ys = path.simulate(self.data.runs, inputs=inputs)
             y = self.data.concat([y[r.start:] for y, r in zip(ys, self.data.runs)])
         except BmrError:
             # This parameter value gives no valid tables (e.g. a lag so long the protocol never saturates).
