@@ -617,6 +617,10 @@ impl Reversal {
     }
 }
 
+/// Largest share of the Everett values an increment between them may be and still be taken as round-off (see
+/// [`second_piece`]).
+const UNRESOLVED_INCREMENT: f64 = 1e-6;
+
 /// Second branch piece of `entry` from the point `from` on its branch to `to` (`(input, output)` pairs; see
 /// [`merge`]).
 fn second_piece<S: AsRef<[f64]>>(
@@ -641,7 +645,15 @@ fn second_piece<S: AsRef<[f64]>>(
             from.1 - to.1,
         )
     };
-    let k = branch_scale(dy, e_to - e_from);
+    // The piece's increment is a difference of two Everett values: below a millionth of them it is round-off of
+    // a flat stretch (a noisy table), and `dy / increment` would magnify their rounding into the output. The
+    // tables give no usable increment there: a straight line to the target, as for none at all.
+    let de = e_to - e_from;
+    let k = if de > UNRESOLVED_INCREMENT * e_from.abs().max(e_to.abs()) || dy <= 0.0 {
+        branch_scale(dy, de)
+    } else {
+        None
+    };
     Via {
         u: from.0,
         y: from.1,

@@ -510,14 +510,6 @@ fn an_inverse_to_a_via_points_output_stays_on_the_first_piece() {
             vec![-0.9964904249637598, -0.9964904249637598],
         ),
     ];
-    let mut h = Hysteresis::<Vec<f64>, 8>::from_curve_data(
-        &a,
-        &d,
-        &BuildOptions::default(),
-        Initial::Descending(-1028.0625),
-    )
-    .unwrap();
-    let (y_lo, y_hi) = h.output_range();
     // (is an inverse, input or target)
     let ops: &[(bool, f64)] = &[
         (true, -0.9964021599993218),
@@ -573,6 +565,15 @@ fn an_inverse_to_a_via_points_output_stays_on_the_first_piece() {
         (false, -0.0009952613870450903),
         (true, -0.9963802987078202),
     ];
+    replay_exact_inverses(&a, &d, Initial::Descending(-1028.0625), ops);
+}
+
+/// Steps (`false`) and exact inverses (`true`) replayed on an operator of 8 reversals built from `a`, `d` with
+/// the default options: every reachable target is hit to 1e-9 of the output span (the fuzzing invariant).
+fn replay_exact_inverses(a: &Curves, d: &Curves, start: Initial, ops: &[(bool, f64)]) {
+    let mut h =
+        Hysteresis::<Vec<f64>, 8>::from_curve_data(a, d, &BuildOptions::default(), start).unwrap();
+    let (y_lo, y_hi) = h.output_range();
     for (i, &(inverse, v)) in ops.iter().enumerate() {
         if !inverse {
             h.step(v);
@@ -588,4 +589,91 @@ fn an_inverse_to_a_via_points_output_stays_on_the_first_piece() {
             );
         }
     }
+}
+
+#[test]
+fn a_second_piece_over_a_flat_stretch_of_a_noisy_table_is_a_straight_line() {
+    // A merge left a second branch piece whose Everett increment (8.5e-14) was round-off of a flat stretch of a
+    // noisy table, 6e-9 of the Everett values it is the difference of: its scale (1.2e9) magnified their
+    // rounding into the output and the exact inverse missed by 1.1e-9 of the span. Such a piece is now a
+    // straight line to its target. Found by fuzzing (fuzz/corpus/table_build/regression-unresolved-increment).
+    let a: Curves = vec![
+        (
+            vec![
+                -0.001,
+                -0.0009966666666666668,
+                -0.0009933333333333333,
+                -0.00099,
+            ],
+            vec![
+                -1.0000000258136734,
+                -1.0000000259403372,
+                -0.9999847669184405,
+                -0.9997406204504341,
+            ],
+        ),
+        (
+            vec![-0.0009966666666666668, -0.0009933333333333333, -0.00099],
+            vec![-0.9997829700315911, -0.9997677108584896, -0.999740583708451],
+        ),
+        (
+            vec![-0.0009933333333333333, -0.00099],
+            vec![-0.9997677108584896, -0.9997405838335314],
+        ),
+    ];
+    let d: Curves = vec![
+        (
+            vec![
+                -0.00099,
+                -0.0009933333333333333,
+                -0.0009966666666666668,
+                -0.001,
+            ],
+            vec![
+                -0.9997406225680934,
+                -0.999767749718132,
+                -0.9997830087400287,
+                -1.0000000166178862,
+            ],
+        ),
+        (
+            vec![-0.0009933333333333333, -0.0009966666666666668, -0.001],
+            vec![
+                -0.9999847280587981,
+                -1.0000000073468924,
+                -0.9999999870806948,
+            ],
+        ),
+        (
+            vec![-0.0009966666666666668, -0.001],
+            vec![-1.0000000086459875, -1.000000008646779],
+        ),
+    ];
+    // (is an inverse, input or target)
+    let ops: &[(bool, f64)] = &[
+        (true, -0.9997256687302855),
+        (true, -0.9997256687302855),
+        (true, -0.9997256687302855),
+        (true, -0.9998764492043181),
+        (true, -0.9998384405931409),
+        (true, -0.9999795787926559),
+        (true, -0.9999795787926559),
+        (true, -0.9999722829632672),
+        (true, -0.9998768861940992),
+        (true, -0.9998770476903226),
+        (true, -0.9999856444008131),
+        (true, -0.9998766012007637),
+        (true, -0.999967295579896),
+        (true, -0.9997598489309892),
+        (true, -0.9998770096912112),
+        (true, -0.9999833074554619),
+        (true, -0.9998379751040263),
+        (true, -0.9998768861940992),
+        (true, -0.9998770381905447),
+        (false, -0.0009937529411764706),
+        (true, -0.9998770381905447),
+        (false, -0.0009952507667658503),
+        (true, -0.9998774134317698),
+    ];
+    replay_exact_inverses(&a, &d, Initial::Positive, ops);
 }
