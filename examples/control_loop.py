@@ -58,7 +58,7 @@ def control_loop(model_path: str | Path, *, preset: str = "bmr2013", effects: An
         w0 = time.perf_counter_ns()
         cmd = comp.step(float(ref[k]), theta)
         wall_ns[k] = time.perf_counter_ns() - w0
-        torque[k] = plant.step(cmd.current_a)["torque_nmm"]   # the DACs, then the torque sensor
+        torque[k] = plant.step(cmd.current_a).torque_nmm   # the DACs, then the torque sensor
         current[k] = cmd.current_a
         if paced:
             late = time.perf_counter() - (start + (k + 1) * dt)

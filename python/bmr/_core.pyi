@@ -26,6 +26,7 @@ __all__ = [
     "_rebuild_hysteresis",
     "_rebuild_hysteresis_state",
     "_rebuild_virtual_actuator",
+    "ActuatorSample",
     "Command",
     "Compensator",
     "CompensatorState",
@@ -471,6 +472,42 @@ DEVICE_PARAMETERS: tuple[str, ...]
 _EffectsSpec = Union[None, dict[str, Union[dict[str, float], None]], Sequence[str], str]
 
 @final
+class ActuatorSample:
+    """One sample of the virtual actuator: measured ``t_s`` (s), ``current_a``, ``coil1_a``, ``coil2_a`` (A),
+    ``theta_rad``, ``speed_rad_s``, ``torque_nmm`` (N·mm) and the hidden ``b1_t``, ``b2_t`` (T),
+    ``field_torque_nmm``, ``friction_nmm``, ``torque_true_nmm`` (N·mm); ``command_valid`` False when a non-finite
+    command was replaced by 0 A. ``sample["torque_nmm"]`` reads a field by name."""
+    @property
+    def t_s(self) -> float: ...
+    @property
+    def current_a(self) -> float: ...
+    @property
+    def coil1_a(self) -> float: ...
+    @property
+    def coil2_a(self) -> float: ...
+    @property
+    def theta_rad(self) -> float: ...
+    @property
+    def speed_rad_s(self) -> float: ...
+    @property
+    def torque_nmm(self) -> float: ...
+    @property
+    def b1_t(self) -> float: ...
+    @property
+    def b2_t(self) -> float: ...
+    @property
+    def field_torque_nmm(self) -> float: ...
+    @property
+    def friction_nmm(self) -> float: ...
+    @property
+    def torque_true_nmm(self) -> float: ...
+    @property
+    def command_valid(self) -> bool: ...
+    def __getitem__(self, key: str, /) -> float | bool: ...
+    @staticmethod
+    def keys() -> list[str]: ...
+
+@final
 class VirtualActuator:
     """Seeded physical simulator of the BMR rig (converters, hysteretic steel per coil, MR fluid, rotors, seal
     friction, torque sensor, switchable effects). Bit-for-bit deterministic for a seed."""
@@ -488,8 +525,8 @@ class VirtualActuator:
     def run(self, current_a: _ArrayLike) -> dict[str, np.ndarray]:
         """Commanded nominal currents (A) → ``t_s, current_a, coil1_a, coil2_a, theta_rad, speed_rad_s,
         torque_nmm`` and the hidden ``b1_t, b2_t, field_torque_nmm, friction_nmm, torque_true_nmm``."""
-    def step(self, current_a: float) -> dict[str, float | bool]:
-        """One sample: the keys of ``run`` as floats, plus ``command_valid`` (NaN applies 0 A, flagged)."""
+    def step(self, current_a: float) -> ActuatorSample:
+        """One sample: the columns of ``run`` as floats, plus ``command_valid`` (NaN applies 0 A, flagged)."""
     def reset(self) -> None: ...
     def start_run(self, rest_s: float = 0.0) -> None:
         """A new recording after resting ``rest_s`` s at zero current (inf: settled, coils cold)."""

@@ -3,7 +3,7 @@ use crate::limits::{MAX_GENERATED_SAMPLES, check};
 use crate::plant::effects::{Effect, EffectKind, EffectSet, kind_named};
 use crate::plant::mr_fluid::YieldStress;
 use crate::plant::presets::{DEFAULT_SAMPLE_RATE_HZ, PRESETS, preset as preset_config};
-use crate::plant::{ActuatorConfig, SETTABLE, VirtualActuator};
+use crate::plant::{ActuatorConfig, SETTABLE, Sample, VirtualActuator};
 use crate::python::arrays::{extract_f64_array, to_numpy};
 use crate::python::errors::InUseError;
 use crate::python::{BmrError, bmr_err, bytes_to_words, limit_err, words_to_bytes};
@@ -162,6 +162,156 @@ fn _rebuild_virtual_actuator(
     Ok(a)
 }
 
+/// Names of the signals of one sample, in the order of [`PyActuatorSample::signals`] (also the columns of `run`).
+const SIGNALS: [&str; 12] = [
+    "t_s",
+    "current_a",
+    "coil1_a",
+    "coil2_a",
+    "theta_rad",
+    "speed_rad_s",
+    "torque_nmm",
+    "b1_t",
+    "b2_t",
+    "field_torque_nmm",
+    "friction_nmm",
+    "torque_true_nmm",
+];
+
+/// One sample of the virtual actuator: what the rig measures (``t_s`` s, commanded ``current_a`` A, converter
+/// currents ``coil1_a``/``coil2_a`` A, encoder ``theta_rad`` rad, ``speed_rad_s`` rad/s, sensor ``torque_nmm``
+/// N·mm) and the hidden truth (gap flux densities ``b1_t``/``b2_t`` T, noise-free ``field_torque_nmm``,
+/// ``friction_nmm`` and ``torque_true_nmm`` N·mm); ``command_valid`` is False when a non-finite command was
+/// replaced by the safe 0 A. Fields are attributes; ``sample["torque_nmm"]`` reads one by name as well.
+#[pyclass(name = "ActuatorSample", module = "bmr", frozen)]
+#[derive(Clone)]
+pub(crate) struct PyActuatorSample(Sample);
+
+impl PyActuatorSample {
+    /// The float signals in the order of [`SIGNALS`].
+    fn signals(&self) -> [f64; 12] {
+        let s = &self.0;
+        [
+            s.t_s,
+            s.current_cmd_a,
+            s.coil1_a,
+            s.coil2_a,
+            s.theta_rad,
+            s.speed_rad_s,
+            s.torque_nmm,
+            s.b1_t,
+            s.b2_t,
+            s.field_torque_nmm,
+            s.friction_nmm,
+            s.torque_true_nmm,
+        ]
+    }
+}
+
+#[pymethods]
+impl PyActuatorSample {
+    #[getter]
+    fn t_s(&self) -> f64 {
+        self.0.t_s
+    }
+    #[getter]
+    fn current_a(&self) -> f64 {
+        self.0.current_cmd_a
+    }
+    #[getter]
+    fn coil1_a(&self) -> f64 {
+        self.0.coil1_a
+    }
+    #[getter]
+    fn coil2_a(&self) -> f64 {
+        self.0.coil2_a
+    }
+    #[getter]
+    fn theta_rad(&self) -> f64 {
+        self.0.theta_rad
+    }
+    #[getter]
+    fn speed_rad_s(&self) -> f64 {
+        self.0.speed_rad_s
+    }
+    #[getter]
+    fn torque_nmm(&self) -> f64 {
+        self.0.torque_nmm
+    }
+    #[getter]
+    fn b1_t(&self) -> f64 {
+        self.0.b1_t
+    }
+    #[getter]
+    fn b2_t(&self) -> f64 {
+        self.0.b2_t
+    }
+    #[getter]
+    fn field_torque_nmm(&self) -> f64 {
+        self.0.field_torque_nmm
+    }
+    #[getter]
+    fn friction_nmm(&self) -> f64 {
+        self.0.friction_nmm
+    }
+    #[getter]
+    fn torque_true_nmm(&self) -> f64 {
+        self.0.torque_true_nmm
+    }
+    #[getter]
+    fn command_valid(&self) -> bool {
+        self.0.command_valid
+    }
+
+    /// A signal by name (the column names of ``run``, or ``command_valid``).
+    fn __getitem__<'py>(&self, py: Python<'py>, name: &str) -> PyResult<Bound<'py, PyAny>> {
+        if name == "command_valid" {
+            return Ok(pyo3::types::PyBool::new(py, self.0.command_valid)
+                .to_owned()
+                .into_any());
+        }
+        match SIGNALS.iter().position(|n| *n == name) {
+            Some(i) => Ok(pyo3::types::PyFloat::new(py, self.signals()[i]).into_any()),
+            None => Err(pyo3::exceptions::PyKeyError::new_err(format!(
+                "{name:?}: an ActuatorSample has {} and command_valid",
+                SIGNALS.join(", ")
+            ))),
+        }
+    }
+
+    /// The signal names, in order (``command_valid`` last).
+    #[staticmethod]
+    fn keys() -> Vec<&'static str> {
+        SIGNALS.iter().copied().chain(["command_valid"]).collect()
+    }
+
+    fn __eq__(&self, other: &Bound<'_, PyAny>) -> bool {
+        other.cast::<Self>().is_ok_and(|o| {
+            let o = o.get();
+            // Bit for bit (a seed fixes every sample), so NaN-free samples compare as plain floats do.
+            o.signals().map(f64::to_bits) == self.signals().map(f64::to_bits)
+                && o.0.command_valid == self.0.command_valid
+        })
+    }
+
+    fn __repr__(&self) -> String {
+        let fields: Vec<String> = SIGNALS
+            .iter()
+            .zip(self.signals())
+            .map(|(n, v)| format!("{n}={v}"))
+            .collect();
+        format!(
+            "ActuatorSample({}, command_valid={})",
+            fields.join(", "),
+            if self.0.command_valid {
+                "True"
+            } else {
+                "False"
+            }
+        )
+    }
+}
+
 #[pymethods]
 impl PyVirtualActuator {
     #[new]
@@ -280,50 +430,31 @@ impl PyVirtualActuator {
         let trace = py.detach(move || inner.run(&cmd));
         drop(sim);
         let out = PyDict::new(py);
-        let cols: [(&str, Vec<f64>); 12] = [
-            ("t_s", trace.t_s),
-            ("current_a", trace.current_cmd_a),
-            ("coil1_a", trace.coil1_a),
-            ("coil2_a", trace.coil2_a),
-            ("theta_rad", trace.theta_rad),
-            ("speed_rad_s", trace.speed_rad_s),
-            ("torque_nmm", trace.torque_nmm),
-            ("b1_t", trace.b1_t),
-            ("b2_t", trace.b2_t),
-            ("field_torque_nmm", trace.field_torque_nmm),
-            ("friction_nmm", trace.friction_nmm),
-            ("torque_true_nmm", trace.torque_true_nmm),
+        let cols: [Vec<f64>; 12] = [
+            trace.t_s,
+            trace.current_cmd_a,
+            trace.coil1_a,
+            trace.coil2_a,
+            trace.theta_rad,
+            trace.speed_rad_s,
+            trace.torque_nmm,
+            trace.b1_t,
+            trace.b2_t,
+            trace.field_torque_nmm,
+            trace.friction_nmm,
+            trace.torque_true_nmm,
         ];
-        for (name, v) in cols {
-            out.set_item(name, to_numpy(py, v))?;
+        for (name, v) in SIGNALS.iter().zip(cols) {
+            out.set_item(*name, to_numpy(py, v))?;
         }
         Ok(out)
     }
 
-    /// Advance one sample with commanded nominal current ``current_a`` (A); returns a dict of floats with the same
-    /// keys as ``run`` plus ``command_valid`` (a non-finite command applies the safe 0 A and is flagged False).
-    fn step<'py>(&self, py: Python<'py>, current_a: f64) -> PyResult<Bound<'py, PyDict>> {
-        let s = self.sim()?.step(current_a);
-        let out = PyDict::new(py);
-        let items: [(&str, f64); 12] = [
-            ("t_s", s.t_s),
-            ("current_a", s.current_cmd_a),
-            ("coil1_a", s.coil1_a),
-            ("coil2_a", s.coil2_a),
-            ("theta_rad", s.theta_rad),
-            ("speed_rad_s", s.speed_rad_s),
-            ("torque_nmm", s.torque_nmm),
-            ("b1_t", s.b1_t),
-            ("b2_t", s.b2_t),
-            ("field_torque_nmm", s.field_torque_nmm),
-            ("friction_nmm", s.friction_nmm),
-            ("torque_true_nmm", s.torque_true_nmm),
-        ];
-        for (k, v) in items {
-            out.set_item(k, v)?;
-        }
-        out.set_item("command_valid", s.command_valid)?;
-        Ok(out)
+    /// Advance one sample with commanded nominal current ``current_a`` (A): an :class:`ActuatorSample` (the
+    /// columns of ``run`` as floats, plus ``command_valid``: a non-finite command applies the safe 0 A and is
+    /// flagged False).
+    fn step(&self, current_a: f64) -> PyResult<PyActuatorSample> {
+        Ok(PyActuatorSample(self.sim()?.step(current_a)))
     }
 
     /// Start a new recording after the rig rested ``rest_s`` seconds at zero current (``float("inf")``: long enough
@@ -535,6 +666,7 @@ fn effect_parameters(py: Python<'_>, model_entries: bool) -> PyResult<Bound<'_, 
 
 pub(crate) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<PyVirtualActuator>()?;
+    m.add_class::<PyActuatorSample>()?;
     m.add_function(wrap_pyfunction!(_rebuild_virtual_actuator, m)?)?;
     m.add_function(wrap_pyfunction!(effect_parameters, m)?)?;
     m.add(

@@ -155,12 +155,17 @@ def test_step_matches_run_and_flags_non_finite_commands():
     whole = bmr.VirtualActuator("bmr2013", seed=8).run(cmd)
     act = bmr.VirtualActuator("bmr2013", seed=8)
     steps = [act.step(float(c)) for c in cmd]
+    assert list(whole) == bmr.ActuatorSample.keys()[:-1]
     for k in whole:
+        np.testing.assert_array_equal(whole[k], [getattr(s, k) for s in steps], err_msg=k)
         np.testing.assert_array_equal(whole[k], [s[k] for s in steps], err_msg=k)
-    assert all(s["command_valid"] for s in steps)
+    assert all(s.command_valid for s in steps)
     s = act.step(float("nan"))
-    assert s["command_valid"] is False and s["current_a"] == 0.0 and s["coil1_a"] == s["coil2_a"] == 0.0
-    assert np.isfinite(s["torque_nmm"])
+    assert s.command_valid is False and s.current_a == 0.0 and s.coil1_a == s.coil2_a == 0.0
+    assert np.isfinite(s.torque_nmm)
+    with pytest.raises(KeyError, match="torque_true_nmm"):
+        s["torque"]
+    assert "torque_nmm=" in repr(s) and s == s and s != steps[0]
 
 
 def test_overrides_change_physical_parameters_by_name():
