@@ -92,6 +92,14 @@ impl InverseInput {
     }
 }
 
+/// The answer kept on the side of the current input `u_c` the output moves to (`up`: increasing input). Where
+/// the tables are flat the branch's first input reaching the target can lie behind the current one (the output
+/// has not changed since); stepping back there would turn the input and leave the branch.
+#[inline(always)]
+fn beyond(input: f64, u_c: f64, up: bool) -> f64 {
+    if up { input.max(u_c) } else { input.min(u_c) }
+}
+
 /// Input where the straight line from `(u0, y0)` to `(u1, y1)` reaches `target` (clamped to the segment).
 fn line_inverse(u0: f64, y0: f64, u1: f64, y1: f64, target: f64) -> f64 {
     if y1 == y0 {
@@ -118,7 +126,7 @@ impl<S: AsRef<[f64]>, const N: usize> Hysteresis<S, N> {
             && let Some(input) = f.invert(target, y_c)
         {
             return InverseInput {
-                input,
+                input: beyond(input, u_c, f.up),
                 saturated: false,
                 cell: Some(f.cell),
                 fast: Shortcut::Kept,
@@ -192,7 +200,7 @@ impl<S: AsRef<[f64]>, const N: usize> Hysteresis<S, N> {
                     _ => Shortcut::None,
                 };
                 return InverseInput {
-                    input,
+                    input: beyond(input, u_c, up),
                     saturated: false,
                     cell: hit.map(|h| h.0.cell),
                     fast,
