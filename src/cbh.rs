@@ -574,14 +574,20 @@ fn first_piece_scale<S: AsRef<[f64]>>(
     }
 }
 
+/// Largest branch scale a table increment may be given. A scale is an output change over a table increment (both
+/// output units): 1 on congruent tables, a few where measured families disagree. Far beyond, the increment is
+/// round-off of a flat stretch of the tables, and the scale would magnify the rounding of the Everett values into
+/// the output (at 1e6, at most 2e-10 of their magnitude).
+const MAX_BRANCH_SCALE: f64 = 1e6;
+
 /// Branch scale that makes an increment `e` produce the output change `dy`, or `None` when no scale can: the
-/// tables give no increment (`e = 0`) while the output must still rise, or the scale overflows. Such a branch is a
-/// straight line in the input to its target (see [`Reversal::linear`]).
+/// tables give no increment (`e = 0`, or one that would need a scale above [`MAX_BRANCH_SCALE`]) while the output
+/// must still rise. Such a branch is a straight line in the input to its target (see [`Reversal::linear`]).
 #[inline]
 pub(crate) fn branch_scale(dy: f64, e: f64) -> Option<f64> {
     if e > 0.0 {
         let k = dy / e;
-        if k.is_finite() {
+        if k <= MAX_BRANCH_SCALE {
             Some(k.max(0.0))
         } else {
             None
@@ -617,10 +623,6 @@ impl Reversal {
     }
 }
 
-/// Largest share of the Everett values an increment between them may be and still be taken as round-off (see
-/// [`second_piece`]).
-const UNRESOLVED_INCREMENT: f64 = 1e-6;
-
 /// Second branch piece of `entry` from the point `from` on its branch to `to` (`(input, output)` pairs; see
 /// [`merge`]).
 fn second_piece<S: AsRef<[f64]>>(
@@ -645,15 +647,7 @@ fn second_piece<S: AsRef<[f64]>>(
             from.1 - to.1,
         )
     };
-    // The piece's increment is a difference of two Everett values: below a millionth of them it is round-off of
-    // a flat stretch (a noisy table), and `dy / increment` would magnify their rounding into the output. The
-    // tables give no usable increment there: a straight line to the target, as for none at all.
-    let de = e_to - e_from;
-    let k = if de > UNRESOLVED_INCREMENT * e_from.abs().max(e_to.abs()) || dy <= 0.0 {
-        branch_scale(dy, de)
-    } else {
-        None
-    };
+    let k = branch_scale(dy, e_to - e_from);
     Via {
         u: from.0,
         y: from.1,

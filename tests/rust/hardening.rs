@@ -945,3 +945,96 @@ fn an_inverse_inside_a_flat_stretch_does_not_step_back() {
     ];
     replay_exact_inverses(&a, &d, &opts, Initial::Descending(355.8125), ops);
 }
+
+#[test]
+fn a_branch_whose_table_increment_is_round_off_is_a_straight_line() {
+    // Rising again just after a fall from a maximum: the ascending tables are flat over the whole way back to the
+    // maximum but for 3e-15 of interpolation round-off, so the branch's scale was 4e12: flat, then a jump at the
+    // wipe-out, and the exact inverse of a target inside the jump returned the maximum's input. A scale beyond
+    // 1e6 is round-off, and the branch is a straight line to its target. Found by fuzzing the step sequences
+    // (fuzz/corpus/step_sequences/regression-round-off-scale); the tables are that input's.
+    let a: Curves = vec![
+        (
+            vec![-1.0, -0.9966666666666667, -0.9933333333333333, -0.99],
+            vec![
+                -0.9984130617227436,
+                -0.9984130617227436,
+                -0.8916728126615973,
+                -0.8508345837254054,
+            ],
+        ),
+        (
+            vec![-0.9933333333333333, -0.99],
+            vec![-0.8508379746191602, -0.8508345837254054],
+        ),
+    ];
+    let d: Curves = vec![
+        (
+            vec![
+                -0.99,
+                -0.9933333333333333,
+                -0.9940625060400294,
+                -0.9966666666666667,
+                -1.0,
+            ],
+            vec![
+                -0.8508345837254054,
+                -0.8508379746191602,
+                -0.8536444392927797,
+                -0.8636674211405271,
+                -0.9984130617227436,
+            ],
+        ),
+        (
+            vec![
+                -0.9933333333333333,
+                -0.9940625060400294,
+                -0.9966666666666667,
+                -1.0,
+            ],
+            vec![
+                -0.8916728126615973,
+                -0.8944792773352169,
+                -0.9045022591829641,
+                -0.9984130617227436,
+            ],
+        ),
+        (
+            vec![-0.9966666666666667, -1.0],
+            vec![-0.9984130617227436, -0.9984130617227436],
+        ),
+    ];
+    let (mut h, _) = forward_start(&a, &d);
+    let (y_lo, y_hi) = h.output_range();
+    let target = -0.8951081271246069;
+    let mut forward = h.clone();
+    let inv = h.step_inverse(target);
+    assert!(!inv.saturated);
+    let y = forward.step(inv.input);
+    assert!(
+        (y - target).abs() <= 1e-9 * (y_hi - y_lo),
+        "forward(inverse({target})) = {y}"
+    );
+    // On the way back up to the maximum the output moves evenly: no jump at the wipe-out.
+    let mut prev = forward_start(&a, &d);
+    for k in 1..=100 {
+        let u =
+            -0.9966666666666667 + (0.9966666666666667 - 0.9933333333333333) * f64::from(k) / 100.0;
+        let y = prev.0.step(u);
+        assert!(
+            (y - prev.1).abs() <= 0.05 * (y_hi - y_lo),
+            "jump of {} at {u}",
+            y - prev.1
+        );
+        prev.1 = y;
+    }
+}
+
+/// The operator of [`a_branch_whose_table_increment_is_round_off_is_a_straight_line`] after its two steps, with
+/// its output.
+fn forward_start(a: &Curves, d: &Curves) -> (Op, f64) {
+    let mut h = build(a, d).unwrap();
+    h.step(-0.9933333333333333);
+    let y = h.step(-0.9966666666666667);
+    (h, y)
+}
