@@ -417,6 +417,22 @@ pub fn build_tables(
             check_added(&a, k, major.0.len())?;
             let db = derive_family(&a, &major.0, &major.1, k);
             let (b, bn) = select(&db, kind)?;
+            // The derived major branch must close on the measured one like a measured one would: a family whose
+            // reversal points trace no major branch between the saturations (curves that are not first-order
+            // curves of one device) gives none, and its tables would not rebuild from their own curves.
+            let total = b.row(0)[b.nodes() - 1];
+            let (at_input, ascending, descending) = if kind == Descending {
+                (lo, y_lo, y_hi - total)
+            } else {
+                (hi, y_lo + total, y_hi)
+            };
+            if !((ascending - descending).abs() <= tol_close) {
+                return Err(TableError::MajorLoopOpen {
+                    at_input,
+                    ascending,
+                    descending,
+                });
+            }
             let info = Derivation {
                 family: kind,
                 major: source,

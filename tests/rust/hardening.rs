@@ -1038,3 +1038,27 @@ fn forward_start(a: &Curves, d: &Curves) -> (Op, f64) {
     let y = h.step(-0.9966666666666667);
     (h, y)
 }
+
+#[test]
+fn a_derived_family_whose_major_branch_does_not_close_is_refused() {
+    // One ascending family whose reversal points trace no descending major branch between the saturations (a
+    // curve starting above positive saturation's output, another whose input runs back below its reversal):
+    // the derived descending major branch ended 384 below the ascending one's start, and the operator's own
+    // curves did not rebuild it. Found by fuzzing (fuzz/corpus/table_build/regression-derived-major-open).
+    let a: Curves = vec![
+        (vec![-100000.0, 1263.9375], vec![-284.3125, 1959.625]),
+        (vec![864.0625, 989.75], vec![-0.0625, 1953.75]),
+        (
+            vec![1124.375, 1120.375, 1124.375, 1844.375, -8.8125, -0.0625],
+            vec![511.9375, 1847.1875, -1992.8125, 1855.9375, -15.6875, 1952.0],
+        ),
+        (
+            vec![140.75, 864.0625, 978.25],
+            vec![1955.8125, 1953.75, 1959.625],
+        ),
+    ];
+    match build(&a, &Vec::new()) {
+        Err(TableError::MajorLoopOpen { at_input, .. }) => assert_eq!(at_input, -100000.0),
+        other => panic!("expected an open major loop, got {other:?}"),
+    }
+}
