@@ -426,7 +426,8 @@ pub fn build_tables(
             } else {
                 (hi, y_lo + total, y_hi)
             };
-            if !((ascending - descending).abs() <= tol_close) {
+            let gap = (ascending - descending).abs();
+            if gap.is_nan() || gap > tol_close {
                 return Err(TableError::MajorLoopOpen {
                     at_input,
                     ascending,
