@@ -92,12 +92,17 @@ impl InverseInput {
     }
 }
 
-/// The answer kept on the side of the current input `u_c` the output moves to (`up`: increasing input). Where
-/// the tables are flat the branch's first input reaching the target can lie behind the current one (the output
-/// has not changed since); stepping back there would turn the input and leave the branch.
+/// The answer kept on the side of `from_u` the output moves to (`up`: increasing input): the current input, or
+/// the input of the last entry wiped out on the way to the branch. Where the tables are flat the branch's first
+/// input reaching the target can lie behind it (the output has not changed since); stepping back there would turn
+/// the input, or not wipe the entry out, and leave the branch.
 #[inline(always)]
-fn beyond(input: f64, u_c: f64, up: bool) -> f64 {
-    if up { input.max(u_c) } else { input.min(u_c) }
+fn beyond(input: f64, from_u: f64, up: bool) -> f64 {
+    if up {
+        input.max(from_u)
+    } else {
+        input.min(from_u)
+    }
 }
 
 /// Input where the straight line from `(u0, y0)` to `(u1, y1)` reaches `target` (clamped to the segment).
@@ -160,6 +165,9 @@ impl<S: AsRef<[f64]>, const N: usize> Hysteresis<S, N> {
             virtual_entry = self.new_reversal_at(u_c, y_c, h.top(), up);
             (&virtual_entry, len)
         };
+        // Where the answer may start: the current input on the first level, the input of the entry wiped out to
+        // reach each deeper one.
+        let mut from_u = u_c;
         loop {
             // Closure target of `level`: the entry below it, or positive saturation for the anchor.
             let (end_u, end_y) = if below >= 1 {
@@ -200,7 +208,7 @@ impl<S: AsRef<[f64]>, const N: usize> Hysteresis<S, N> {
                     _ => Shortcut::None,
                 };
                 return InverseInput {
-                    input: beyond(input, u_c, up),
+                    input: beyond(input, from_u, up),
                     saturated: false,
                     cell: hit.map(|h| h.0.cell),
                     fast,
@@ -211,6 +219,7 @@ impl<S: AsRef<[f64]>, const N: usize> Hysteresis<S, N> {
                 let input = if up { self.hi } else { self.lo };
                 return InverseInput::new(input, true);
             }
+            from_u = end_u;
             level = h.get(below - 2);
             below -= 2;
         }

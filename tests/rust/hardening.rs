@@ -1062,3 +1062,136 @@ fn a_derived_family_whose_major_branch_does_not_close_is_refused() {
         other => panic!("expected an open major loop, got {other:?}"),
     }
 }
+
+#[test]
+fn an_inverse_past_a_wiped_entry_does_not_stop_short_of_it() {
+    // Rising from a minimum that sat on a flat stretch 2e-13 above the minimum below it, a target equal to that
+    // lower minimum's output wipes the pair out: the deeper branch's first input reaching it lay behind the
+    // wiped minimum's input (the flat stretch), and the answer stopped at the current input (361 off). The answer
+    // now lies beyond the input of the last entry wiped out. Found by fuzzing in a CI-like run
+    // (fuzz/corpus/table_build/regression-past-wiped-entry); tables, options and operations are that input's.
+    let a: Curves = vec![
+        (
+            vec![19.3125, -575.6875, -1356.1875, 1959.625],
+            vec![1959.125, -824.375, -111.375, 979.8125],
+        ),
+        (
+            vec![-1356.1875, 1959.625, 1703.625, 1955.0, 1952.5, 83.3125],
+            vec![-1356.1875, -0.0625, -0.0625, 979.8125, 1962.375, 1953.75],
+        ),
+        (
+            vec![
+                -824.375, -111.375, 979.8125, 989.75, 986.6875, 455.625, 22.625, 83.8125,
+            ],
+            vec![
+                -940.3125, 455.625, 1959.125, 1959.625, 1953.75, 775.625, 140.75, 862.625,
+            ],
+        ),
+    ];
+    let d: Curves = vec![
+        (
+            vec![
+                -12.1875, -0.0625, 991.9375, -933.3125, 455.625, 1959.125, -824.375, 48.6875,
+            ],
+            vec![
+                131.8125, 979.8125, 1955.8125, 1953.75, 848.0625, 989.75, -933.3125, 455.625,
+            ],
+        ),
+        (vec![1959.625, 167.625], vec![979.8125, 989.75]),
+        (
+            vec![
+                -8.375, -0.0625, -111.375, 979.8125, 989.75, 986.6875, 455.625,
+            ],
+            vec![
+                848.0625, 989.75, -933.3125, 455.625, 1959.125, -824.375, -111.375,
+            ],
+        ),
+    ];
+    let opts = BuildOptions {
+        monotone_tolerance: 131.8125,
+        reach_tolerance: 979.8125,
+        closure_tolerance: 1955.8125,
+        node_tolerance: 0.0,
+        max_nodes: 1503,
+        subdivisions: 1,
+    };
+    // (is an inverse, input or target)
+    let ops: &[(bool, f64)] = &[
+        (true, -246.29290441176477),
+        (false, -1524.9304048409247),
+        (false, 979.8125),
+        (false, -726.2817873083086),
+        (false, -0.5),
+        (true, -250.57941162165253),
+        (true, -1347.9252573529411),
+        (true, 671.1910987926299),
+        (true, -1346.2535195410849),
+        (false, -1687.76875),
+        (false, -1687.76875),
+        (false, -1687.76875),
+        (false, -1687.76875),
+        (false, -1687.76875),
+        (false, -1687.76875),
+        (false, -1687.76875),
+        (false, 2275.7238570038908),
+        (true, -250.57941162165253),
+        (true, -1347.9252573529411),
+        (true, 671.1910987926299),
+        (true, -1347.9252573529411),
+        (true, -1347.9252573529411),
+        (true, -246.29290441176477),
+        (true, 1218.8781249999997),
+        (false, 1964.3125),
+        (true, -250.3222211890593),
+        (true, -246.29290441176477),
+        (true, -242.77796849965648),
+        (true, 99.32817192149218),
+        (false, -575.5),
+        (false, 986.6875),
+        (true, -1277.797999399176),
+        (false, 215.89772058823542),
+        (false, -37.28494134813445),
+        (true, 982.7344428072784),
+        (false, -0.0625),
+        (true, 671.1910987926299),
+        (true, -1347.9252573529411),
+        (true, -1347.9252573529411),
+        (true, -246.29290441176477),
+        (true, 1218.8781249999997),
+        (false, 91.55285448615246),
+        (true, -246.29290441176477),
+        (false, -1342.1167369535362),
+        (false, 15.9375),
+        (false, -1687.76875),
+        (false, -1687.76875),
+        (false, -1687.76875),
+        (false, -1687.76875),
+        (false, -1687.76875),
+        (false, -1687.76875),
+        (false, -1687.76875),
+        (false, 2291.2062499999997),
+        (true, -250.57941162165253),
+        (true, -1347.9252573529411),
+        (true, 671.1910987926299),
+        (true, -1347.9252573529411),
+        (true, -1347.9252573529411),
+        (true, -246.29290441176477),
+        (true, 1218.8781249999997),
+        (false, 1964.3125),
+        (true, -250.3222211890593),
+        (true, -246.29290441176477),
+        (true, -242.77796849965648),
+        (true, 99.32817192149218),
+        (false, -575.5),
+        (false, 986.6875),
+        (true, -1277.797999399176),
+        (false, 215.89772058823542),
+        (false, -37.28494134813445),
+        (true, 982.7344428072784),
+        (false, -0.0625),
+        (false, -933.3125),
+        (true, -915.6738703078507),
+        (true, -1277.797999399176),
+    ];
+    replay_exact_inverses(&a, &d, &opts, Initial::Descending(355.8125), ops);
+}
