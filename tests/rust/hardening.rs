@@ -1195,3 +1195,107 @@ fn an_inverse_past_a_wiped_entry_does_not_stop_short_of_it() {
     ];
     replay_exact_inverses(&a, &d, &opts, Initial::Descending(355.8125), ops);
 }
+
+#[test]
+fn a_state_on_a_near_jump_of_the_tables_round_trips_its_words() {
+    // Tables with a grid node at 8e-308 next to one at 3e-5 (a cell of 3e-5 in an input range of 3300) and an
+    // output step of ~100 across it: the input's own rounding (2e-13) moves the output by 5e-6, 1.6e-9 of the
+    // span. The exact inverse commits the target as the output; the state's words must still be accepted (the
+    // branch's outputs a few ulps of the input either side bracket it), and the inverse is exact to the input's
+    // round-off. Found by fuzzing (fuzz/corpus/table_build/regression-near-jump-state); tables and options are
+    // that input's.
+    let a: Curves = vec![
+        (
+            vec![19.3125, -575.6875, -1356.1875, 1959.625],
+            vec![1959.125, -0.0625, -0.0625, 31.9375],
+        ),
+        (
+            vec![-1356.1875, 1959.625, 1703.625, 1955.25, 1952.5, 83.3125],
+            vec![-1356.1875, -0.0625, -0.0625, 979.8125, 1962.375, -1806.25],
+        ),
+        (
+            vec![
+                -824.375, -111.375, 979.8125, 989.75, 986.6875, 455.625, 22.625, 83.8125,
+            ],
+            vec![
+                -940.1875, 455.625, 1959.125, 1959.625, 1953.75, 775.625, 140.75, 862.625,
+            ],
+        ),
+    ];
+    let d: Curves = vec![
+        (
+            vec![
+                -12.1875, -0.0625, 991.9375, -933.3125, 455.625, 1959.125, -824.375, -111.375,
+            ],
+            vec![
+                131.8125,
+                979.8125,
+                1963.6875,
+                1953.75,
+                9.999999999999998e-156,
+                5e-324,
+                7.4617604e-316,
+                1.390671347747314e-309,
+            ],
+        ),
+        (
+            vec![
+                8.344026969402005e-308,
+                -1028.0625,
+                -1028.0625,
+                -4.0625,
+                -1028.0625,
+                -1028.0625,
+                -1028.0625,
+                -1028.0625,
+            ],
+            vec![
+                -1028.0625, -1028.0625, -144.625, -144.625, -1616.625, 1961.625, -1624.375, 7.625,
+            ],
+        ),
+        (
+            vec![
+                1961.625,
+                3.1374394893647365e-05,
+                1967.9375,
+                1959.625,
+                3.131513062514021e-294,
+                535.625,
+                1959.625,
+            ],
+            vec![
+                535.625, 1959.625, 1959.625, -144.625, 175.375, 1967.375, 7.625,
+            ],
+        ),
+    ];
+    let opts = BuildOptions {
+        monotone_tolerance: 7.205460959719922e283,
+        reach_tolerance: 1.0000000000000003e130,
+        closure_tolerance: 1076.1875,
+        node_tolerance: 0.0,
+        max_nodes: 1190,
+        subdivisions: 1,
+    };
+    let mut h =
+        Hysteresis::<Vec<f64>, 8>::from_curve_data(&a, &d, &opts, Initial::Positive).unwrap();
+    for u in [989.75, 1964.3125, 216.84595588235288] {
+        h.step(u);
+    }
+    let (lo, hi) = h.input_range();
+    let target = -240.01400735294123;
+    let before = h.clone();
+    let inv = h.step_inverse(target);
+    assert!(!inv.saturated);
+    let d_u = 16.0 * f64::EPSILON * lo.abs().max(hi.abs());
+    let (below, above) = (
+        before.clone().step(inv.input - d_u),
+        before.clone().step(inv.input + d_u),
+    );
+    assert!(
+        below.min(above) <= target && target <= below.max(above),
+        "{below} {target} {above}"
+    );
+    let words = h.snapshot().to_words();
+    let back = h.state_from_words(&words).expect("its own state words");
+    assert_eq!(back.to_words(), words);
+}
