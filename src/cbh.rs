@@ -152,6 +152,12 @@ impl<S: AsRef<[f64]>, const N: usize> Hysteresis<S, N> {
     pub fn descending(&self) -> &Family<S> {
         &self.desc
     }
+    /// The round-off an input carries at the scale of the input range (16 ulps of its larger end): where a branch
+    /// is steeper than the tables can resolve, outputs are exact only to the change this much input makes.
+    pub fn input_round_off(&self) -> f64 {
+        16.0 * f64::EPSILON * self.lo.abs().max(self.hi.abs())
+    }
+
     pub fn state(&self) -> &State<N> {
         &self.state
     }
@@ -495,7 +501,7 @@ impl<S: AsRef<[f64]>, const N: usize> Hysteresis<S, N> {
         // Where a branch is so steep that the input's own rounding moves its output further (a near-jump of the
         // tables), the exact inverse's committed output is only exact to that rounding: the branch's outputs a few
         // ulps of the input either side must bracket it.
-        let d = 16.0 * f64::EPSILON * self.lo.abs().max(self.hi.abs());
+        let d = self.input_round_off();
         let (b_lo, b_hi) = (top.u.min(end.0), top.u.max(end.0));
         let on = off <= slack || {
             let a = probe.branch_output((st.u - d).clamp(b_lo, b_hi));

@@ -200,7 +200,6 @@ pub fn check_step<const N: usize>(h: &mut Hysteresis<Vec<f64>, N>, u: f64) -> f6
 /// outputs of the input's neighbours a few ulps away bracket it: exact to the round-off of the input.
 pub fn check_inverse<const N: usize>(h: &mut Hysteresis<Vec<f64>, N>, target: f64) {
     let (y_lo, y_hi) = h.output_range();
-    let (lo, hi) = h.input_range();
     let before = h.clone();
     let inv = h.step_inverse(target);
     if target.is_nan() {
@@ -212,7 +211,7 @@ pub fn check_inverse<const N: usize>(h: &mut Hysteresis<Vec<f64>, N>, target: f6
         let tol = 1e-9 * (y_hi - y_lo);
         let y = before.clone().step(inv.input);
         if (y - target).abs() > tol {
-            let d = 16.0 * f64::EPSILON * lo.abs().max(hi.abs());
+            let d = before.input_round_off();
             let below = before.clone().step(inv.input - d);
             let above = before.clone().step(inv.input + d);
             assert!(

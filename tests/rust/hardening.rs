@@ -1281,12 +1281,11 @@ fn a_state_on_a_near_jump_of_the_tables_round_trips_its_words() {
     for u in [989.75, 1964.3125, 216.84595588235288] {
         h.step(u);
     }
-    let (lo, hi) = h.input_range();
     let target = -240.01400735294123;
     let before = h.clone();
     let inv = h.step_inverse(target);
     assert!(!inv.saturated);
-    let d_u = 16.0 * f64::EPSILON * lo.abs().max(hi.abs());
+    let d_u = h.input_round_off();
     let (below, above) = (
         before.clone().step(inv.input - d_u),
         before.clone().step(inv.input + d_u),
