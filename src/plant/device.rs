@@ -393,16 +393,14 @@ impl VirtualDevice {
         let sensed = self.run_gain * (y + self.leak_per_s * self.leak_integral)
             + self.run_offset
             + self.drift_per_s * t_s;
-        let mut measured = sensed
+        let measured = sensed
             + cfg.noise
                 * if cfg.noise > 0.0 {
                     self.rng.normal()
                 } else {
                     0.0
                 };
-        if cfg.resolution > 0.0 {
-            measured = libm::round(measured / cfg.resolution) * cfg.resolution;
-        }
+        let measured = super::quantise(measured, cfg.resolution);
         self.index += 1;
         DeviceSample {
             t_s,

@@ -107,6 +107,21 @@ impl<'a> StateReader<'a> {
     }
 }
 
+/// `value` rounded to a multiple of `step` (a sensor's resolution); 0 = none. A step so fine that the value holds
+/// 2^52 or more of them (e.g. a subnormal resolution) quantises nothing and the value is returned as it is,
+/// where `value / step` would overflow to infinity.
+#[inline]
+pub(crate) fn quantise(value: f64, step: f64) -> f64 {
+    const EXACT_STEPS: f64 = 4_503_599_627_370_496.0; // 2^52: every f64 this large is already a whole number
+    if step > 0.0 {
+        let steps = value / step;
+        if steps.abs() < EXACT_STEPS {
+            return libm::round(steps) * step;
+        }
+    }
+    value
+}
+
 /// Check that `value` is finite and within `[lo, hi]`; the error names `what` and its unit.
 pub(crate) fn check_range(what: &str, value: f64, lo: f64, hi: f64) -> Result<f64, PlantError> {
     if value.is_finite() && value >= lo && value <= hi {

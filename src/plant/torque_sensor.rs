@@ -2,7 +2,7 @@
 //! optional offset. Torque = lever × force.
 
 use super::rng::Rng;
-use super::{PlantError, check_range};
+use super::{PlantError, check_range, quantise};
 
 #[derive(Clone, Debug, PartialEq)]
 pub struct SensorParams {
@@ -64,11 +64,8 @@ impl SensorParams {
         } else {
             0.0
         };
-        let mut force = (torque_nmm + drift_nmm) / self.lever_mm + self.offset_n + noise;
-        force = force.clamp(-self.range_n, self.range_n);
-        if self.resolution_n > 0.0 {
-            force = libm::round(force / self.resolution_n) * self.resolution_n;
-        }
-        force * self.lever_mm
+        let force = ((torque_nmm + drift_nmm) / self.lever_mm + self.offset_n + noise)
+            .clamp(-self.range_n, self.range_n);
+        quantise(force, self.resolution_n) * self.lever_mm
     }
 }

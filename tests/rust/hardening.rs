@@ -3,7 +3,7 @@
 mod common;
 
 use bmr::limits::{MAX_CURVES, MAX_GENERATED_SAMPLES, MAX_NODES, MAX_TABLE_VALUES};
-use bmr::plant::{VirtualActuator, preset};
+use bmr::plant::{VirtualActuator, VirtualDevice, device_preset, preset};
 use bmr::{BuildOptions, FamilyKind, Hysteresis, Initial, TableError};
 
 type Op = Hysteresis<Vec<f64>, 16>;
@@ -445,6 +445,38 @@ fn an_actuator_started_just_below_angle_zero_saves_a_state_it_can_load() {
         );
         act.reset();
         act.load_state(&act.save_state()).unwrap();
+    }
+}
+
+#[test]
+fn a_sensor_resolution_finer_than_round_off_quantises_nothing() {
+    // Found by fuzzing (plant_config): a force resolution of 5e-324 N (subnormal, accepted as >= 0) made
+    // force / resolution overflow, and the measured torque was infinite. A step that fine quantises nothing.
+    for resolution in [5e-324, 1e-300, 1e-17] {
+        let mut config = preset("bmr2013").unwrap();
+        config.set("sensor.resolution_n", resolution).unwrap();
+        config.set("sensor.noise_n", 0.0).unwrap();
+        let mut act = VirtualActuator::new(config, 5).unwrap();
+        for i in 0..50 {
+            let s = act.step(0.02 * f64::from(i));
+            assert!(s.torque_nmm.is_finite(), "{resolution:e}: {s:?}");
+            assert!(
+                (s.torque_nmm - s.torque_true_nmm).abs() < 1.0,
+                "{resolution:e}: measured {} true {}",
+                s.torque_nmm,
+                s.torque_true_nmm
+            );
+        }
+    }
+    for name in ["piezo", "ferroelectric"] {
+        let mut config = device_preset(name).unwrap();
+        config.set("resolution", 5e-324).unwrap();
+        config.set("noise", 0.0).unwrap();
+        let mut dev = VirtualDevice::new(config, 5).unwrap();
+        for i in 0..50 {
+            let s = dev.step(0.5 * (f64::from(i) * 0.3).sin());
+            assert!(s.output.is_finite(), "{name}: {s:?}");
+        }
     }
 }
 
