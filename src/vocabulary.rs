@@ -18,6 +18,9 @@ pub struct ParamSpec {
     pub max: f64,
     /// The value must be a whole number (a harmonic order, say).
     pub whole: bool,
+    /// Where 0 means "automatic" (a full scale taken from the device), the smallest magnitude a set value may
+    /// have: values between 0 and this are refused, since the physics divides by them. 0 = no such gap.
+    pub smallest_nonzero: f64,
     pub doc: &'static str,
 }
 
@@ -28,6 +31,7 @@ impl ParamSpec {
             && value >= self.min
             && value <= self.max
             && (!self.whole || libm::trunc(value) == value)
+            && (value == 0.0 || libm::fabs(value) >= self.smallest_nonzero)
     }
 }
 
@@ -88,6 +92,7 @@ const fn p(
         min,
         max,
         whole: false,
+        smallest_nonzero: 0.0,
         doc,
     }
 }
@@ -95,6 +100,14 @@ const fn p(
 const fn whole(spec: ParamSpec) -> ParamSpec {
     ParamSpec {
         whole: true,
+        ..spec
+    }
+}
+
+/// `spec` whose 0 means "automatic" and whose set values are at least `smallest` in magnitude.
+const fn zero_or_at_least(smallest: f64, spec: ParamSpec) -> ParamSpec {
+    ParamSpec {
+        smallest_nonzero: smallest,
         ..spec
     }
 }
@@ -166,9 +179,9 @@ vocabulary! {
          higher-order reversals (minor loops scale with the local slope).",
         [p("curvature", "1", 1.0, -0.45, 5.0,
            "output nonlinearity strength (0 = off; >0 convex, <0 concave)"),
-         p("scale_nmm", "N·mm", 0.0, 0.0, 1e9,
+         zero_or_at_least(1e-3, p("scale_nmm", "N·mm", 0.0, 0.0, 1e9,
            "full-scale torque S (0: the actuator's own — the plant's full_torque_nmm per rotor, a model's \
-            largest |torque|)")];
+            largest |torque|; else at least 1e-3)"))];
     Creep = "creep", Field,
         "After every change of the output (a reversal, a step, a dwell) a share of the change keeps arriving: the \
          magnetic after-effect of steel, the creep of a piezo stack. The core output v is the equilibrium and \
@@ -327,7 +340,14 @@ impl fmt::Display for ParamError<'_> {
                 param,
                 value,
             } => {
-                if param.whole && value.is_finite() && value >= param.min && value <= param.max {
+                let in_range = value.is_finite() && value >= param.min && value <= param.max;
+                if in_range && param.smallest_nonzero > 0.0 && value != 0.0 {
+                    write!(
+                        f,
+                        "effect {}: {} = {value} {} must be 0 (automatic) or at least {} in magnitude",
+                        effect.name, param.name, param.unit, param.smallest_nonzero
+                    )
+                } else if param.whole && in_range {
                     write!(
                         f,
                         "effect {}: {} = {value} must be a whole number in {}..{}",

@@ -428,7 +428,8 @@ MODEL_EXTENSIONS: tuple[str, ...]
 
 def effect_parameters(*, model_entries: bool = False) -> dict[str, dict[str, object]]:
     """Every effect: ``{name: {"doc": str, "acts": str, "params": {param: {"unit", "default", "min", "max",
-    "whole", "doc"}}}}``; ``model_entries=True`` adds the model-file entries that are not effects."""
+    "whole", "smallest_nonzero", "doc"}}}}`` (``smallest_nonzero``: where 0 means automatic, the smallest magnitude
+    a set value may have; else 0); ``model_entries=True`` adds the model-file entries that are not effects."""
 
 def lag(x: _ArrayLike, tau_s: float, dt_s: float, *, initial: float | None = None) -> np.ndarray:
     """Exact first-order lag (zero-order hold): ``y[n] = p·y[n−1] + (1 − p)·x[n]``, ``p = exp(−dt/τ)``, at rest

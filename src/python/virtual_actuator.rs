@@ -636,7 +636,8 @@ impl PyVirtualActuator {
 }
 
 /// Every effect's documentation and parameters: ``{name: {"doc": str, "acts": str, "params": {param: {"unit",
-/// "default", "min", "max", "whole", "doc"}}}}``; ``model_entries=True`` adds the model-file entries that are not
+/// "default", "min", "max", "whole", "smallest_nonzero", "doc"}}}}`` (``smallest_nonzero``: where 0 means
+/// automatic, the smallest magnitude a set value may have; else 0); ``model_entries=True`` adds the model-file entries that are not
 /// physical effects (``core_tables``, ``table_resolution``, ``offset``).
 #[pyfunction]
 #[pyo3(signature = (*, model_entries=false))]
@@ -655,6 +656,7 @@ fn effect_parameters(py: Python<'_>, model_entries: bool) -> PyResult<Bound<'_, 
             p.set_item("min", s.min)?;
             p.set_item("max", s.max)?;
             p.set_item("whole", s.whole)?;
+            p.set_item("smallest_nonzero", s.smallest_nonzero)?;
             p.set_item("doc", s.doc)?;
             params.set_item(s.name, p)?;
         }

@@ -3,7 +3,9 @@
 mod common;
 
 use bmr::limits::{MAX_CURVES, MAX_GENERATED_SAMPLES, MAX_NODES, MAX_TABLE_VALUES};
-use bmr::plant::{VirtualActuator, VirtualDevice, device_preset, preset};
+use bmr::plant::{
+    Effect, EffectKind, SETTABLE, VirtualActuator, VirtualDevice, device_preset, preset,
+};
 use bmr::{BuildOptions, FamilyKind, Hysteresis, Initial, TableError};
 
 type Op = Hysteresis<Vec<f64>, 16>;
@@ -1329,4 +1331,91 @@ fn a_state_on_a_near_jump_of_the_tables_round_trips_its_words() {
     let words = h.snapshot().to_words();
     let back = h.state_from_words(&words).expect("its own state words");
     assert_eq!(back.to_words(), words);
+}
+
+/// Every sample field of an actuator run over hard commands (steps to and past the converter's limits, reversals,
+/// a non-finite command), checked finite; `what` names the configuration.
+fn assert_finite_run(act: &mut VirtualActuator, what: &str) {
+    for (k, i) in [0.0, 2.0, -2.0, 0.3, 1e9, -0.1, f64::NAN, 1.2, -1.2, 0.0]
+        .into_iter()
+        .cycle()
+        .take(40)
+        .enumerate()
+    {
+        let s = act.step(i);
+        for v in [
+            s.t_s,
+            s.current_cmd_a,
+            s.coil1_a,
+            s.coil2_a,
+            s.b1_t,
+            s.b2_t,
+            s.theta_rad,
+            s.speed_rad_s,
+            s.field_torque_nmm,
+            s.friction_nmm,
+            s.viscous_nmm,
+            s.torque_true_nmm,
+            s.torque_nmm,
+        ] {
+            assert!(v.is_finite(), "{what}, step {k} (command {i}): {s:?}");
+        }
+    }
+}
+
+/// Values at and around the edges of any range: subnormals, the tiniest and the largest magnitudes.
+const EDGE_VALUES: [f64; 14] = [
+    0.0, 5e-324, -5e-324, 1e-300, 1e-12, 1e-6, 1e-3, 0.5, 1.0, 1e3, 1e4, 1e6, 1e9, 1e12,
+];
+
+#[test]
+fn every_settable_parameter_at_its_edges_gives_finite_samples_or_an_error() {
+    // Each parameter alone, at values at and beyond its range, with every effect on at its defaults: building
+    // either refuses the value or gives an actuator whose every sample is finite.
+    let mut all = preset("bmr2013").unwrap();
+    for kind in EffectKind::ALL {
+        all.effects.insert(Effect::default_of(kind));
+    }
+    for key in SETTABLE {
+        for v in EDGE_VALUES.into_iter().flat_map(|v| [v, -v]) {
+            let mut config = all.clone();
+            if config.set(key, v).is_err() {
+                continue;
+            }
+            if let Ok(mut act) = VirtualActuator::new(config, 11) {
+                assert_finite_run(&mut act, &format!("{key} = {v:e}"));
+            }
+        }
+    }
+}
+
+#[test]
+fn every_effect_parameter_at_its_edges_gives_finite_samples() {
+    // Found with this sweep: `non_congruent:scale_nmm=5e-324` was accepted (range [0, 1e9]) and the output map
+    // divided by it (NaN torque); a full scale is now 0 (the actuator's own) or at least 1e-3 N·mm.
+    for kind in EffectKind::ALL {
+        for spec in kind.params() {
+            let above_min = if spec.min == 0.0 {
+                [5e-324, 1e-300, spec.smallest_nonzero]
+            } else {
+                [spec.min * (1.0 + 1e-15), spec.min.next_up(), spec.min]
+            };
+            let values = [
+                spec.min,
+                spec.max,
+                0.5 * (spec.min + spec.max),
+                spec.default,
+            ];
+            for v in values.into_iter().chain(above_min) {
+                // Refused: outside the spec, or against another parameter (creep's tau_min_s above tau_max_s).
+                let Ok(effect) = Effect::from_params(kind, &[(spec.name, v)]) else {
+                    continue;
+                };
+                let mut config = preset("bmr2013").unwrap();
+                config.effects.insert(effect);
+                let mut act = VirtualActuator::new(config, 13).unwrap();
+                assert_finite_run(&mut act, &format!("{}:{}={v:e}", kind.name(), spec.name));
+            }
+        }
+    }
 }

@@ -16,6 +16,7 @@ effects and stay out of the loop.
 from __future__ import annotations
 
 import copy
+import math
 from typing import Any, Sequence
 
 import numpy as np
@@ -23,6 +24,16 @@ import numpy as np
 from bmr._core import BmrError, ExtendedSimulation, check_extensions, effect_parameters
 
 __all__ = ["ExtendedModel", "extensions_from_selection", "with_extensions"]
+
+
+def _clip(value: float, param: dict[str, Any]) -> float:
+    """``value`` moved to the nearest value the vocabulary accepts for ``param`` (its range; away from the gap
+    above 0 of a parameter whose 0 means "automatic")."""
+    v = min(max(value, param["min"]), param["max"])
+    smallest = param.get("smallest_nonzero", 0.0)
+    if v != 0.0 and abs(v) < smallest:
+        v = math.copysign(smallest, v)
+    return v
 
 
 def extensions_from_selection(config: Any, accepted: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
@@ -35,7 +46,7 @@ def extensions_from_selection(config: Any, accepted: Sequence[dict[str, Any]]) -
         # A fit outside the vocabulary's physical range (a negative creep fraction, say) is kept as fitted and
         # stored clipped, so the model file stays valid.
         spec = specs.get(row["name"], {}).get("params", {})
-        clipped = {k: min(max(v, spec[k]["min"]), spec[k]["max"]) for k, v in params.items() if k in spec}
+        clipped = {k: _clip(v, spec[k]) for k, v in params.items() if k in spec}
         if any(clipped[k] != params[k] for k in clipped):
             entry["params"] = {**params, **clipped}
             entry["params_fitted"] = params
