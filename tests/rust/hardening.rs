@@ -1419,3 +1419,70 @@ fn every_effect_parameter_at_its_edges_gives_finite_samples() {
         }
     }
 }
+
+#[test]
+fn every_device_parameter_and_effect_at_its_edges_gives_finite_samples_or_an_error() {
+    // The generic device (piezo, ferroelectric presets) under the same sweep as the actuator.
+    let run = |dev: &mut VirtualDevice, what: &str| {
+        for (k, u) in [0.0, 1.0, -1.0, 0.3, 1e9, f64::NAN, -0.2, 0.0]
+            .into_iter()
+            .cycle()
+            .take(32)
+            .enumerate()
+        {
+            let s = dev.step(u);
+            for v in [s.t_s, s.input, s.output_true, s.output] {
+                assert!(v.is_finite(), "{what}, step {k} (input {u}): {s:?}");
+            }
+        }
+    };
+    for name in ["piezo", "ferroelectric"] {
+        let base = device_preset(name).unwrap();
+        // Every effect a device has (the rotor's friction and ripple it has not).
+        let mut all = base.clone();
+        for kind in EffectKind::ALL {
+            let mut with = all.clone();
+            with.effects.insert(Effect::default_of(kind));
+            if VirtualDevice::new(with.clone(), 0).is_ok() {
+                all = with;
+            }
+        }
+        assert!(all.effects.len() >= 10, "{name}: {:?}", all.effects);
+        for key in bmr::plant::DEVICE_SETTABLE {
+            for v in EDGE_VALUES.into_iter().flat_map(|v| [v, -v]) {
+                let mut config = all.clone();
+                if config.set(key, v).is_err() {
+                    continue;
+                }
+                if let Ok(mut dev) = VirtualDevice::new(config, 17) {
+                    run(&mut dev, &format!("{name}: {key} = {v:e}"));
+                }
+            }
+        }
+        for kind in EffectKind::ALL {
+            for spec in kind.params() {
+                let values = [
+                    spec.min,
+                    spec.max,
+                    0.5 * (spec.min + spec.max),
+                    5e-324,
+                    1e-300,
+                ];
+                for v in values {
+                    let Ok(effect) = Effect::from_params(kind, &[(spec.name, v)]) else {
+                        continue;
+                    };
+                    let mut config = base.clone();
+                    config.effects.insert(effect);
+                    let Ok(mut dev) = VirtualDevice::new(config, 19) else {
+                        continue; // an effect of the rotor
+                    };
+                    run(
+                        &mut dev,
+                        &format!("{name}: {}:{}={v:e}", kind.name(), spec.name),
+                    );
+                }
+            }
+        }
+    }
+}
