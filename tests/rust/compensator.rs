@@ -540,3 +540,72 @@ fn a_finite_reference_whose_friction_correction_overflows_is_a_fault_with_zero_c
     let cmd = c.step(100.0, 0.3);
     assert!(!cmd.fault && cmd.current_a.is_finite());
 }
+
+#[test]
+fn every_stage_parameter_at_its_edges_gives_finite_commands_or_an_error() {
+    // Each effect's stage alone, each parameter at its min, max, middle and just above its minimum (subnormals,
+    // `next_up`, a tiny nonzero full scale): the compensator is refused, or every command is finite, within the
+    // limit, and a fault commands zero current. A value inside the documented range where a stage divides by it
+    // would show here as a non-finite command.
+    let refs = [
+        (0.0, 0.0),
+        (250.0, 0.1),
+        (-250.0, 0.2),
+        (1e6, 0.3),
+        (-1e-300, 0.4),
+        (f64::NAN, 0.5),
+        (100.0, 1e9),
+        (-30.0, -1e9),
+        (0.0, 0.0),
+    ];
+    let limit = 1.25;
+    let mut built = 0;
+    for kind in EffectKind::ALL {
+        for spec in kind.params() {
+            let values = [
+                spec.min,
+                spec.max,
+                0.5 * (spec.min + spec.max),
+                spec.default,
+                5e-324,
+                1e-300,
+                spec.min.next_up(),
+                spec.smallest_nonzero,
+            ];
+            for v in values {
+                let Ok(params) = Params::new(kind.spec(), &[(spec.name, v)]) else {
+                    continue;
+                };
+                let what = format!("{}:{}={v:e}", kind.name(), spec.name);
+                let Ok(mut c) = compensator(false, limit).with_extensions(&[params], DT, 0.0)
+                else {
+                    continue;
+                };
+                built += 1;
+                for (k, &(r, th)) in refs.iter().cycle().take(40).enumerate() {
+                    let cmd = if k % 2 == 0 {
+                        c.step(r, th)
+                    } else {
+                        c.step_ahead(r, th)
+                    };
+                    assert!(
+                        cmd.current_a.is_finite()
+                            && cmd.volt1_v.is_finite()
+                            && cmd.volt2_v.is_finite(),
+                        "{what}, step {k}: {cmd:?}"
+                    );
+                    assert!(cmd.current_a.abs() <= limit, "{what}, step {k}: {cmd:?}");
+                    assert!(
+                        !cmd.fault || cmd.current_a == 0.0,
+                        "{what}, step {k}: {cmd:?}"
+                    );
+                    assert!(
+                        c.predicted_torque().is_finite(),
+                        "{what}, step {k}: {cmd:?}"
+                    );
+                }
+            }
+        }
+    }
+    assert!(built > 100, "only {built} compensators built");
+}
