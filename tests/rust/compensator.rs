@@ -562,17 +562,7 @@ fn every_stage_parameter_at_its_edges_gives_finite_commands_or_an_error() {
     let mut built = 0;
     for kind in EffectKind::ALL {
         for spec in kind.params() {
-            let values = [
-                spec.min,
-                spec.max,
-                0.5 * (spec.min + spec.max),
-                spec.default,
-                5e-324,
-                1e-300,
-                spec.min.next_up(),
-                spec.smallest_nonzero,
-            ];
-            for v in values {
+            for v in common::edge_values(spec) {
                 let Ok(params) = Params::new(kind.spec(), &[(spec.name, v)]) else {
                     continue;
                 };

@@ -1395,18 +1395,7 @@ fn every_effect_parameter_at_its_edges_gives_finite_samples() {
     // divided by it (NaN torque); a full scale is now 0 (the actuator's own) or at least 1e-3 N·mm.
     for kind in EffectKind::ALL {
         for spec in kind.params() {
-            let above_min = if spec.min == 0.0 {
-                [5e-324, 1e-300, spec.smallest_nonzero]
-            } else {
-                [spec.min * (1.0 + 1e-15), spec.min.next_up(), spec.min]
-            };
-            let values = [
-                spec.min,
-                spec.max,
-                0.5 * (spec.min + spec.max),
-                spec.default,
-            ];
-            for v in values.into_iter().chain(above_min) {
+            for v in common::edge_values(spec) {
                 // Refused: outside the spec, or against another parameter (creep's tau_min_s above tau_max_s).
                 let Ok(effect) = Effect::from_params(kind, &[(spec.name, v)]) else {
                     continue;
@@ -1461,14 +1450,7 @@ fn every_device_parameter_and_effect_at_its_edges_gives_finite_samples_or_an_err
         }
         for kind in EffectKind::ALL {
             for spec in kind.params() {
-                let values = [
-                    spec.min,
-                    spec.max,
-                    0.5 * (spec.min + spec.max),
-                    5e-324,
-                    1e-300,
-                ];
-                for v in values {
+                for v in common::edge_values(spec) {
                     let Ok(effect) = Effect::from_params(kind, &[(spec.name, v)]) else {
                         continue;
                     };
