@@ -18,7 +18,6 @@ descending major branches), with the run's gain and offset found the same way.
 """
 from __future__ import annotations
 
-import json
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -28,6 +27,7 @@ import numpy as np
 
 from bmr._core import BmrError
 from bmr.data.bundle import Bundle, Run, read_bundle
+from bmr.data.files import jsonable, write_json
 from bmr.data.quantities import Quantities
 from bmr.data.units import format_number
 from bmr.identification.model import Model
@@ -171,7 +171,7 @@ class Prediction:
 
     def to_dict(self) -> dict[str, Any]:
         """The ``bmr-prediction/1`` JSON content (non-finite numbers as null)."""
-        return _finite({
+        return jsonable({
             "format": FORMAT, "model": self.model_source, "bundle": self.bundle_source,
             "quantities": self.quantities.to_dict(), "output_unit": self.quantities.output.unit,
             "output_span": self.span, "out_of_range": self.out_of_range, "baseline": self.baseline,
@@ -179,7 +179,7 @@ class Prediction:
         })
 
     def write_json(self, path: str | Path) -> Path:
-        return _write_text(Path(path), json.dumps(self.to_dict(), indent=1, allow_nan=False) + "\n")
+        return write_json(path, self.to_dict(), what="prediction")
 
     def figure(self, path: str | Path) -> Path:
         """PNG: per run, measured and predicted output against the input (with the baseline), and the residual
@@ -235,28 +235,6 @@ class Prediction:
                          f"{o.format(r.offset, 6)} ({r.offset_source}), {r.initial}{extra}")
         return "\n".join(lines)
 
-
-def _finite(x: Any) -> Any:
-    if isinstance(x, dict):
-        return {k: _finite(v) for k, v in x.items()}
-    if isinstance(x, (list, tuple)):
-        return [_finite(v) for v in x]
-    if isinstance(x, (float, np.floating)):
-        return float(x) if math.isfinite(x) else None
-    if isinstance(x, np.integer):
-        return int(x)
-    return x
-
-
-def _write_text(p: Path, text: str) -> Path:
-    tmp = p.with_name(f".{p.name}.tmp")
-    try:
-        tmp.write_text(text)
-        tmp.replace(p)
-    except OSError as exc:
-        tmp.unlink(missing_ok=True)
-        raise BmrError(f"cannot write {str(p)!r}: {exc.strerror or exc}") from None
-    return p
 
 
 def _runs_of(runs: Bundle | Run | Iterable[Run]) -> list[Run]:
