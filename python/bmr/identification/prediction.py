@@ -291,9 +291,13 @@ def _offset_prior(model: Any) -> dict[str, float] | None:
     at least two runs."""
     ident = getattr(model, "meta", {}).get("identification") or {}
     prior = (ident.get("lstsq_fit") or {}).get("offset_prior") if ident.get("chosen") == "lstsq" else None
-    if not prior or not all(math.isfinite(prior.get(k, math.nan)) for k in ("spread", "first_sample_error")):
+    if not prior:
         return None
-    return prior
+    # A model file stores an unknown figure as null (one training run has no spread).
+    values = {k: prior.get(k) for k in ("spread", "first_sample_error")}
+    if not all(isinstance(v, (int, float)) and math.isfinite(v) for v in values.values()):
+        return None
+    return {k: float(v) for k, v in values.items()}
 
 
 def _candidates(model: Any, u0: float) -> list[list[float]]:

@@ -149,3 +149,23 @@ def test_prediction_errors(piezo_model, tmp_path):
         predict(piezo_model, b, offset="fit")
     with pytest.raises(bmr.BmrError, match="offset='first' needs calibration >= 1"):
         predict(piezo_model, b, offset="first")
+
+
+@pytest.mark.parametrize("offset", ["first", "shrunk"])
+def test_offset_options_with_a_model_identified_from_one_run(tmp_path, capsys, offset):
+    # One training run gives no spread of offsets: the prior is unknown (NaN, null in the model file) and
+    # "shrunk" falls back to "first" instead of failing on it.
+    volts = np.concatenate([np.linspace(0, 100, 201), np.linspace(100, 20, 161), np.linspace(20, 90, 141),
+                            np.linspace(90, 0, 181)])
+    train = _run("train", volts, role="identification")
+    held = _run("held", volts[::-1].copy())
+    shifted = held.data.assign(displacement_um=held.data["displacement_um"] + 0.5)
+    bundle = _bundle(train, bmr.Run("held", "custom", shifted, quantities=PIEZO, role="evaluation"))
+    bmr.write_bundle(bundle, tmp_path / "b")
+    model = bmr.identify(bmr.read_bundle(tmp_path / "b"), method="lstsq")
+    model.save(tmp_path / "m.json")
+    assert main(["predict", str(tmp_path / "m.json"), str(tmp_path / "b"), "--offset", offset]) == 0
+    out = capsys.readouterr().out
+    assert "from 1 leading sample" in out
+    p = predict(tmp_path / "m.json", tmp_path / "b", offset=offset, calibration=1)
+    assert p.run("held").offset - predict(model, bundle).run("held").offset == pytest.approx(0.5, abs=0.05)
