@@ -304,6 +304,15 @@ def import_logs(
     first = found[0][1]
     q_in = _quantity(first, in_spec, input_name, "input")
     q_out = _quantity(first, out_spec, output_name, "output")
+    if q_in.name == q_out.name:
+        # Same unit on both sides (a piezo drive and its sensor, both in V): each is named by its column.
+        if input_name is None:
+            q_in = Quantity.declare(q_in.unit, in_spec.column)
+        if output_name is None:
+            q_out = Quantity.declare(q_out.unit, out_spec.column)
+        if q_in.column == q_out.column:
+            raise BundleError(f"the input and the output are both {q_in.label}; name them apart with --input-name "
+                              "and --output-name")
     q_sigma = (Quantity(f"{q_out.name} sigma", q_out.unit, f"{q_out.column}_sigma")
                if sigma_spec is not None else None)
     quantities = Quantities(q_in, q_out, ANGLE if angle_spec is not None else None, q_sigma)

@@ -32,6 +32,31 @@ def test_controldesk_capture_channels_by_name_path_and_tail(tmp_path):
     assert t.meta["RTProgram"] == "piezo_rig.sdf"
 
 
+def test_controldesk_quoted_paths_and_control_bytes_are_names_a_user_types(tmp_path):
+    # Real captures quote every path segment, and a block label that held a line break keeps a 0x1A byte.
+    p = write_controldesk(tmp_path / "no_lp_20.mat", "no_lp_20", [T], [
+        ('"Model Root"/"P\x1adrag"/"In1"', '"Model Root"/"P\x1adrag"', VOLTS, "V", 1),
+        ('"Model Root"/"Mling"/"Out1"', '"Model Root"/"Mling"', MICRONS, "V", 1)])
+    [t] = read_tables(p)
+    assert set(t.columns) == {"time", "Model Root/Pdrag/In1", "Model Root/Mling/Out1"}
+    for typed in ("Pdrag", "Model Root/Pdrag/In1", "pdrag", "In1"):
+        assert t.column(typed)[0] == "Model Root/Pdrag/In1", typed
+    np.testing.assert_array_equal(t.column("Mling")[1], MICRONS)
+    with pytest.raises(bmr.BundleError) as err:
+        t.column("Pdrug", "input")
+    # The names listed are the ones a user can type: no quotes, no control bytes.
+    assert "Model Root/Pdrag/In1, Model Root/Mling/Out1" in str(err.value) and "\x1a" not in str(err.value)
+    assert '"' not in str(err.value).split("columns:")[1]
+    # Input and output in the same unit (V): each quantity is named by its column.
+    result = bmr.import_logs([p], input="Pdrag:V", output="Mling:V")
+    q = result.bundle.quantities
+    assert q.input.unit == q.output.unit == "V" and q.input.column != q.output.column
+    assert "pdrag" in q.input.column.lower() and "mling" in q.output.column.lower()
+    run = result.bundle.runs[0]
+    np.testing.assert_array_equal(run.data[q.input.column], VOLTS)
+    np.testing.assert_array_equal(run.data[q.output.column], MICRONS)
+
+
 def test_controldesk_rasters_become_tables_and_bad_captures_are_named(tmp_path):
     slow = T[::10]
     p = write_controldesk(tmp_path / "two.mat", "cap", [T, slow], [
