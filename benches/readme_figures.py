@@ -129,12 +129,19 @@ def measure_slac_diagnosis(repeat: int) -> None:
     record("slac_diagnosis", "python benches/readme_figures.py measure slac_diagnosis", out)
 
 
+def measure_real_data(repeat: int) -> None:
+    """Every recording in ``../shared/data`` through import → identify → predict (→ diagnose) with the defaults
+    (``benches/real_data.py``, which records its own section)."""
+    _timed([sys.executable, "benches/real_data.py", "--record"])
+
+
 MEASURE: dict[str, Callable[[int], None]] = {"demo": measure_demo, "performance": measure_performance,
                                              "closed_loop": measure_closed_loop,
                                              "identification": measure_identification,
                                              "calibration": measure_calibration,
                                              "diagnosis_speed": measure_diagnosis_speed,
-                                             "slac_diagnosis": measure_slac_diagnosis}
+                                             "slac_diagnosis": measure_slac_diagnosis,
+                                             "real_data": measure_real_data}
 
 
 # ------------------------------------------------------------------------------------------------ rendering
@@ -358,12 +365,19 @@ def render_slac_diagnosis(rec: dict[str, Any]) -> str:
     return "\n".join(text)
 
 
+def render_real_data(rec: dict[str, Any]) -> str:
+    from real_data import render
+
+    return render(rec["values"])
+
+
 RENDER: dict[str, Callable[[dict[str, Any]], str]] = {"demo": render_demo, "performance": render_performance,
                                                        "closed_loop": render_closed_loop,
                                                        "identification": render_identification,
                                                        "calibration": render_calibration,
                                                        "diagnosis_speed": render_diagnosis_speed,
-                                                       "slac_diagnosis": render_slac_diagnosis}
+                                                       "slac_diagnosis": render_slac_diagnosis,
+                                                       "real_data": render_real_data}
 
 
 def _footer(rec: dict[str, Any]) -> str:
