@@ -1,11 +1,11 @@
-"""Measure the README's figures and write them into the README, so that they cannot drift.
+"""Measure the figures of the README and of docs/results.md and write them in, so that they cannot drift.
 
     python benches/readme_figures.py measure [SECTION ...]   # run the measurements (all sections by default)
-    python benches/readme_figures.py render                  # rewrite the README's generated sections
-    python benches/readme_figures.py check                   # exit 1 if the README differs from the record
+    python benches/readme_figures.py render                  # rewrite the documents' generated sections
+    python benches/readme_figures.py check                   # exit 1 if a document differs from the record
 
 Measurements land in ``docs/measurements.json`` (see ``benches/measurements.py``: other bench scripts record
-their own sections there too). The README holds each generated section between
+their own sections there too). The documents (``DOCUMENTS``) hold each generated section between
 ``<!-- generated: NAME -->`` and ``<!-- end: NAME -->``; ``render`` replaces it from the record, and the tests
 run ``check``. Timings are repeated (``--repeat``, default 3) and reported as the median with the spread of the
 repeats, CPU time next to wall time: the machines here are shared, so the spread says how much to trust a figure.
@@ -28,7 +28,10 @@ from typing import Any, Callable
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from measurements import ROOT, load, record  # noqa: E402
 
-README = ROOT / "README.md"
+from bmr.data.files import write_text  # noqa: E402
+
+# The documents that hold generated sections: the README (the demo) and the results page (everything else).
+DOCUMENTS = (ROOT / "README.md", ROOT / "docs" / "results.md")
 
 
 # ------------------------------------------------------------------------------------------------ measuring
@@ -370,7 +373,7 @@ def _footer(rec: dict[str, Any]) -> str:
 
 
 def rendered(readme: str, data: dict[str, Any]) -> str:
-    """The README with every generated section replaced from the record (sections without a record stay)."""
+    """The document with every generated section replaced from the record (sections without a record stay)."""
     def sub(m: re.Match[str]) -> str:
         name = m.group(1)
         rec = data.get(name)
@@ -398,15 +401,21 @@ def main(argv: list[str] | None = None) -> int:
             print(f"measuring {name} ...", file=sys.stderr)
             MEASURE[name](args.repeat)
         args.cmd = "render"
-    text = README.read_text()
-    new = rendered(text, load())
-    if args.cmd == "check":
-        if new != text:
-            print("README.md differs from docs/measurements.json: run `python benches/readme_figures.py render` "
-                  "(or measure again)", file=sys.stderr)
-            return 1
-        return 0
-    README.write_text(new)
+    data = load()
+    stale = []
+    for doc in DOCUMENTS:
+        text = doc.read_text()
+        new = rendered(text, data)
+        if new == text:
+            continue
+        if args.cmd == "check":
+            stale.append(doc.relative_to(ROOT).as_posix())
+        else:
+            write_text(doc, new)
+    if stale:
+        print(f"{', '.join(stale)} differ(s) from docs/measurements.json: run `python benches/readme_figures.py "
+              "render` (or measure again)", file=sys.stderr)
+        return 1
     return 0
 
 
