@@ -26,7 +26,7 @@ from typing import Any, Iterable, Mapping, Sequence
 import numpy as np
 
 from bmr._core import BmrError
-from bmr.data.bundle import Bundle, Run, read_bundle
+from bmr.data.bundle import Bundle, Run, read_bundle, runs_of
 from bmr.data.files import jsonable, write_json
 from bmr.data.quantities import Quantities
 from bmr.data.units import format_number
@@ -240,14 +240,6 @@ class Prediction:
 
 
 
-def _runs_of(runs: Bundle | Run | Iterable[Run]) -> list[Run]:
-    """A bundle's evaluation runs (its non-off-state runs when none is held out), one run, or the runs given."""
-    if isinstance(runs, Bundle):
-        held = runs.evaluation_runs()
-        return [r for r in (held or runs.runs) if r.kind != "off_state"]
-    if isinstance(runs, Run):
-        return [runs]
-    return list(runs)
 
 
 def _per_run(value: Any, name: str, default: Any) -> Any:
@@ -369,7 +361,7 @@ def predict(
         model = Model.load(model)
     if isinstance(runs, (str, Path)):
         runs = read_bundle(runs)
-    rs = _runs_of(runs)
+    rs = runs_of(runs, scored=True)
     if not rs:
         raise BmrError("predict needs at least one run")
     if evaluate not in ("known", "all"):
