@@ -72,6 +72,8 @@ def _parser() -> argparse.ArgumentParser:
     m.add_argument("--sample-rate", type=float, metavar="HZ", help="time from the sample index for files without one")
     m.add_argument("--deadband", type=float, metavar="X", help="reversal dead-band in input units "
                    "(default: 1 %% of the input span or 10x its sample noise)")
+    m.add_argument("--keep-edges", action="store_true", help="keep an idle hold at a run's start and a command "
+                   "jump at its end (default: left out of the bundle and named in the summary)")
     m.add_argument("--file-format", choices=("csv", "parquet"), default="csv", help="bundle run files (default csv)")
     m.add_argument("-o", "--out", required=True, help="bundle folder to write (new or empty)")
 

@@ -46,14 +46,14 @@ def test_chain_on_real_recordings(key, tmp_path):
     if key == "slac":
         assert r.rms < 1.5e-3 and r.rms < 0.15 * r.baseline_rms, r  # today 1.20e-3 T, baseline 1.43e-2 T
     elif key == "mr_damper":
-        # Today the defaults are 3.3x worse than the single-valued baseline (2770 N against 845 N): the bound
-        # only keeps that from getting worse. The hand-built play-operator reference is ~300 N.
-        assert r.rms < 3500.0, r
+        # The nominal model is a poor description of a damper whose force follows velocity: 646 N today (it was
+        # 2770 N before the tables stayed out of the 0.1-2 s idle holds at the runs' starts); the bound keeps it
+        # from getting worse. The hand-built play-operator reference is ~300 N.
+        assert r.rms < 1000.0, r
         assert r.hand_lstsq_rms is not None and r.hand_lstsq_rms < 0.5 * r.baseline_rms
         assert "diagnose" in r.status
-        # The extended model (stages and learned term) predicts through the whole chain: today 123 N, 0.15x the
-        # baseline, where the core alone is 2770 N.
-        assert r.extended_rms is not None and r.extended_rms < 0.3 * r.baseline_rms, r
+        # The extended model (stages and learned term) predicts through the whole chain: today 115 N.
+        assert r.extended_rms is not None and r.extended_rms < 200.0, r
     elif key in ("feco_forc", "sediment_forc", "sediment_lakeshore"):
         assert r.noise_floor is not None and r.noise_floor > 0
         bound = {"feco_forc": 13.0, "sediment_forc": 8.5, "sediment_lakeshore": 60.0}[key]  # today 8.9, 5.5, 40
