@@ -118,10 +118,11 @@ def _parser() -> argparse.ArgumentParser:
     r.add_argument("bundle", help=BUNDLE_HELP)
     r.add_argument("--runs", action="append", default=[], metavar="RUN[,RUN...]",
                    help="runs to predict (default: the bundle's evaluation runs)")
-    r.add_argument("--offset", choices=("model", "first", "shrunk"), default="model",
-                   help="each run's output offset: the model's, from the run's leading --calibration samples "
-                        "(first; they are then not scored), or that shrunk towards the model's by how much the "
-                        "training runs' offsets spread (shrunk) (default: model)")
+    r.add_argument("--offset", choices=("run", "model", "first", "shrunk"), default="run",
+                   help="each run's output offset: its own, fitted on its scored samples and shrunk towards the "
+                        "model's by how much the training runs' offsets spread, with a gain where their gains spread "
+                        "(run, the default); the model's (model); from the run's leading --calibration samples "
+                        "(first; they are then not scored); or that shrunk towards the model's (shrunk)")
     r.add_argument("--calibration", type=int, metavar="N",
                    help="leading samples of each run used to calibrate it, not scored (default: 1 with --offset "
                         "first, else 0)")
