@@ -171,10 +171,10 @@ def render_demo(rec: dict[str, Any]) -> str:
     text = [f"Errors on `{m['preset']}`, seed {m['seed']} (full run, {m['sample_rate_hz']:g} Hz; "
             f"FS = {fs:.4g} N·mm, the model's full-scale torque):", "", *rows, ""]
     if d:
-        steps = " → ".join([f"{d['effects'][0]['heldout_rms_before_nmm']:.3g}" if d.get("effects") else "",
-                            *[f"{e['heldout_rms_after_nmm']:.3g}" for e in d.get("effects", [])]]).strip(" →")
+        steps = " → ".join([f"{d['effects'][0]['heldout_rms_before']:.3g}" if d.get("effects") else "",
+                            *[f"{e['heldout_rms_after']:.3g}" for e in d.get("effects", [])]]).strip(" →")
         text.append(f"The demo's diagnosis names **`{d['cause']}`**; held-out RMS {steps} N·mm "
-                    f"(noise floor {d['noise_floor_nmm']:.3g} N·mm).")
+                    f"(noise floor {d['noise_floor']:.3g} N·mm).")
         text.append("")
     text.append(f"Time: full programme {_pm(t['full']['wall_s'], '{:.0f}', ' s')} wall, "
                 f"{_pm(t['full']['cpu_s'], '{:.0f}', ' s')} CPU; `--quick` {_pm(t['quick']['wall_s'], '{:.0f}', ' s')}"

@@ -102,7 +102,7 @@ def _parser() -> argparse.ArgumentParser:
                    help="blocked folds: each evaluation run is cut into this many time blocks, each held out in "
                         "turn (default: 5)")
     g.add_argument("--seed", type=int, default=0, help="seed of the bootstrap interval of the fold gains (default: 0)")
-    g.add_argument("--json", dest="json_out", help="write the bmr-diagnosis/1 JSON here")
+    g.add_argument("--json", dest="json_out", help="write the bmr-diagnosis/2 JSON here")
     g.add_argument("--report", help="write an HTML report here (one bundle)")
     g.add_argument("--model-out", metavar="OUT.json", help="write the extended model file here (one bundle): the "
                    "model with what the diagnosis found and each stage's closed-loop verdict, for "

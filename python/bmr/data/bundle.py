@@ -31,7 +31,7 @@ import math
 import numbers
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable, Iterable, Iterator
+from typing import Any, Callable, Iterable, Iterator, Sequence
 
 import numpy as np
 import pandas as pd
@@ -241,11 +241,53 @@ class Bundle:
         """Every other run: held out to measure prediction."""
         return [r for r in self.runs if not r.is_identification]
 
+    def roles(self, train_kinds: Sequence[str] | None = None) -> "RunRoles":
+        """What every run is for: the one policy identification, prediction and diagnosis follow (see
+        :class:`RunRoles`). ``train_kinds``: train the hysteresis on runs of these kinds (not held out) instead."""
+        identification = self.identification_runs()
+        off_state = [r for r in identification if r.kind == "off_state"]
+        protocol = [r for r in identification if r.kind in PROTOCOL_KINDS]
+        active = [r for r in self.runs if r.kind != "off_state"]
+        if train_kinds is not None:
+            train = [r for r in self.by_kind(*train_kinds) if r.role != "evaluation"]
+        else:
+            # Without protocol runs, every run not explicitly held out (role "evaluation") is trained on.
+            train = protocol or [r for r in active if r.role != "evaluation"]
+        trained = {r.name for r in train}
+        evaluation = [r for r in self.evaluation_runs() if r.name not in trained]
+        held = self.evaluation_runs()
+        scored = [r for r in (held or self.runs) if r.kind != "off_state"]
+        return RunRoles(off_state=off_state, protocol=protocol, active=active, train=train,
+                        evaluation=evaluation, scored=scored)
 
-def runs_of(runs: "Bundle | Run | Iterable[Run]") -> list[Run]:
-    """The runs of a bundle, a single run or any iterable of runs, as a list."""
+
+# Run kinds whose runs are first-order reversal curves (the paper's identification protocol).
+PROTOCOL_KINDS = ("first_order_ascending", "first_order_descending")
+
+
+@dataclass(frozen=True)
+class RunRoles:
+    """What each run of a bundle is for (:meth:`Bundle.roles`), decided once.
+
+    ``off_state``: identification runs at zero input (seal friction). ``protocol``: identification runs that are
+    first-order reversal curves. ``active``: every run that drives the device (not off-state). ``train``: the runs
+    the hysteresis tables are identified from (the protocol runs, else every active run not held out).
+    ``evaluation``: held-out runs not trained on (model selection, diagnosis folds). ``scored``: what a prediction
+    of the bundle scores by default (the held-out runs, or every active run when none is held out)."""
+
+    off_state: list[Run]
+    protocol: list[Run]
+    active: list[Run]
+    train: list[Run]
+    evaluation: list[Run]
+    scored: list[Run]
+
+
+def runs_of(runs: "Bundle | Run | Iterable[Run]", *, scored: bool = False) -> list[Run]:
+    """The runs of a bundle (``scored``: those a prediction scores, :attr:`RunRoles.scored`), a single run or any
+    iterable of runs, as a list."""
     if isinstance(runs, Bundle):
-        return list(runs.runs)
+        return runs.roles().scored if scored else list(runs.runs)
     if isinstance(runs, Run):
         return [runs]
     return list(runs)

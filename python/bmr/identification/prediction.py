@@ -18,7 +18,6 @@ descending major branches), with the run's gain and offset found the same way.
 """
 from __future__ import annotations
 
-import json
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -27,7 +26,8 @@ from typing import Any, Iterable, Mapping, Sequence
 import numpy as np
 
 from bmr._core import BmrError
-from bmr.data.bundle import Bundle, Run, read_bundle
+from bmr.data.bundle import Bundle, Run, read_bundle, runs_of
+from bmr.data.files import jsonable, write_json
 from bmr.data.quantities import Quantities
 from bmr.data.units import format_number
 from bmr.identification.extended import parts, simulate_extended
@@ -173,7 +173,7 @@ class Prediction:
 
     def to_dict(self) -> dict[str, Any]:
         """The ``bmr-prediction/1`` JSON content (non-finite numbers as null)."""
-        return _finite({
+        return jsonable({
             "format": FORMAT, "model": self.model_source, "bundle": self.bundle_source,
             "quantities": self.quantities.to_dict(), "output_unit": self.quantities.output.unit,
             "output_span": self.span, "out_of_range": self.out_of_range, "baseline": self.baseline,
@@ -182,7 +182,7 @@ class Prediction:
         })
 
     def write_json(self, path: str | Path) -> Path:
-        return _write_text(Path(path), json.dumps(self.to_dict(), indent=1, allow_nan=False) + "\n")
+        return write_json(path, self.to_dict(), what="prediction")
 
     def figure(self, path: str | Path) -> Path:
         """PNG: per run, measured and predicted output against the input (with the baseline), and the residual
@@ -239,37 +239,7 @@ class Prediction:
         return "\n".join(lines)
 
 
-def _finite(x: Any) -> Any:
-    if isinstance(x, dict):
-        return {k: _finite(v) for k, v in x.items()}
-    if isinstance(x, (list, tuple)):
-        return [_finite(v) for v in x]
-    if isinstance(x, (float, np.floating)):
-        return float(x) if math.isfinite(x) else None
-    if isinstance(x, np.integer):
-        return int(x)
-    return x
 
-
-def _write_text(p: Path, text: str) -> Path:
-    tmp = p.with_name(f".{p.name}.tmp")
-    try:
-        tmp.write_text(text)
-        tmp.replace(p)
-    except OSError as exc:
-        tmp.unlink(missing_ok=True)
-        raise BmrError(f"cannot write {str(p)!r}: {exc.strerror or exc}") from None
-    return p
-
-
-def _runs_of(runs: Bundle | Run | Iterable[Run]) -> list[Run]:
-    """A bundle's evaluation runs (its non-off-state runs when none is held out), one run, or the runs given."""
-    if isinstance(runs, Bundle):
-        held = runs.evaluation_runs()
-        return [r for r in (held or runs.runs) if r.kind != "off_state"]
-    if isinstance(runs, Run):
-        return [runs]
-    return list(runs)
 
 
 def _per_run(value: Any, name: str, default: Any) -> Any:
@@ -413,7 +383,7 @@ def predict(
         model = Model.load(model)
     if isinstance(runs, (str, Path)):
         runs = read_bundle(runs)
-    rs = _runs_of(runs)
+    rs = runs_of(runs, scored=True)
     if not rs:
         raise BmrError("predict needs at least one run")
     if evaluate not in ("known", "all"):
