@@ -44,6 +44,7 @@ class DataSet:
     noise_floor: bool = False  # compare with the output's noise floor (FORC files)
     reference: str = ""  # a published or quoted reference figure
     reference_value: float | None = None
+    forc_figure: str = ""  # docs/ file for the FORC diagram of the identified model (written with --record)
 
     def paths(self) -> list[Path]:
         return [DATA / self.folder / f for f in self.files]
@@ -70,7 +71,8 @@ DATASETS = (
             tuple(f"ensaio.A.{k}.mat" for k in range(1, 5)), ("--input", "dist:mm", "--output", "forc:N"),
             _named("ensaio.A.4"), diagnose=True),
     DataSet("feco_forc", "forc-feco-nanowires", "FeCo nanowires, MicroMag FORCs (cgs), every other curve held out",
-            ("hchb_forc",), ("--input", "Field", "--output", "Moment"), _every_other, noise_floor=True),
+            ("hchb_forc",), ("--input", "Field", "--output", "Moment"), _every_other, noise_floor=True,
+            forc_figure="fig_feco_forc_diagram.png"),
     DataSet("sediment_forc", "forc-marine-sediment", "Marine sediment, MicroMag FORCs (Hybrid SI), every other "
             "curve held out", ("MSM33-55-1_d330.forc",), ("--input", "Field", "--output", "Moment"), _every_other,
             noise_floor=True),
@@ -155,8 +157,8 @@ def _play_lstsq(train: list[tuple[np.ndarray, np.ndarray]], test: tuple[np.ndarr
     return float(np.sqrt(np.mean(e * e)))
 
 
-def run_chain(ds: DataSet, workdir: Path) -> ChainResult:
-    """The chain on one data set in ``workdir``."""
+def run_chain(ds: DataSet, workdir: Path, figures: bool = False) -> ChainResult:
+    """The chain on one data set in ``workdir`` (``figures``: also draw the data set's FORC diagram into docs/)."""
     import bmr
     from bmr.data.signals import sample_noise
 
@@ -186,6 +188,11 @@ def run_chain(ds: DataSet, workdir: Path) -> ChainResult:
     res.seconds = time.perf_counter() - t0
     if not pred.is_file():
         return res
+    if figures and ds.forc_figure:
+        from bmr.report.forc_diagram import forc_diagram
+
+        forc_diagram(bmr.Model.load(model), ROOT / "docs" / ds.forc_figure,
+                     title=f"{ds.label.split(',')[0]}: identified density")
     p = json.loads(pred.read_text())
     total = p["total"]
     res.unit = p["output_unit"]
@@ -208,14 +215,14 @@ def run_chain(ds: DataSet, workdir: Path) -> ChainResult:
     return res
 
 
-def run_all(datasets: tuple[DataSet, ...] = DATASETS) -> list[ChainResult]:
+def run_all(datasets: tuple[DataSet, ...] = DATASETS, figures: bool = False) -> list[ChainResult]:
     out = []
     for ds in datasets:
         if not ds.present():
             print(f"{ds.key}: skipped, {DATA / ds.folder} is absent", file=sys.stderr)
             continue
         with tempfile.TemporaryDirectory() as tmp:
-            out.append(run_chain(ds, Path(tmp)))
+            out.append(run_chain(ds, Path(tmp), figures))
     return out
 
 
@@ -245,9 +252,10 @@ def render(values: dict[str, Any]) -> str:
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--record", action="store_true", help="record the figures as docs/results.md's real_data section")
+    ap.add_argument("--record", action="store_true", help="record the figures as docs/results.md's real_data section "
+                    "and draw the FORC diagrams into docs/")
     args = ap.parse_args(argv)
-    results = run_all()
+    results = run_all(figures=args.record)
     values = {"results": [r.to_dict() for r in results]}
     print(render(values))
     if args.record:
