@@ -153,7 +153,7 @@ def _parser() -> argparse.ArgumentParser:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Run a subcommand. Problems with the user's data, arguments or files end with exit status 2 and one line
-    naming the file and the problem, never a traceback."""
+    naming the file and the problem; a bug in bmr with status 1 and one line saying so; never a traceback."""
     args = _parser().parse_args(argv)
     try:
         if args.command == "demo":
@@ -189,6 +189,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     except KeyboardInterrupt:
         print(f"bmr {args.command}: interrupted", file=sys.stderr)
         return 130
+    except Exception as exc:  # noqa: BLE001 - a bug still ends in one line, not a traceback
+        print(f"bmr {args.command}: internal error (a bug in bmr; please report it with the command line): "
+              f"{type(exc).__name__}: {exc}", file=sys.stderr)
+        return 1
 
 
 if __name__ == "__main__":
