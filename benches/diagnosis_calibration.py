@@ -174,7 +174,7 @@ def effect_at(medium: dict[str, tuple[dict[str, float], str, list[str]]], name: 
 
 
 def _diagnose_all(makers: list[Any], workers: int) -> list[tuple[dict[str, Any] | str, float]]:
-    """The ``bmr-diagnosis/1`` JSON of every bundle (a bundle-making callable, run where the diagnosis runs), or
+    """The ``bmr-diagnosis/2`` JSON of every bundle (a bundle-making callable, run where the diagnosis runs), or
     the error message of a bundle that failed, with the CPU time its worker spent on it (making and diagnosing):
     on Dask through ``bmr.diagnose_many`` (``workers`` local worker processes; 0: one after the other here)."""
     from bmr.diagnosis.many import diagnose_many
@@ -198,8 +198,8 @@ def _row(case: dict[str, Any], d: dict[str, Any] | str, cpu_s: float, medium: di
     physical = [n for n in names if n in PHYSICAL]
     truth = case["effects"]
     learned = d.get("learned") or {}
-    row.update(found=names, nominal=d["nominal_heldout_rms_nmm"], final=d["residual_rms_nmm"],
-               noise=d["noise_floor_nmm"], wall_s=d["wall_time_s"], learned=bool(learned.get("accepted")))
+    row.update(found=names, nominal=d["nominal_heldout_rms"], final=d["residual_rms"],
+               noise=d["noise_floor"], wall_s=d["wall_time_s"], learned=bool(learned.get("accepted")))
     if truth:
         # The names that are right for each hidden effect (the independent family: for each mechanism).
         expect = case.get("expect") or [[n] for n in truth]

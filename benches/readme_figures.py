@@ -129,12 +129,19 @@ def measure_slac_diagnosis(repeat: int) -> None:
     record("slac_diagnosis", "python benches/readme_figures.py measure slac_diagnosis", out)
 
 
+def measure_real_data(repeat: int) -> None:
+    """Every recording in ``../shared/data`` through import → identify → predict (→ diagnose) with the defaults
+    (``benches/real_data.py``, which records its own section)."""
+    _timed([sys.executable, "benches/real_data.py", "--record"])
+
+
 MEASURE: dict[str, Callable[[int], None]] = {"demo": measure_demo, "performance": measure_performance,
                                              "closed_loop": measure_closed_loop,
                                              "identification": measure_identification,
                                              "calibration": measure_calibration,
                                              "diagnosis_speed": measure_diagnosis_speed,
-                                             "slac_diagnosis": measure_slac_diagnosis}
+                                             "slac_diagnosis": measure_slac_diagnosis,
+                                             "real_data": measure_real_data}
 
 
 # ------------------------------------------------------------------------------------------------ rendering
@@ -164,10 +171,10 @@ def render_demo(rec: dict[str, Any]) -> str:
     text = [f"Errors on `{m['preset']}`, seed {m['seed']} (full run, {m['sample_rate_hz']:g} Hz; "
             f"FS = {fs:.4g} N·mm, the model's full-scale torque):", "", *rows, ""]
     if d:
-        steps = " → ".join([f"{d['effects'][0]['heldout_rms_before_nmm']:.3g}" if d.get("effects") else "",
-                            *[f"{e['heldout_rms_after_nmm']:.3g}" for e in d.get("effects", [])]]).strip(" →")
+        steps = " → ".join([f"{d['effects'][0]['heldout_rms_before']:.3g}" if d.get("effects") else "",
+                            *[f"{e['heldout_rms_after']:.3g}" for e in d.get("effects", [])]]).strip(" →")
         text.append(f"The demo's diagnosis names **`{d['cause']}`**; held-out RMS {steps} N·mm "
-                    f"(noise floor {d['noise_floor_nmm']:.3g} N·mm).")
+                    f"(noise floor {d['noise_floor']:.3g} N·mm).")
         text.append("")
     text.append(f"Time: full programme {_pm(t['full']['wall_s'], '{:.0f}', ' s')} wall, "
                 f"{_pm(t['full']['cpu_s'], '{:.0f}', ' s')} CPU; `--quick` {_pm(t['quick']['wall_s'], '{:.0f}', ' s')}"
@@ -358,12 +365,19 @@ def render_slac_diagnosis(rec: dict[str, Any]) -> str:
     return "\n".join(text)
 
 
+def render_real_data(rec: dict[str, Any]) -> str:
+    from real_data import render
+
+    return render(rec["values"])
+
+
 RENDER: dict[str, Callable[[dict[str, Any]], str]] = {"demo": render_demo, "performance": render_performance,
                                                        "closed_loop": render_closed_loop,
                                                        "identification": render_identification,
                                                        "calibration": render_calibration,
                                                        "diagnosis_speed": render_diagnosis_speed,
-                                                       "slac_diagnosis": render_slac_diagnosis}
+                                                       "slac_diagnosis": render_slac_diagnosis,
+                                                       "real_data": render_real_data}
 
 
 def _footer(rec: dict[str, Any]) -> str:

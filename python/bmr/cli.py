@@ -9,6 +9,7 @@ import sys
 from typing import Sequence
 
 from bmr._core import PRESETS, BmrError
+from bmr.data.formats import FORMATS
 
 BUNDLE_HELP = "bundle folder (manifest.json plus one CSV or Parquet file per run; see `bmr simulate`)"
 
@@ -44,7 +45,8 @@ def _parser() -> argparse.ArgumentParser:
 
     m = sub.add_parser("import", help="turn raw lab logs into a bundle (declared input/output, protocol, roles)",
                        description="Read lab logs (CSV, Parquet, TDMS, MAT, dSPACE ControlDesk captures, "
-                       "tab-separated analyzer exports, SLAC magnetic-measurement tables) into a bundle. Columns "
+                       "tab-separated analyzer exports, SLAC magnetic-measurement tables, MicroMag and Lake Shore "
+                       "magnetometer exports) into a bundle. Columns "
                        "are COL, COL:UNIT (the unit the bundle stores; converted from the unit the file states) "
                        "or COL:SOURCE:UNIT (for files that state no unit).")
     m.add_argument("files", nargs="+", help="log files (every table holding the declared columns is a run)")
@@ -64,7 +66,7 @@ def _parser() -> argparse.ArgumentParser:
                    "(default: any)")
     m.add_argument("--holdout", action="append", default=[], metavar="RUN[,RUN...]",
                    help="runs (or files) held out for evaluation; the others are for identification")
-    m.add_argument("--format", choices=("csv", "parquet", "tdms", "mat", "controldesk", "aixacct", "slac"),
+    m.add_argument("--format", choices=FORMATS,
                    help="force a reader (default: from extension and content)")
     m.add_argument("--device", help="device name stored in the bundle")
     m.add_argument("--sample-rate", type=float, metavar="HZ", help="time from the sample index for files without one")
@@ -98,7 +100,7 @@ def _parser() -> argparse.ArgumentParser:
                    help="blocked folds: each evaluation run is cut into this many time blocks, each held out in "
                         "turn (default: 5)")
     g.add_argument("--seed", type=int, default=0, help="seed of the bootstrap interval of the fold gains (default: 0)")
-    g.add_argument("--json", dest="json_out", help="write the bmr-diagnosis/1 JSON here")
+    g.add_argument("--json", dest="json_out", help="write the bmr-diagnosis/2 JSON here")
     g.add_argument("--report", help="write an HTML report here (one bundle)")
     g.add_argument("--model-out", metavar="OUT.json", help="write the extended model file here (one bundle): the "
                    "model with what the diagnosis found and each stage's closed-loop verdict, for "

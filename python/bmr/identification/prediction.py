@@ -18,7 +18,6 @@ descending major branches), with the run's gain and offset found the same way.
 """
 from __future__ import annotations
 
-import json
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -28,8 +27,10 @@ import numpy as np
 
 from bmr._core import BmrError
 from bmr.data.bundle import Bundle, Run, read_bundle
+from bmr.data.files import jsonable, write_json
 from bmr.data.quantities import Quantities
 from bmr.data.units import format_number
+from bmr.identification.extended import parts, simulate_extended
 from bmr.identification.model import Model
 from bmr.identification.signals import run_input, run_output
 from bmr.identification.spans import SATURATION_TOL, evaluation_start
@@ -133,6 +134,7 @@ class Prediction:
     model_source: str = ""
     bundle_source: str = ""
     baseline: str = BASELINE
+    ran: list[str] = field(default_factory=lambda: ["core tables"])
 
     @property
     def evaluated(self) -> int:
@@ -171,15 +173,16 @@ class Prediction:
 
     def to_dict(self) -> dict[str, Any]:
         """The ``bmr-prediction/1`` JSON content (non-finite numbers as null)."""
-        return _finite({
+        return jsonable({
             "format": FORMAT, "model": self.model_source, "bundle": self.bundle_source,
             "quantities": self.quantities.to_dict(), "output_unit": self.quantities.output.unit,
             "output_span": self.span, "out_of_range": self.out_of_range, "baseline": self.baseline,
+            "ran": list(self.ran),
             "runs": {r.name: r.stats() for r in self.runs}, "total": self.total(),
         })
 
     def write_json(self, path: str | Path) -> Path:
-        return _write_text(Path(path), json.dumps(self.to_dict(), indent=1, allow_nan=False) + "\n")
+        return write_json(path, self.to_dict(), what="prediction")
 
     def figure(self, path: str | Path) -> Path:
         """PNG: per run, measured and predicted output against the input (with the baseline), and the residual
@@ -236,28 +239,6 @@ class Prediction:
         return "\n".join(lines)
 
 
-def _finite(x: Any) -> Any:
-    if isinstance(x, dict):
-        return {k: _finite(v) for k, v in x.items()}
-    if isinstance(x, (list, tuple)):
-        return [_finite(v) for v in x]
-    if isinstance(x, (float, np.floating)):
-        return float(x) if math.isfinite(x) else None
-    if isinstance(x, np.integer):
-        return int(x)
-    return x
-
-
-def _write_text(p: Path, text: str) -> Path:
-    tmp = p.with_name(f".{p.name}.tmp")
-    try:
-        tmp.write_text(text)
-        tmp.replace(p)
-    except OSError as exc:
-        tmp.unlink(missing_ok=True)
-        raise BmrError(f"cannot write {str(p)!r}: {exc.strerror or exc}") from None
-    return p
-
 
 def _runs_of(runs: Bundle | Run | Iterable[Run]) -> list[Run]:
     """A bundle's evaluation runs (its non-off-state runs when none is held out), one run, or the runs given."""
@@ -291,9 +272,13 @@ def _offset_prior(model: Any) -> dict[str, float] | None:
     at least two runs."""
     ident = getattr(model, "meta", {}).get("identification") or {}
     prior = (ident.get("lstsq_fit") or {}).get("offset_prior") if ident.get("chosen") == "lstsq" else None
-    if not prior or not all(math.isfinite(prior.get(k, math.nan)) for k in ("spread", "first_sample_error")):
+    if not prior:
         return None
-    return prior
+    # A model file stores an unknown figure as null (one training run has no spread).
+    values = {k: prior.get(k) for k in ("spread", "first_sample_error")}
+    if not all(isinstance(v, (int, float)) and math.isfinite(v) for v in values.values()):
+        return None
+    return {k: float(v) for k, v in values.items()}
 
 
 def _candidates(model: Any, u0: float) -> list[list[float]]:
@@ -356,6 +341,7 @@ def predict(
     calibration: int = 0,
     evaluate: str = "known",
     out_of_range: str = "clamp",
+    whole_model: bool = True,
 ) -> Prediction:
     """Predict ``runs`` (a bundle's evaluation runs, or all its non-off-state runs when none is held out; one run;
     a list; or a bundle folder) with ``model`` (or a model file) and score them.
@@ -372,7 +358,10 @@ def predict(
     run when ``calibration`` is 0 — then the state is fitted on the scored samples, and the result says so).
     ``evaluate``: ``"known"`` scores from the sample where the run has been to both saturation ends (all samples
     when it never gets there) or ``"all"``. ``out_of_range``: ``"clamp"`` or ``"extrapolate"`` (see
-    ``Model.simulate``). Friction is added when the model has it and the run has an angle.
+    ``Model.simulate``). Friction is added when the model has it and the run has an angle. A model with
+    extensions (``bmr diagnose --model-out``) runs whole — its stages, learned term and offset through
+    ``bmr.ExtendedSimulation``, from a saturation — unless ``whole_model`` is False (the core tables alone);
+    ``Prediction.ran`` names what ran.
     """
     model_source = str(model) if isinstance(model, (str, Path)) else ""
     bundle_source = str(runs) if isinstance(runs, (str, Path)) else ""
@@ -390,6 +379,7 @@ def predict(
     lo, hi = model.hysteresis.input_range
     y_lo, y_hi = model.hysteresis.output_range
     span = y_hi - y_lo
+    extended = bool(model.extensions) and whole_model
     tol = SATURATION_TOL * (hi - lo)
     out = []
     for r in rs:
@@ -429,7 +419,16 @@ def predict(
         else:
             history = [float(x) for x in init]
             state = _describe("negative", history)
-        p = model.simulate(u, initial=start, history=history, out_of_range=out_of_range)
+        if extended:
+            # The whole model: its stages, learned term and offset in the Rust forward chain, from saturation.
+            if estimated or history or not isinstance(start, str):
+                raise BmrError(f"run {r.name!r}: the extended model runs from a saturation: use initial "
+                               "'negative' or 'positive'")
+            theta = r.angle if r.angle is not None else np.zeros(n)
+            dt = float(np.median(np.diff(r.time))) if n > 1 else 1.0
+            p = simulate_extended(model, u, theta, dt_s=dt, t0_s=float(r.time[0]), initial=start) - friction
+        else:
+            p = model.simulate(u, initial=start, history=history, out_of_range=out_of_range)
         p = y_lo + g * (p - y_lo)
         base = y_lo + g * (single_valued_baseline(model, u) - y_lo)
         off_spec = _per_run(offset, r.name, "model")
@@ -486,7 +485,8 @@ def predict(
             offset_source=source, gain=g, initial=state, state_known=known, out_of_range=count, max_excess=excess,
             dropped=dropped, time=r.time, input=u, measured=measured, predicted=p + friction,
             baseline=base + friction, sigma=sigma, scored=scored))
-    return Prediction(out, model.quantities, span, out_of_range, model_source, bundle_source)
+    return Prediction(out, model.quantities, span, out_of_range, model_source, bundle_source,
+                      ran=parts(model) if extended else ["core tables"])
 
 
 def run_cli(args: Any) -> int:
@@ -513,7 +513,7 @@ def run_cli(args: Any) -> int:
     p.model_source, p.bundle_source = str(args.model), str(args.bundle)
     q = p.quantities
     print(f"bmr predict: {args.model} ({q.describe()}) on {args.bundle}: {len(p.runs)} run(s); output span "
-          f"{q.output.format(p.span)}; baseline: {p.baseline}")
+          f"{q.output.format(p.span)}; ran: {', '.join(p.ran)}; baseline: {p.baseline}")
     for line in p.table().splitlines():
         print(f"  {line}")
     if args.json_out:

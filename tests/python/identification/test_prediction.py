@@ -149,3 +149,49 @@ def test_prediction_errors(piezo_model, tmp_path):
         predict(piezo_model, b, offset="fit")
     with pytest.raises(bmr.BmrError, match="offset='first' needs calibration >= 1"):
         predict(piezo_model, b, offset="first")
+
+
+@pytest.mark.parametrize("offset", ["first", "shrunk"])
+def test_offset_options_with_a_model_identified_from_one_run(tmp_path, capsys, offset):
+    # One training run gives no spread of offsets: the prior is unknown (NaN, null in the model file) and
+    # "shrunk" falls back to "first" instead of failing on it.
+    volts = np.concatenate([np.linspace(0, 100, 201), np.linspace(100, 20, 161), np.linspace(20, 90, 141),
+                            np.linspace(90, 0, 181)])
+    train = _run("train", volts, role="identification")
+    held = _run("held", volts[::-1].copy())
+    shifted = held.data.assign(displacement_um=held.data["displacement_um"] + 0.5)
+    bundle = _bundle(train, bmr.Run("held", "custom", shifted, quantities=PIEZO, role="evaluation"))
+    bmr.write_bundle(bundle, tmp_path / "b")
+    model = bmr.identify(bmr.read_bundle(tmp_path / "b"), method="lstsq")
+    model.save(tmp_path / "m.json")
+    assert main(["predict", str(tmp_path / "m.json"), str(tmp_path / "b"), "--offset", offset]) == 0
+    out = capsys.readouterr().out
+    assert "from 1 leading sample" in out
+    p = predict(tmp_path / "m.json", tmp_path / "b", offset=offset, calibration=1)
+    assert p.run("held").offset - predict(model, bundle).run("held").offset == pytest.approx(0.5, abs=0.05)
+
+
+def test_a_model_with_extensions_predicts_with_them(piezo_model, tmp_path, capsys):
+    # A drive-to-output delay of 25 ms in the data: the model extended with that delay (as `bmr diagnose
+    # --model-out` writes it) runs it through the Rust forward chain and predicts the run; its core alone cannot.
+    from bmr.diagnosis.extended_model import with_extensions
+
+    volts = np.concatenate([np.linspace(0, 100, 301), np.linspace(100, 25, 226), np.linspace(25, 85, 181)])
+    run = _run("late", volts)
+    delay = 25
+    late = run.data.assign(displacement_um=np.concatenate([np.full(delay, run.output[0]), run.output[:-delay]]))
+    bundle = _bundle(bmr.Run("late", "custom", late, quantities=PIEZO, role="evaluation"))
+    extended = with_extensions(piezo_model, [{"name": "time_delay", "params": {"delay_s": delay * 1e-3}}])
+    whole = predict(extended, bundle)
+    core = predict(extended, bundle, whole_model=False)
+    assert whole.ran == ["core tables", "time_delay"] and core.ran == ["core tables"]
+    assert whole.total()["rms"] < 0.3 * core.total()["rms"], (whole.total(), core.total())
+    # The core alone is what the model without extensions predicts.
+    np.testing.assert_allclose(core.runs[0].predicted, predict(piezo_model, bundle).runs[0].predicted)
+    extended.save(tmp_path / "extended.json")
+    bmr.write_bundle(bundle, tmp_path / "b")
+    assert main(["predict", str(tmp_path / "extended.json"), str(tmp_path / "b")]) == 0
+    assert "ran: core tables, time_delay" in capsys.readouterr().out
+    # The extended chain starts from a saturation: other initial states are one clear error.
+    with pytest.raises(bmr.BmrError, match="extended model runs from a saturation"):
+        predict(extended, bundle, initial="estimate")
