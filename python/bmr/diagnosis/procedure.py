@@ -17,7 +17,9 @@ JSON (``bmr-diagnosis/1``): ``cause`` (the accepted physical effect that removed
 ``table_resolution`` when only the tables were at fault; ``"none"``), ``effects`` (accepted in order: ``name``,
 ``params``, ``heldout_rms_before_nmm``, ``heldout_rms_after_nmm``, ``gain``, ``folds_positive``), ``rejected``,
 ``noise_floor_nmm``, ``residual_rms_nmm`` (held-out RMS of the extended model), ``unexplained`` (``signal``,
-``strength`` in N·mm RMS) and more detail (per-run RMS, nominal held-out RMS, closed loop, timing).
+``strength`` in N·mm RMS), ``alternatives`` (pairs of effects the excitation could not tell apart, with what
+would separate them), ``identification_drift`` (the leakage the nominal identification found, when its branches
+did not close) and more detail (per-run RMS, nominal held-out RMS, closed loop, timing).
 """
 from __future__ import annotations
 
@@ -31,7 +33,7 @@ from typing import Any, Callable
 
 import numpy as np
 
-from bmr._core import BmrError, ModelFileError, VirtualActuator
+from bmr._core import BmrError, ModelFileError, TableError, VirtualActuator
 from bmr.data.files import check_output_file, write_text
 from bmr.data.bundle import Bundle, read_bundle
 from bmr.diagnosis.discrepancy import candidate_library, learn
@@ -40,7 +42,7 @@ from bmr.diagnosis.field import FieldPath
 from bmr.diagnosis.noise import from_residual
 from bmr.diagnosis.extended_model import ExtendedModel, extensions_from_selection, with_extensions
 from bmr.diagnosis.residuals import prepare, signal_label, structure
-from bmr.diagnosis.selection import MIN_EXCESS, NOISE_MARGIN, Fitter, forward_selection, t975
+from bmr.diagnosis.selection import MIN_EXCESS, NOISE_MARGIN, Alternative, Fitter, forward_selection, t975
 from bmr.identification.procedure import identify
 from bmr.identification.model import LOOP_STAGES, Model
 from bmr.report.diagnosis import figures, html_page, html_section
@@ -81,6 +83,8 @@ class Diagnosis:
         self.quantities = kw["quantities"]
         self.noise: dict[str, Any] = kw["noise"]
         self.learned: dict[str, Any] | None = kw.get("learned")
+        self.alternatives: list[Alternative] = kw.get("alternatives", [])
+        self.identification_drift: dict[str, float] | None = kw.get("identification_drift")
         self._signals = kw["signals"]
         self._figures: dict[str, str] | None = None
 
@@ -120,6 +124,8 @@ class Diagnosis:
             "structure": {"nominal": self.structure_nominal, "extended": self.structure_extended},
             "per_run_rms_nmm": {k: {"nominal": b, "extended": a} for k, (b, a) in self.per_run_rms.items()},
             "closed_loop": self.closed_loop,
+            "alternatives": [a.to_dict() for a in self.alternatives],
+            "identification_drift": self.identification_drift,
             "folds": self.folds,
             "seed": self.seed,
             "wall_time_s": self.wall_time_s,
@@ -156,10 +162,15 @@ def _rms(x: np.ndarray) -> float:
 
 def nominal_model(bundle: Bundle) -> Any:
     """The paper's model of a bundle: friction (3 harmonics) from the off-state run, CBH tables from the measured
-    first-order curves alone (no curves added between them; least-squares tables when the bundle has no
-    first-order runs)."""
-    method = "forc" if bundle.by_kind("first_order_ascending", "first_order_descending") else "lstsq"
-    return identify(bundle, method=method, max_order=NOMINAL_FRICTION_ORDER, subdivisions=1)
+    first-order curves alone (no curves added between them). Least-squares tables when the bundle has no
+    first-order runs, or when its curves give no tables (branches that do not close are a finding: the
+    least-squares fit then estimates a leakage with the table, see ``fit_tables_lstsq``)."""
+    if bundle.by_kind("first_order_ascending", "first_order_descending"):
+        try:
+            return identify(bundle, method="forc", max_order=NOMINAL_FRICTION_ORDER, subdivisions=1)
+        except TableError:
+            pass
+    return identify(bundle, method="lstsq", max_order=NOMINAL_FRICTION_ORDER, subdivisions=1, drift="auto")
 
 
 def diagnose(bundle: Bundle | str | Path, model: Any = None, *, folds: int = 5, seed: int = 0,
@@ -258,7 +269,8 @@ def diagnose(bundle: Bundle | str | Path, model: Any = None, *, folds: int = 5, 
                   nominal_heldout_rms_nmm=sel["nominal_heldout_rms_nmm"], unexplained=unexplained,
                   structure_nominal=struct_nom, structure_extended=struct_ext, per_run_rms=per_run, folds=folds,
                   seed=seed, wall_time_s=0.0, model=model, extended_model=ext_model, signals=signals,
-                  quantities=bundle.quantities, noise=data.noise.to_dict(), learned=learned)
+                  quantities=bundle.quantities, noise=data.noise.to_dict(), learned=learned,
+                  alternatives=sel["alternatives"], identification_drift=_identification_drift(model))
     # What each extension does: held-out prediction for all, closed-loop tracking for those the compensator undoes.
     rows = {e["name"]: e for e in accepted}
     for entry in ext_model.extensions:
@@ -276,6 +288,16 @@ def diagnose(bundle: Bundle | str | Path, model: Any = None, *, folds: int = 5, 
             d.closed_loop = {"error": str(exc)}
     d.wall_time_s = time.perf_counter() - t0
     return d
+
+
+def _identification_drift(model: Any) -> dict[str, float] | None:
+    """The leakage the model's least-squares identification fitted with its table because the branches did not
+    close (rate: output per input·s; closure: the largest move of a saturation output, share of the span)."""
+    report = getattr(model, "identification", None)
+    tables = getattr(report, "lstsq", None) if report is not None else None
+    if tables is None or tables.leakage_rate is None or getattr(report, "chosen", None) != "lstsq":
+        return None
+    return {"leakage_rate": float(tables.leakage_rate), "closure": float(tables.closure)}
 
 
 def _learn_discrepancy(data: Any, residual: np.ndarray, lo: float, hi: float, quantities: Any
@@ -462,7 +484,14 @@ def run_cli(args: Any) -> int:
         print(f"  accepted {e['name']}: gain {100 * e['gain']:.1f} % ({e['folds_positive']}/{d.folds} folds), "
               f"{params}")
     for r in d.rejected:
-        print(f"  rejected {r['name']}: gain {100 * r['gain']:.1f} % ({r['folds_positive']}/{d.folds} folds)")
+        why = f"; {r['reason']}" if r.get("reason", "").startswith("parameters outside") else ""
+        print(f"  rejected {r['name']}: gain {100 * r['gain']:.1f} % ({r['folds_positive']}/{d.folds} folds){why}")
+    for a in d.alternatives:
+        print(f"  {a.message}")
+    if d.identification_drift:
+        print(f"  identification: branches open by {100 * d.identification_drift['closure']:.3g} % of the span; "
+              f"leakage {d.identification_drift['leakage_rate']:.4g} {u} per {q.input.unit}·s fitted with the "
+              "tables")
     if d.learned:
         state = "learned" if d.learned["accepted"] else "not kept"
         print(f"  {state} (no named effect): {d.learned['equation']}; gain {100 * d.learned['gain']:.1f} % "
