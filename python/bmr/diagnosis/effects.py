@@ -43,6 +43,7 @@ from bmr import _core
 from bmr._core import BmrError
 from bmr.diagnosis.field import REIDENTIFY_INTERVALS, FieldPath
 from bmr.diagnosis.residuals import EvalData
+from bmr.identification.signals import running_integral
 
 __all__ = ["Effect", "LIBRARY", "PHYSICAL", "ANGLE_EFFECTS", "thermal_state", "CREEP_TAUS_S"]
 
@@ -563,8 +564,7 @@ class Leakage(Effect):
             out = []
             for r in data.runs:
                 u = _run_input(r)
-                integral = np.concatenate([[0.0], np.cumsum(0.5 * r.dt_s * (u[1:] + u[:-1]))])
-                out.append(integral[r.start:])
+                out.append(running_integral(u, np.arange(u.size) * r.dt_s)[r.start:])
             return np.concatenate(out)[:, None]
 
         return data.cache.get("leakage_integral", make)
@@ -575,8 +575,7 @@ class Leakage(Effect):
     @staticmethod
     def remove(y, value, beta, run):
         u = run.current
-        integral = np.concatenate([[0.0], np.cumsum(0.5 * run.dt * (u[1:] + u[:-1]))])
-        return y - beta[0] * integral
+        return y - beta[0] * running_integral(u, np.arange(u.size) * run.dt)
 
     def params(self, value, beta, path):
         return {"rate_per_s": float(beta[0])}
