@@ -376,8 +376,10 @@ def fit_everett(
     smoothing: float = 1e-4,
     ridge: float = 1e-9,
     max_iter: int = 500,
+    drift: Sequence[np.ndarray] | None = None,
 ) -> EverettFit:
-    """Regularised NNLS Everett table from runs ``(u, y, weight, offset_col[, history[, gain]])``."""
+    """Regularised NNLS Everett table from runs ``(u, y, weight, offset_col[, history[, gain]])``, with one
+    shared coefficient of a per-run ``drift`` regressor when given."""
 
 @final
 class EverettFit:
@@ -397,6 +399,14 @@ class EverettFit:
     def iterations(self) -> int: ...
     @property
     def passive(self) -> np.ndarray: ...
+    @property
+    def converged(self) -> bool: ...
+    @property
+    def kkt_violation(self) -> float: ...
+    @property
+    def condition(self) -> float: ...
+    @property
+    def drift(self) -> float | None: ...
 
 @final
 class EverettRegression:

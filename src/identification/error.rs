@@ -106,8 +106,6 @@ pub enum IdentificationError {
     EmptyOffset { column: usize },
     /// The regularised normal equations are not positive definite.
     NotPositiveDefinite,
-    /// The nonnegative least-squares solver did not converge.
-    NotConverged { iterations: usize },
     /// Internal dimension mismatch of the nonnegative least-squares solver.
     SolverDimensions { q: usize, c: usize, mask: usize },
     /// The identified table's first-order curves were rejected by the CBH table builder.
@@ -207,10 +205,6 @@ impl fmt::Display for IdentificationError {
             E::NotPositiveDefinite => {
                 f.write_str("normal equations are not positive definite; increase the ridge")
             }
-            E::NotConverged { iterations } => write!(
-                f,
-                "nonnegative least squares did not converge in {iterations} iterations"
-            ),
             E::SolverDimensions { q, c, mask } => write!(
                 f,
                 "NNLS dimension mismatch: Q has {q} entries, c {c} and the constraint mask {mask}"

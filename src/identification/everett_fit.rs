@@ -254,7 +254,7 @@ pub struct EverettFitOptions {
     pub smoothing: f64,
     /// Weight of the ridge on the masses (dimensionless; keeps cells without data determined).
     pub ridge: f64,
-    /// Pivoting iterations allowed in the NNLS solve.
+    /// Pivoting iterations allowed in the NNLS solve (then it continues by projected coordinate descent).
     pub max_iter: usize,
 }
 
@@ -285,6 +285,9 @@ pub struct EverettRun<'a> {
     pub history: &'a [f64],
     /// Calibration gain of this run (the model's output is scaled by it; 1 for none).
     pub gain: f64,
+    /// Values of a drift regressor on this run's samples (empty: none), e.g. the running integral of the input
+    /// a leakage current adds to a charge measurement. Every run's drift shares one fitted coefficient.
+    pub drift: &'a [f64],
 }
 
 /// Result of [`fit_everett`] and [`EverettRegression::fit`].
@@ -300,10 +303,19 @@ pub struct EverettFit {
     pub n_rows: usize,
     /// Weighted RMS residual.
     pub rms: f64,
-    /// NNLS pivoting iterations.
+    /// NNLS pivoting iterations (plus coordinate-descent sweeps when pivoting gave up).
     pub iterations: usize,
     /// The NNLS passive set (variables off their bound): a warm start for a neighbouring problem.
     pub passive: Vec<bool>,
+    /// Whether the solver met its optimality conditions (see [`super::NnlsSolution::converged`]).
+    pub converged: bool,
+    /// The solver's largest relative optimality-condition violation.
+    pub kkt_violation: f64,
+    /// Condition-number estimate of the regularised normal equations on the passive set.
+    pub condition: f64,
+    /// The fitted coefficient of the runs' drift regressor (output units per drift-regressor unit), when any run
+    /// has one.
+    pub drift: Option<f64>,
 }
 
 /// Identify the Everett masses on `grid` and `n_offsets` free output offsets from `runs`.
@@ -314,7 +326,9 @@ pub fn fit_everett(
     options: EverettFitOptions,
 ) -> Result<EverettFit, IdentificationError> {
     check_options(n_offsets, options)?;
-    let mut ne = NormalEquations::new(grid, n_offsets)?;
+    // The drift coefficient is one more free column after the offsets.
+    let with_drift = runs.iter().any(|r| !r.drift.is_empty());
+    let mut ne = NormalEquations::new(grid, n_offsets + usize::from(with_drift))?;
     for (k, run) in runs.iter().enumerate() {
         ne.add_run(
             grid,
@@ -324,6 +338,7 @@ pub fn fit_everett(
             run.offset_col,
             run.history,
             run.gain,
+            (!run.drift.is_empty()).then_some((n_offsets, run.drift)),
         )
         .map_err(|error| IdentificationError::Run { run: k, error })?;
     }
@@ -332,7 +347,11 @@ pub fn fit_everett(
     }
     ne.finish();
     let q = mass_space_matrix(grid, &ne, options)?;
-    solve(grid, &DataTerm::of(&ne, &ne.rhs, ne.yy), &q, options, None)
+    let mut fit = solve(grid, &DataTerm::of(&ne, &ne.rhs, ne.yy), &q, options, None)?;
+    if with_drift {
+        fit.drift = fit.offsets.pop();
+    }
+    Ok(fit)
 }
 
 fn check_options(n_offsets: usize, options: EverettFitOptions) -> Result<(), IdentificationError> {
@@ -488,6 +507,10 @@ fn solve(
         n_rows: data.n_rows,
         iterations: sol.iterations,
         passive: sol.passive,
+        converged: sol.converged,
+        kkt_violation: sol.kkt_violation,
+        condition: sol.condition,
+        drift: None,
     })
 }
 
@@ -547,6 +570,7 @@ impl EverettRegression {
                     run.offset_col,
                     &[],
                     1.0,
+                    None,
                     |i, w, row| {
                         for &(a, va) in row {
                             col.push(a as u32);
@@ -759,6 +783,7 @@ mod tests {
                 offset_col: 0,
                 history: &[],
                 gain: 1.0,
+                drift: &[],
             }],
             1,
             opts,
@@ -830,6 +855,60 @@ mod tests {
         assert!(rss < 1e-20 && (offset - 2.5).abs() < 1e-12);
     }
 
+    /// A FORC-like family whose output also integrates the input (a leakage into a charge amplifier): the
+    /// tables and the leakage rate are identified together, and without the drift column the fit is far off.
+    #[test]
+    fn drift_column_is_identified_with_the_table() {
+        let grid = EverettGrid::uniform(-1.0, 1.0, 10).unwrap();
+        let masses: Vec<f64> = (0..grid.n_cells())
+            .map(|k| 0.05 + 0.01 * (k % 3) as f64)
+            .collect();
+        let model = EverettModel::new(grid.clone(), masses, 0.0).unwrap();
+        let mut u = Vec::new();
+        for k in 0..8 {
+            let turn = -1.0 + 0.25 * k as f64;
+            let up = (0..=40).map(|i| -1.0 + (turn + 1.0) * i as f64 / 40.0);
+            let down = (0..=40).map(|i| turn - (turn + 1.0) * i as f64 / 40.0);
+            u.extend(up.chain(down));
+            u.extend((0..=40).map(|i| -1.0 + 2.0 * i as f64 / 40.0));
+            u.extend((0..=40).map(|i| 1.0 - 2.0 * i as f64 / 40.0));
+        }
+        let dt = 0.01;
+        let rate = -0.8;
+        let mut integral = alloc::vec![0.0; u.len()];
+        for i in 1..u.len() {
+            integral[i] = integral[i - 1] + 0.5 * dt * (u[i] + u[i - 1]);
+        }
+        let clean = model.simulate_from(&[], &u, None);
+        let y: Vec<f64> = clean
+            .iter()
+            .zip(&integral)
+            .map(|(v, d)| v + rate * d)
+            .collect();
+        let w = alloc::vec![1.0; u.len()];
+        let run = |drift| EverettRun {
+            u: &u,
+            y: &y,
+            weight: &w,
+            offset_col: 0,
+            history: &[],
+            gain: 1.0,
+            drift,
+        };
+        let opts = EverettFitOptions::default();
+        let joint = fit_everett(&grid, &[run(&integral)], 1, opts).unwrap();
+        let plain = fit_everett(&grid, &[run(&[])], 1, opts).unwrap();
+        let found = joint.drift.unwrap();
+        assert!((found - rate).abs() < 0.02 * rate.abs(), "{found}");
+        assert_eq!((joint.offsets.len(), plain.drift), (1, None));
+        assert!(
+            joint.rms < 0.1 * plain.rms,
+            "{} vs {}",
+            joint.rms,
+            plain.rms
+        );
+    }
+
     #[test]
     fn sizes_are_bounded_before_allocation() {
         use crate::limits::{MAX_EVERETT_INTERVALS, MAX_EVERETT_UNKNOWNS};
@@ -845,6 +924,7 @@ mod tests {
             offset_col: 0,
             history: &[],
             gain: 1.0,
+            drift: &[],
         };
         let fit = |n_offsets, max_iter| {
             let opts = EverettFitOptions {
@@ -894,6 +974,7 @@ mod tests {
             offset_col: 0,
             history: &[],
             gain: 1.0,
+            drift: &[],
         };
         let once = fit_everett(&grid, &[run], 1, opts).unwrap();
         let input = EverettInput {

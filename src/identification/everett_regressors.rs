@@ -401,8 +401,9 @@ impl NormalEquations {
 
     /// Accumulate one run: the memory starts at negative saturation, follows `history` (the run's initial state)
     /// and then every sample of `u`; rows with weight `weight[i] > 0` enter the regression
-    /// `y[i] ≈ offset[offset_col] + gain · Σ ±E` (`gain`: the run's calibration gain, 1 for none). Call
-    /// [`Self::finish`] after the last run.
+    /// `y[i] ≈ offset[offset_col] + gain · Σ ±E` (`gain`: the run's calibration gain, 1 for none), plus
+    /// `coefficient[c] · d[i]` for `drift = Some((c, d))` (a free column `c` after the offsets, e.g. a leakage
+    /// integral shared by the runs). Call [`Self::finish`] after the last run.
     #[allow(clippy::too_many_arguments)]
     pub fn add_run(
         &mut self,
@@ -413,6 +414,7 @@ impl NormalEquations {
         offset_col: usize,
         history: &[f64],
         gain: f64,
+        drift: Option<(usize, &[f64])>,
     ) -> Result<(), RunError> {
         if y.len() != u.len() || weight.len() != u.len() {
             return Err(RunError::Lengths {
@@ -423,20 +425,29 @@ impl NormalEquations {
         }
         let mut rhs = core::mem::take(&mut self.rhs);
         let mut yy = self.yy;
-        let result = self.add_rows(grid, u, weight, offset_col, history, gain, |i, w, row| {
-            if !y[i].is_finite() {
-                return Err(RunError::NonFinite {
-                    what: "output",
-                    sample: i,
-                    value: y[i],
-                });
-            }
-            for &(a, va) in row {
-                rhs[a] += w * va * y[i];
-            }
-            yy += w * y[i] * y[i];
-            Ok(())
-        });
+        let result = self.add_rows(
+            grid,
+            u,
+            weight,
+            offset_col,
+            history,
+            gain,
+            drift,
+            |i, w, row| {
+                if !y[i].is_finite() {
+                    return Err(RunError::NonFinite {
+                        what: "output",
+                        sample: i,
+                        value: y[i],
+                    });
+                }
+                for &(a, va) in row {
+                    rhs[a] += w * va * y[i];
+                }
+                yy += w * y[i] * y[i];
+                Ok(())
+            },
+        );
         self.rhs = rhs;
         self.yy = yy;
         result
@@ -455,6 +466,7 @@ impl NormalEquations {
         offset_col: usize,
         history: &[f64],
         gain: f64,
+        drift: Option<(usize, &[f64])>,
         mut visit: impl FnMut(usize, f64, &[(usize, f64)]) -> Result<(), RunError>,
     ) -> Result<(), RunError> {
         if weight.len() != u.len() {
@@ -463,6 +475,28 @@ impl NormalEquations {
                 outputs: u.len(),
                 weights: weight.len(),
             });
+        }
+        if let Some((column, d)) = drift {
+            if column >= self.n_offsets {
+                return Err(RunError::OffsetColumn {
+                    column,
+                    columns: self.n_offsets,
+                });
+            }
+            if d.len() != u.len() {
+                return Err(RunError::Lengths {
+                    inputs: u.len(),
+                    outputs: d.len(),
+                    weights: weight.len(),
+                });
+            }
+            if let Some(i) = d.iter().position(|v| !v.is_finite()) {
+                return Err(RunError::NonFinite {
+                    what: "drift regressor",
+                    sample: i,
+                    value: d[i],
+                });
+            }
         }
         if offset_col >= self.n_offsets {
             return Err(RunError::OffsetColumn {
@@ -502,6 +536,9 @@ impl NormalEquations {
                 grid.push_everett(beta, alpha, gain * sign, &mut row)
             });
             row.push((off, 1.0));
+            if let Some((column, d)) = drift {
+                row.push((self.n_nodes + column, d[i]));
+            }
             merge_duplicates(&mut row);
             visit(i, w, &row)?;
             // Upper triangle only (the row is sorted by column); `finish` mirrors it.

@@ -352,9 +352,12 @@ impl PyEverettModel {
 /// Regularised nonnegative least squares for an Everett table on `grid` from `runs`, a list of
 /// `(u, y, weight, offset_col[, history[, gain]])` (weight 0 keeps a sample out of the fit while it drives the
 /// memory; `history`: inputs after negative saturation that set the run's initial state; `gain`: the run's
-/// calibration gain on the model output). Returns an `EverettFit`.
+/// calibration gain on the model output). `drift`: one array per run (same length as its input) of a drift
+/// regressor whose single coefficient is fitted with the table (e.g. the running integral of the input for a
+/// leakage), reported as `EverettFit.drift`. Returns an `EverettFit`.
 #[pyfunction]
-#[pyo3(signature = (grid, runs, n_offsets=1, *, smoothing=1e-4, ridge=1e-9, max_iter=500))]
+#[pyo3(signature = (grid, runs, n_offsets=1, *, smoothing=1e-4, ridge=1e-9, max_iter=500, drift=None))]
+#[allow(clippy::too_many_arguments)]
 fn fit_everett<'py>(
     py: Python<'py>,
     grid: Array<'py>,
@@ -363,6 +366,7 @@ fn fit_everett<'py>(
     smoothing: f64,
     ridge: f64,
     max_iter: usize,
+    drift: Option<Vec<Array<'py>>>,
 ) -> PyResult<PyEverettFit> {
     let grid = EverettGrid::new(extract_f64_array(&grid, "grid")?)
         .map_err(|e| identification_err("Everett table fit", e))?;
@@ -371,6 +375,23 @@ fn fit_everett<'py>(
         .enumerate()
         .map(|(i, run)| run.into_data(i))
         .collect::<PyResult<_>>()?;
+    let drift: Vec<Vec<f64>> = match drift {
+        None => Vec::new(),
+        Some(arrays) => {
+            if arrays.len() != data.len() {
+                return Err(BmrError::new_err(format!(
+                    "drift has {} arrays, runs {}: give one per run",
+                    arrays.len(),
+                    data.len()
+                )));
+            }
+            arrays
+                .iter()
+                .enumerate()
+                .map(|(i, a)| extract_f64_array(a, &format!("drift[{i}]")))
+                .collect::<PyResult<_>>()?
+        }
+    };
     let options = EverettFitOptions {
         smoothing,
         ridge,
@@ -380,13 +401,15 @@ fn fit_everett<'py>(
         .detach(|| {
             let views: Vec<EverettRun<'_>> = data
                 .iter()
-                .map(|(u, y, w, o, h, g)| EverettRun {
+                .enumerate()
+                .map(|(k, (u, y, w, o, h, g))| EverettRun {
                     u,
                     y,
                     weight: w,
                     offset_col: *o,
                     history: h,
                     gain: *g,
+                    drift: drift.get(k).map_or(&[], Vec::as_slice),
                 })
                 .collect();
             fit_everett_rs(&grid, &views, n_offsets, options)
@@ -406,6 +429,10 @@ pub struct PyEverettFit {
     n_rows: usize,
     iterations: usize,
     passive: Vec<bool>,
+    converged: bool,
+    kkt_violation: f64,
+    condition: f64,
+    drift: Option<f64>,
 }
 
 #[pymethods]
@@ -445,6 +472,28 @@ impl PyEverettFit {
     fn passive<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<bool>> {
         PyArray1::from_slice(py, &self.passive)
     }
+    /// Whether the nonnegative solve met its optimality conditions to 1e-9 (relative); false only when its
+    /// coordinate-descent budget ran out, and the table is then the best point found.
+    #[getter]
+    fn converged(&self) -> bool {
+        self.converged
+    }
+    /// The largest relative violation of the solve's optimality conditions.
+    #[getter]
+    fn kkt_violation(&self) -> f64 {
+        self.kkt_violation
+    }
+    /// Condition-number estimate of the regularised normal equations on the unknowns off their bound (squared
+    /// ratio of the largest to the smallest Cholesky pivot; inf when numerically singular).
+    #[getter]
+    fn condition(&self) -> f64 {
+        self.condition
+    }
+    /// The fitted coefficient of the `drift` regressor (output units per regressor unit); None without one.
+    #[getter]
+    fn drift(&self) -> Option<f64> {
+        self.drift
+    }
 
     fn __repr__(&self) -> String {
         format!(
@@ -466,6 +515,10 @@ fn fit_result(py: Python<'_>, fit: EverettFit) -> PyResult<PyEverettFit> {
         n_rows: fit.n_rows,
         iterations: fit.iterations,
         passive: fit.passive,
+        converged: fit.converged,
+        kkt_violation: fit.kkt_violation,
+        condition: fit.condition,
+        drift: fit.drift,
     })
 }
 

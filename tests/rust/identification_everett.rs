@@ -78,6 +78,7 @@ fn noisy_triangles_identify_the_plant_and_the_cbh_agrees() {
             offset_col: 0,
             history: &[],
             gain: 1.0,
+            drift: &[],
         }],
         1,
         opts,

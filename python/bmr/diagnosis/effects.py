@@ -43,6 +43,7 @@ from bmr import _core
 from bmr._core import BmrError
 from bmr.diagnosis.field import REIDENTIFY_INTERVALS, FieldPath
 from bmr.diagnosis.residuals import EvalData
+from bmr.identification.signals import running_integral
 
 __all__ = ["Effect", "LIBRARY", "PHYSICAL", "ANGLE_EFFECTS", "thermal_state", "CREEP_TAUS_S"]
 
@@ -54,11 +55,18 @@ class Effect(ABC):
     name = ""
     field = False
     doc = ""
+    # The excitation whose response shows this effect's own signature (what to record when the data cannot tell
+    # it from another effect).
+    excitation = "a run with a different excitation"
     needs_reidentify = False  # the effect needs least-squares core tables (compare against those)
     needs_angle = False  # the effect lives on the rotor angle (seal friction, ripple): actuators only
     # Order in which fitted effects are removed from the protocol runs before re-identification: additive terms
     # (rank 0) before multiplicative gains (rank 1).
     removal_rank = 0
+    # A drive-scaled effect whose columns a per-run gain and offset partly reproduce (a recording with another
+    # calibration looks like more or less seal friction): it is judged on what it explains
+    # beyond the per-run calibration, so that structure the calibration explains is not named after it.
+    beyond_run_calibration = False
 
     def grid(self, data: EvalData) -> list[Any]:
         return [None]
@@ -95,6 +103,7 @@ class Effect(ABC):
 # ------------------------------------------------------------------------------------------------ field effects
 class CoilLag(Effect):
     name = "coil_lag"
+    excitation = "input steps held long enough to see the approach (a first-order lag relaxes, a delay shifts)"
     field = True
     doc = "field lags the commanded current: first-order lag of time constant tau_s"
 
@@ -116,6 +125,7 @@ class CoilLag(Effect):
 
 class TimeDelay(Effect):
     name = "time_delay"
+    excitation = "input steps held long enough to see the approach (a delay shifts, a first-order lag relaxes)"
     field = True
     doc = "pure delay of delay_s between the command and the field"
 
@@ -137,6 +147,7 @@ class TimeDelay(Effect):
 
 class NonCongruent(Effect):
     name = "non_congruent"
+    excitation = "minor loops between the same input extremes at different histories (their size changes)"
     field = True
     doc = "output nonlinearity after a Preisach core: T = S n (1 + curvature |n|)/(1 + curvature), n = B-torque/S"
 
@@ -159,6 +170,7 @@ class TableResolution(Effect):
     the whole Preisach plane from every sample instead of interpolation between a few measured curves."""
 
     name = "table_resolution"
+    excitation = "more first-order curves (finer reversal points)"
     field = True
     doc = "first-order curve tables too coarse or noisy; least-squares refinement of the tables"
 
@@ -224,6 +236,7 @@ def _cold_and_carried(data: EvalData, tau_s: float) -> tuple[np.ndarray, np.ndar
 
 class ThermalDrift(Effect):
     name = "thermal_drift"
+    excitation = "a long run near full input followed by a rest (the gain falls as the coils heat and recovers)"
     doc = "coil heating lowers the torque gain: field × (1 − gain_loss·x), x the heating state of time constant tau_s"
     removal_rank = 1
 
@@ -280,6 +293,8 @@ class ThermalDrift(Effect):
 
 class FrictionCurrent(Effect):
     name = "friction_current"
+    beyond_run_calibration = True
+    excitation = "rotation at several constant currents (angle ripple growing with |current|)"
     needs_angle = True
     doc = "seal friction grows with current: angle-dependent friction × (1 + gain_per_a·|I|)"
 
@@ -306,6 +321,7 @@ class FrictionCurrent(Effect):
 
 class FrictionHarmonics(Effect):
     name = "friction_harmonics"
+    excitation = "rotation at constant current over several revolutions (a line at the harmonic's order)"
     needs_angle = True
     doc = "a friction harmonic above the 3rd: amplitude_nmm·sin(order·θ + phase_rad)"
 
@@ -332,6 +348,7 @@ class FrictionHarmonics(Effect):
 
 class TorqueRipple(Effect):
     name = "torque_ripple"
+    excitation = "rotation at several constant torques (once-per-revolution ripple proportional to torque)"
     needs_angle = True
     doc = "eccentric gap: field × (1 + eps·cos(θ + phase_rad))"
     removal_rank = 1
@@ -356,6 +373,7 @@ class TorqueRipple(Effect):
 
 class SensorDrift(Effect):
     name = "sensor_drift"
+    excitation = "dwells at zero input spread over the session (the zero moves with time)"
     doc = "torque sensor offset drifting linearly with time at rate_nmm_per_s"
 
     needs_reidentify = True
@@ -410,6 +428,7 @@ class Creep(Effect):
     fraction linearly on those tables."""
 
     name = "creep"
+    excitation = "a dwell after a reversal (relaxation logarithmic in the time since it)"
     doc = "output relaxes after every change: y = v + fraction·mean_τ(lag(v, τ) − v), τ log-uniform in a range"
     needs_reidentify = True
     FRACTIONS = (0.0025, 0.005, 0.01, 0.02, 0.04, 0.08)
@@ -467,6 +486,7 @@ class RateDependence(Effect):
     damping). A field effect: the path runs the core through the rate-dependence stage."""
 
     name = "rate_dependence"
+    excitation = "the same loop at a second drive speed (widening where the branch is steep)"
     field = True
     doc = "core input lags with a time constant proportional to the branch's differential slope (dynamic field)"
     needs_reidentify = True
@@ -487,14 +507,18 @@ class RateDependence(Effect):
 class RunGainOffset(Effect):
     """Each evaluation run has its own output offset and, when the data support it, its own gain (calibration
     that changed between recordings, a remanence or zero that differs per run): the columns are a constant and
-    (grid value ``"gain_offset"``) the field output, each restricted to one run. The reported spreads are those of
-    the per-run estimates."""
+    (grid value ``"gain_offset"``) the field output, each restricted to one run. On an actuator the seal friction
+    was identified on a recording of its own (the off-state run) with its own calibration, so its scale is one more
+    calibration parameter (``"gain_offset_friction"``: the angle-dependent friction as one column shared by the
+    runs); without it a calibration that differs between recordings leaves a friction ripple that a drive-scaled
+    friction effect would be named for. The reported spreads are those of the per-run estimates."""
 
     name = "run_gain_offset"
+    excitation = "a repeat of a run (the same input history recorded again)"
     doc = "per-run gain and offset of the measured output (calibration between recordings)"
 
     def grid(self, data: Any) -> list[Any]:
-        return ["offset", "gain_offset"]
+        return ["offset", "gain_offset_friction" if data.has_angle else "gain_offset"]
 
     def columns(self, data, value, y_field, model):
         def make() -> np.ndarray:
@@ -509,10 +533,16 @@ class RunGainOffset(Effect):
         if value == "offset":
             return ind
         # The calibration scales what the sensor reads: the field output and the friction alike.
-        return np.column_stack([ind * (y_field + data.friction_nmm)[:, None], ind])
+        cols = [ind * (y_field + data.friction_nmm)[:, None], ind]
+        if value == "gain_offset_friction":
+            c0 = model.friction.c0 if model.friction is not None else 0.0
+            cols.append((data.friction_nmm - c0)[:, None])
+        return np.column_stack(cols)
 
     def params(self, value, beta, path):
         beta = np.asarray(beta, dtype=float)
+        if value == "gain_offset_friction":
+            beta = beta[:-1]
         k = beta.size if value == "offset" else beta.size // 2
         offsets = beta if value == "offset" else beta[k:]
         gains = np.zeros(k) if value == "offset" else beta[:k]
@@ -525,6 +555,7 @@ class Leakage(Effect):
     the input, as a charge amplifier integrates a leakage current)."""
 
     name = "leakage"
+    excitation = "a dwell at a nonzero input (the output keeps moving in proportion to the input)"
     doc = "the measured output integrates the input: rate_per_s · ∫u dt from each run's start"
     needs_reidentify = True
 
@@ -533,8 +564,7 @@ class Leakage(Effect):
             out = []
             for r in data.runs:
                 u = _run_input(r)
-                integral = np.concatenate([[0.0], np.cumsum(0.5 * r.dt_s * (u[1:] + u[:-1]))])
-                out.append(integral[r.start:])
+                out.append(running_integral(u, np.arange(u.size) * r.dt_s)[r.start:])
             return np.concatenate(out)[:, None]
 
         return data.cache.get("leakage_integral", make)
@@ -545,8 +575,7 @@ class Leakage(Effect):
     @staticmethod
     def remove(y, value, beta, run):
         u = run.current
-        integral = np.concatenate([[0.0], np.cumsum(0.5 * run.dt * (u[1:] + u[:-1]))])
-        return y - beta[0] * integral
+        return y - beta[0] * running_integral(u, np.arange(u.size) * run.dt)
 
     def params(self, value, beta, path):
         return {"rate_per_s": float(beta[0])}
@@ -558,6 +587,7 @@ class Accommodation(Effect):
     input span), linear in ``kappa`` for each ``cycles`` of the grid."""
 
     name = "accommodation"
+    excitation = "minor loops cycled many times between the same extremes"
     doc = "minor loops drift over repeated cycling: shift → −kappa·(loop centre − middle), settling in `cycles`"
 
     def grid(self, data: Any) -> list[Any]:

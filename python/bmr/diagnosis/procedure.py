@@ -18,7 +18,9 @@ accepted physical effect that removed the most held-out RMS; ``table_resolution`
 fault; ``"none"``), ``effects`` (accepted in order: ``name``, ``params``, ``heldout_rms_before``,
 ``heldout_rms_after``, ``gain``, ``folds_positive``), ``rejected``, ``noise_floor``, ``residual_rms`` (held-out RMS
 of the extended model), ``unexplained`` (``signal``, ``strength`` RMS) and more detail (per-run RMS, nominal
-held-out RMS, closed loop, timing). Version 1 named the same fields with an ``_nmm`` suffix whatever the unit.
+held-out RMS, closed loop, timing), ``alternatives`` (pairs of effects the excitation could not tell
+apart, with what would separate them), ``identification_drift`` (the leakage the nominal identification found,
+when its branches did not close). Version 1 named the same fields with an ``_nmm`` suffix whatever the unit.
 """
 from __future__ import annotations
 
@@ -32,7 +34,7 @@ from typing import Any, Callable
 
 import numpy as np
 
-from bmr._core import BmrError, ModelFileError, VirtualActuator
+from bmr._core import BmrError, ModelFileError, TableError, VirtualActuator
 from bmr.data.files import check_output_file, jsonable, write_json, write_text
 from bmr.data.bundle import Bundle, read_bundle
 from bmr.diagnosis.discrepancy import candidate_library, learn
@@ -41,7 +43,7 @@ from bmr.diagnosis.field import FieldPath
 from bmr.diagnosis.noise import from_residual
 from bmr.diagnosis.extended_model import ExtendedModel, extensions_from_selection, with_extensions
 from bmr.diagnosis.residuals import one_blas_thread, prepare, signal_label, structure
-from bmr.diagnosis.selection import MIN_EXCESS, NOISE_MARGIN, Fitter, forward_selection, t975
+from bmr.diagnosis.selection import MIN_EXCESS, NOISE_MARGIN, Alternative, Fitter, forward_selection, t975
 from bmr.identification.procedure import identify
 from bmr.identification.model import LOOP_STAGES, Model
 from bmr.report.diagnosis import figures, html_page, html_section
@@ -80,6 +82,8 @@ class Diagnosis:
     ``{run: (nominal, extended)}``. ``model`` / ``extended_model``: the nominal ``bmr.Model`` and the same with the
     accepted effects in its ``extensions``. ``learned``: the sparse regression of what no effect names (or None).
     ``closed_loop``: the tracking check of the extended compensator, when the bundle records its simulator.
+    ``alternatives``: pairs of effects this excitation could not tell apart, with the excitation that would.
+    ``identification_drift``: the leakage the nominal identification found when its branches did not close.
     ``to_dict()`` is the ``bmr-diagnosis/2`` JSON; ``html_section()`` a self-contained HTML fragment;
     ``write_report(path)`` a whole page."""
 
@@ -102,6 +106,8 @@ class Diagnosis:
     noise: dict[str, Any]
     learned: dict[str, Any] | None = None
     closed_loop: dict[str, Any] | None = None
+    alternatives: list[Alternative] = field(default_factory=list)
+    identification_drift: dict[str, float] | None = None
     wall_time_s: float = 0.0
     signals: dict[str, Any] = field(default_factory=dict)
     _figures: dict[str, str] | None = field(default=None, init=False)
@@ -150,6 +156,8 @@ class Diagnosis:
             "structure": {"nominal": self.structure_nominal, "extended": self.structure_extended},
             "per_run_rms": {k: {"nominal": b, "extended": a} for k, (b, a) in self.per_run_rms.items()},
             "closed_loop": self.closed_loop,
+            "alternatives": [a.to_dict() for a in self.alternatives],
+            "identification_drift": self.identification_drift,
             "folds": self.folds,
             "seed": self.seed,
             "wall_time_s": self.wall_time_s,
@@ -186,10 +194,15 @@ def _rms(x: np.ndarray) -> float:
 
 def nominal_model(bundle: Bundle) -> Any:
     """The paper's model of a bundle: friction (3 harmonics) from the off-state run, CBH tables from the measured
-    first-order curves alone (no curves added between them; least-squares tables when the bundle has no
-    first-order runs)."""
-    method = "forc" if bundle.roles().protocol else "lstsq"
-    return identify(bundle, method=method, max_order=NOMINAL_FRICTION_ORDER, subdivisions=1)
+    first-order curves alone (no curves added between them). Least-squares tables when the bundle has no
+    first-order runs, or when its curves give no tables (branches that do not close are a finding: the
+    least-squares fit then estimates a leakage with the table, see ``fit_tables_lstsq``)."""
+    if bundle.roles().protocol:
+        try:
+            return identify(bundle, method="forc", max_order=NOMINAL_FRICTION_ORDER, subdivisions=1)
+        except TableError:
+            pass
+    return identify(bundle, method="lstsq", max_order=NOMINAL_FRICTION_ORDER, subdivisions=1, drift="auto")
 
 
 @one_blas_thread
@@ -289,7 +302,8 @@ def diagnose(bundle: Bundle | str | Path, model: Any = None, *, folds: int = 5, 
                   nominal_heldout_rms=sel["nominal_heldout_rms_nmm"], unexplained=unexplained,
                   structure_nominal=struct_nom, structure_extended=struct_ext, per_run_rms=per_run, folds=folds,
                   seed=seed, wall_time_s=0.0, model=model, extended_model=ext_model, signals=signals,
-                  quantities=bundle.quantities, noise=data.noise.to_dict(), learned=learned)
+                  quantities=bundle.quantities, noise=data.noise.to_dict(), learned=learned,
+                  alternatives=sel["alternatives"], identification_drift=_identification_drift(model))
     # What each extension does: held-out prediction for all, closed-loop tracking for those the compensator undoes.
     rows = {e["name"]: e for e in accepted}
     for entry in ext_model.extensions:
@@ -307,6 +321,16 @@ def diagnose(bundle: Bundle | str | Path, model: Any = None, *, folds: int = 5, 
             d.closed_loop = {"error": str(exc)}
     d.wall_time_s = time.perf_counter() - t0
     return d
+
+
+def _identification_drift(model: Any) -> dict[str, float] | None:
+    """The leakage the model's least-squares identification fitted with its table because the branches did not
+    close (rate: output per input·s; closure: the largest move of a saturation output, share of the span)."""
+    report = getattr(model, "identification", None)
+    tables = getattr(report, "lstsq", None) if report is not None else None
+    if tables is None or tables.leakage_rate is None or getattr(report, "chosen", None) != "lstsq":
+        return None
+    return {"leakage_rate": float(tables.leakage_rate), "closure": float(tables.closure)}
 
 
 def _learn_discrepancy(data: Any, residual: np.ndarray, lo: float, hi: float, quantities: Any
@@ -493,7 +517,14 @@ def run_cli(args: Any) -> int:
         print(f"  accepted {e['name']}: gain {100 * e['gain']:.1f} % ({e['folds_positive']}/{d.folds} folds), "
               f"{params}")
     for r in d.rejected:
-        print(f"  rejected {r['name']}: gain {100 * r['gain']:.1f} % ({r['folds_positive']}/{d.folds} folds)")
+        why = f"; {r['reason']}" if r.get("reason", "").startswith("parameters outside") else ""
+        print(f"  rejected {r['name']}: gain {100 * r['gain']:.1f} % ({r['folds_positive']}/{d.folds} folds){why}")
+    for a in d.alternatives:
+        print(f"  {a.message}")
+    if d.identification_drift:
+        print(f"  identification: branches open by {100 * d.identification_drift['closure']:.3g} % of the span; "
+              f"leakage {d.identification_drift['leakage_rate']:.4g} {u} per {q.input.unit}·s fitted with the "
+              "tables")
     if d.learned:
         state = "learned" if d.learned["accepted"] else "not kept"
         print(f"  {state} (no named effect): {d.learned['equation']}; gain {100 * d.learned['gain']:.1f} % "

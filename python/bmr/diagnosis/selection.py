@@ -15,6 +15,18 @@ without it is compared on the test block. An effect is **accepted** when
 The best accepted candidate joins the model (its parameters refitted on all evaluation data), and the round
 repeats until nothing is accepted or the held-out RMS is within :data:`NOISE_MARGIN` of the noise floor.
 
+A named effect is physical: a candidate whose parameters, refitted on all data, fall outside the documented range
+of the effect vocabulary (``bmr.effect_parameters()``) — or that pushes an effect already accepted outside its
+range — is not that effect and is rejected (the next best candidate is tried; the structure may still be learned
+by the sparse regression). When another accepted candidate of the same round explains as much (the paired fold
+gains differ by less than their 95 % interval) and is no longer needed once the chosen one is in, the two are
+reported as indistinguishable on this excitation (:class:`Alternative`), with what would separate them.
+
+Recording-level effects are recording-level: a drive-scaled effect (``beyond_run_calibration``: seal friction
+growing with current) is judged on what it explains beyond a per-run gain and offset when the
+configuration has none, so a calibration that differs between recordings is named ``run_gain_offset`` and not
+after an effect that happens to scale with the drive.
+
 How the fits are computed (:class:`Fitter`, one per diagnosis): the field torque of each path is simulated once
 (bounded cache); a configuration's design ``[1, effect columns…, target]`` is gathered once on the fit rows
 (grouped by fold, :attr:`bmr.diagnosis.residuals.EvalData.fit_rows`) into one small Gram matrix per fold, from
@@ -31,13 +43,14 @@ from typing import Any, Callable, Sequence
 
 import numpy as np
 
-from bmr._core import BmrError
+from bmr._core import BmrError, effect_parameters
 
 from bmr.diagnosis.effects import LIBRARY, Effect
 from bmr.diagnosis.field import FieldPath, Reidentifier
 from bmr.diagnosis.residuals import BoundedCache, EvalData
 
-__all__ = ["Configuration", "Fitter", "FoldFit", "Candidate", "forward_selection", "MIN_GAIN", "NOISE_MARGIN"]
+__all__ = ["Configuration", "Fitter", "FoldFit", "Candidate", "Alternative", "forward_selection", "out_of_range",
+           "MIN_GAIN", "NOISE_MARGIN"]
 
 MIN_GAIN = 0.02
 MIN_EXCESS = 0.25
@@ -52,6 +65,52 @@ COARSE_STRIDE = 4
 
 def t975(df: int) -> float:
     return _T975.get(df, 2.0 + 2.4 / max(df, 1))
+
+
+_RANGES: dict[str, dict[str, tuple[float, float]]] = {}
+
+
+def out_of_range(name: str, params: dict[str, float]) -> list[str]:
+    """The parameters of effect ``name`` outside the vocabulary's documented range, as ``"fraction=-13.8 (range
+    0..0.9)"`` (empty: all in range; parameters the vocabulary does not document are not judged)."""
+    if not _RANGES:
+        for effect, spec in effect_parameters(model_entries=True).items():
+            _RANGES[effect] = {k: (float(v["min"]), float(v["max"])) for k, v in spec["params"].items()}
+    ranges = _RANGES.get(name, {})
+    bad = []
+    for key, value in params.items():
+        if key not in ranges:
+            continue
+        lo, hi = ranges[key]
+        v = float(value)
+        if not (math.isfinite(v) and lo <= v <= hi):
+            bad.append(f"{key}={v:.4g} (range {lo:g}..{hi:g})")
+    return bad
+
+
+@dataclass
+class Alternative:
+    """Two effects the data cannot tell apart: ``chosen`` (named) and ``other`` explained the same structure —
+    their held-out gains (``gains``) differ by less than the 95 % interval of their paired fold differences
+    (``difference_interval``), and ``other`` was not needed once ``chosen`` was in. ``excitation``: what to record
+    to separate them."""
+
+    chosen: str
+    other: str
+    gains: tuple[float, float]
+    difference_interval: tuple[float, float]
+    excitation: str
+
+    @property
+    def message(self) -> str:
+        return (f"{self.chosen} or {self.other}: indistinguishable on this excitation (held-out gains "
+                f"{100 * self.gains[0]:.1f} % and {100 * self.gains[1]:.1f} %); {self.excitation} would separate "
+                "them")
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"chosen": self.chosen, "other": self.other, "gains": list(self.gains),
+                "difference_interval": list(self.difference_interval), "excitation": self.excitation,
+                "message": self.message}
 
 
 @dataclass
@@ -226,6 +285,8 @@ class Candidate:
     rms_after: float
     values: list[Any]
     noise_nmm: float = 0.0
+    # The parameters outside the vocabulary's range when refitted on all data (empty: physical or not refitted).
+    unphysical: str = ""
 
     @property
     def mean_gain(self) -> float:
@@ -347,6 +408,12 @@ def evaluate(fitter: Fitter, config: Configuration, eff: Effect, before: Heldout
     """Held-out gain of adding ``eff`` to ``config`` in every fold (``before``: the configuration's held-out
     sums of squares per fold)."""
     data = fitter.data
+    calibration = next((e for e in LIBRARY if e.name == "run_gain_offset"), None)
+    if (eff.beyond_run_calibration and calibration is not None and len(data.runs) > 1
+            and all(e.name != calibration.name for e, _ in config.linear)):
+        # What the effect explains beyond a per-run gain and offset (the evidence of a recording-level effect).
+        config = Configuration(config.path, list(config.linear) + [(calibration, calibration.grid(data)[-1])])
+        before = heldout(fitter, config)
     if eff.needs_reidentify and not config.path.reidentify:
         # Compare at equal table method: the gain is the effect's, not the least-squares tables'.
         before = heldout(fitter, Configuration(config.path.with_(reidentify=True), config.linear))
@@ -455,13 +522,16 @@ def linear_params(fitter: Fitter, config: Configuration) -> dict[str, dict[str, 
 def forward_selection(fitter: Fitter, *, library: Sequence[Effect] = LIBRARY, max_effects: int = 4,
                       progress: Any = None) -> dict[str, Any]:
     """Grouped forward selection (see the module doc). Returns the final configuration, the accepted steps, the
-    rejected candidates (their last round) and the held-out RMS of the nominal and final configurations."""
+    rejected candidates (their last round), the held-out RMS of the nominal and final configurations and the
+    :class:`Alternative` pairs the data could not separate."""
     data = fitter.data
     config = Configuration(fitter.nominal_path())
     config.beta = fitter.solve(config.path, config.linear).beta[data.folds]
     before = heldout(fitter, config)
     nominal_rms = before.rms()
     accepted: list[dict[str, Any]] = []
+    field_effects: list[Effect] = []
+    pending: list[Alternative] = []
     last: dict[str, Candidate] = {}
     remaining = list(library)
     rounds = 0
@@ -501,25 +571,37 @@ def forward_selection(fitter: Fitter, *, library: Sequence[Effect] = LIBRARY, ma
                 remaining.append(candidates[0])
                 continue
             break
-        best = max(ok, key=lambda c: c.mean_gain)
-        config, params = refit(fitter, config, best.effect)
+        ok.sort(key=lambda c: -c.mean_gain)
+        best = None
+        for c in ok:
+            trial, params = refit(fitter, config, c.effect)
+            bad = _unphysical(fitter, trial, field_effects + ([c.effect] if c.effect.field else []))
+            if bad:
+                c.unphysical = "; ".join(f"{name}: {', '.join(v)}" for name, v in bad.items())
+                continue
+            best = c
+            break
+        if best is None:
+            if candidates[0].name == "table_resolution":
+                remaining.append(candidates[0])
+                continue
+            break
+        pending.extend(_alternatives(fitter, config, best, [c for c in ok if c is not best and not c.unphysical],
+                                     field_effects))
+        config = trial
+        if best.effect.field:
+            field_effects.append(best.effect)
         before = heldout(fitter, config)
         row = best.row()
         row["params"] = params
         row["round"] = rounds
         accepted.append(row)
         remaining = [e for e in remaining if e is not best.effect]
-    final_params = linear_params(fitter, config)
+    # Every accepted effect's parameters in the final configuration (checked in range when it was accepted).
+    final_params = _config_params(fitter, config, field_effects)
     for row in accepted:
-        eff_name = row["name"]
-        if eff_name in final_params:
-            row["params"] = final_params[eff_name]
-    for row in accepted:
-        if row["name"] in ("coil_lag", "time_delay", "non_congruent", "rate_dependence"):
-            path = config.path
-            row["params"] = {"coil_lag": {"tau_s": path.lag_tau_s}, "time_delay": {"delay_s": path.delay_s},
-                             "non_congruent": {"curvature": path.curvature, "scale_nmm": path.scale_nmm},
-                             "rate_dependence": {"tau_s": path.rate_tau_s}}[row["name"]]
+        if row["name"] in final_params:
+            row["params"] = final_params[row["name"]]
     names = {r["name"] for r in accepted}
     rejected = []
     for name, c in last.items():
@@ -528,7 +610,52 @@ def forward_selection(fitter: Fitter, *, library: Sequence[Effect] = LIBRARY, ma
         row = c.row()
         row["round"] = getattr(c, "round", 0)
         row["reason"] = ("not accepted" if not c.accepted else
+                         f"parameters outside the documented range ({c.unphysical})" if c.unphysical else
                          "accepted but another effect explained more; not needed afterwards")
         rejected.append(row)
+    alternatives = [a for a in pending if a.other not in names]
     return {"config": config, "accepted": accepted, "rejected": rejected, "nominal_heldout_rms_nmm": nominal_rms,
-            "final_heldout_rms_nmm": before.rms(), "heldout": before}
+            "final_heldout_rms_nmm": before.rms(), "heldout": before, "alternatives": alternatives}
+
+
+def _config_params(fitter: Fitter, config: Configuration, field_effects: Sequence[Effect]) -> dict[str, dict]:
+    """Every effect's parameters in a fitted configuration: linear ones from its coefficients, field ones from
+    its path."""
+    out = linear_params(fitter, config)
+    for eff in field_effects:
+        out[eff.name] = eff.params(None, np.zeros(0), config.path)
+    return out
+
+
+def _unphysical(fitter: Fitter, config: Configuration, field_effects: Sequence[Effect]) -> dict[str, list[str]]:
+    """The effects of ``config`` with parameters outside the vocabulary's range, and which."""
+    bad = {}
+    for name, params in _config_params(fitter, config, field_effects).items():
+        v = out_of_range(name, params)
+        if v:
+            bad[name] = v
+    return bad
+
+
+def _alternatives(fitter: Fitter, config: Configuration, best: Candidate, others: Sequence[Candidate],
+                  field_effects: Sequence[Effect]) -> list[Alternative]:
+    """The accepted candidates of a round that explain as much as ``best`` (paired fold gains within their 95 %
+    interval) with physical parameters: alternatives to it, unless a later round accepts them too."""
+    out = []
+    for c in others:
+        d = best.fold_gains - c.fold_gains
+        k = d.size
+        if k < 2:
+            continue
+        half = t975(k - 1) * float(np.std(d, ddof=1)) / math.sqrt(k)
+        lo, hi = float(np.mean(d)) - half, float(np.mean(d)) + half
+        if lo > 0:
+            continue
+        trial, _ = refit(fitter, config, c.effect)
+        if _unphysical(fitter, trial, list(field_effects) + ([c.effect] if c.effect.field else [])):
+            continue
+        ea, eb = best.effect.excitation, c.effect.excitation
+        excitation = ea if ea == eb else f"{ea}, or {eb}"
+        out.append(Alternative(best.effect.name, c.effect.name, (best.mean_gain, c.mean_gain), (lo, hi),
+                               excitation))
+    return out

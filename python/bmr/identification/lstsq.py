@@ -7,7 +7,12 @@ the previous run left), optionally a gain (drift between recording days, shrunk 
 a run that starts from an unknown state is not cut to the part after its first saturation; its initial memory is
 estimated (negative or positive saturation, or one reversal after either, at any grid node) together with the
 table. Every sample is used unless the caller asks otherwise, and the result says how many were used and why any
-others were not."""
+others were not.
+
+Branches that do not close are a finding, not an error: when the output at a saturation end moves from one visit
+to the next within a run (a charge measurement integrating a leakage current), the leakage rate — one coefficient
+of the running input integral shared by all runs — is identified jointly with the table and reported
+(``drift="auto"``). The nonnegative solve always terminates; its conditioning is reported."""
 from __future__ import annotations
 
 import math
@@ -21,12 +26,17 @@ from bmr._core import BmrError
 from bmr.data.bundle import Run
 from bmr.identification.accounting import SampleAccount
 from bmr.identification.forc import Curve
-from bmr.identification.signals import run_input, run_output
+from bmr.identification.signals import run_input, run_output, running_integral
 from bmr.identification.spans import SATURATION_TOL, evaluation_start, input_range_of
 
-__all__ = ["RunCalibration", "LstsqTables", "fit_tables_lstsq", "INITIAL_STATES"]
+__all__ = ["RunCalibration", "LstsqTables", "fit_tables_lstsq", "INITIAL_STATES", "DRIFTS", "saturation_closure",
+           "Conditioning", "OPEN_BRANCH_SHARE"]
 
 INITIAL_STATES = ("estimate", "saturation", "negative")
+DRIFTS = ("none", "leakage", "auto")
+# Branches count as open when a run's output at one saturation end moves by more than this share of its output
+# span between visits (a closed Preisach loop repeats its saturation outputs to the noise).
+OPEN_BRANCH_SHARE = 0.02
 BEFORE_KNOWN_STATE = "before the run's state is known (initial_state='saturation')"
 THINNED = "thinned to max_rows (every k-th sample kept)"
 HELD_OUT = "held out (cross-validation)"
@@ -63,6 +73,46 @@ class RunCalibration:
                 "samples": self.samples}
 
 
+@dataclass
+class Conditioning:
+    """How the nonnegative solve ended: ``converged`` (optimality conditions met to 1e-9, relative),
+    ``kkt_violation`` (the largest relative violation), ``condition`` (condition-number estimate of the
+    regularised normal equations on the unknowns off their bound) and ``iterations``."""
+
+    converged: bool
+    kkt_violation: float
+    condition: float
+    iterations: int
+
+    @classmethod
+    def of(cls, fit: Any) -> "Conditioning":
+        return cls(bool(fit.converged), float(fit.kkt_violation), float(fit.condition), int(fit.iterations))
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"converged": self.converged, "kkt_violation": self.kkt_violation,
+                "condition": self.condition if math.isfinite(self.condition) else None,
+                "iterations": self.iterations}
+
+
+def saturation_closure(us: Sequence[np.ndarray], ys: Sequence[np.ndarray], lo: float, hi: float,
+                       tol: float) -> float:
+    """The largest change of a run's output between its visits to one saturation end (each visit: the mean
+    output of a stretch with the input within ``tol`` of the end), relative to the outputs' span; 0 when no run
+    visits an end twice. A Preisach loop closes: its saturation outputs repeat to the noise."""
+    span = max((float(np.ptp(y)) for y in ys if np.size(y)), default=0.0)
+    if not span > 0:
+        return 0.0
+    worst = 0.0
+    for u, y in zip(us, ys):
+        for at_end in (u >= hi - tol, u <= lo + tol):
+            edges = np.flatnonzero(np.diff(at_end.astype(np.int8)))
+            bounds = np.split(np.arange(u.size), edges + 1)
+            visits = [float(np.mean(y[b])) for b in bounds if b.size and at_end[b[0]]]
+            if len(visits) > 1:
+                worst = max(worst, float(np.ptp(visits)))
+    return worst / span
+
+
 @dataclass(repr=False)
 class LstsqTables:
     """Result of the least-squares table identification: the Everett model (its offset is the common offset, the
@@ -80,6 +130,9 @@ class LstsqTables:
     samples: SampleAccount
     n_intervals: int
     settings: dict[str, Any] = field(default_factory=dict)
+    leakage_rate: float | None = None
+    closure: float = 0.0
+    conditioning: Conditioning | None = None
 
     @property
     def offsets(self) -> np.ndarray:
@@ -115,20 +168,27 @@ class LstsqTables:
         return {"rms": self.rms, "rows": self.n_rows, "iterations": self.iterations, "n_intervals": self.n_intervals,
                 "input_range": list(self.input_range), "offset": self.offset, "offset_prior": self.offset_prior(),
                 "runs": [r.to_dict() for r in self.runs], "samples": self.samples.to_dict(),
-                "settings": dict(self.settings)}
+                "settings": dict(self.settings), "leakage_rate": self.leakage_rate, "closure": self.closure,
+                "conditioning": self.conditioning.to_dict() if self.conditioning is not None else None}
 
     def __repr__(self) -> str:
         lo, hi = self.input_range
         est = sum(r.initial_state == "estimated" for r in self.runs)
         g = self.gains
         gains = f", gains {g.min():.4g}..{g.max():.4g}" if np.any(g != 1.0) else ""
+        leak = (f", leakage {self.leakage_rate:.4g} per input·s (branches open by {100 * self.closure:.3g} % of "
+                f"the span)" if self.leakage_rate is not None else "")
+        cond = self.conditioning
+        solve = ("" if cond is None else f"; solve {'converged' if cond.converged else 'NOT converged'}, "
+                 f"condition {cond.condition:.3g}")
         return (f"LstsqTables({self.n_intervals} intervals over {lo:.6g}..{hi:.6g}, {len(self.runs)} runs "
-                f"({est} initial states estimated{gains}), RMS {self.rms:.4g} on {self.n_rows} rows; "
-                f"{self.samples.used} of {self.samples.total} samples used)")
+                f"({est} initial states estimated{gains}){leak}, RMS {self.rms:.4g} on {self.n_rows} rows; "
+                f"{self.samples.used} of {self.samples.total} samples used{solve})")
 
 
-def _fit(grid: np.ndarray, packed: list[tuple], n_offsets: int, smoothing: float, ridge: float) -> _core.EverettFit:
-    return _core.fit_everett(grid, packed, n_offsets, smoothing=smoothing, ridge=ridge)
+def _fit(grid: np.ndarray, packed: list[tuple], n_offsets: int, smoothing: float, ridge: float,
+         drift: list[np.ndarray] | None = None) -> _core.EverettFit:
+    return _core.fit_everett(grid, packed, n_offsets, smoothing=smoothing, ridge=ridge, drift=drift)
 
 
 def fit_tables_lstsq(
@@ -147,6 +207,7 @@ def fit_tables_lstsq(
     max_rows: int = 2_000_000,
     curve_subdivisions: int = 1,
     exclude: Mapping[str, np.ndarray] | None = None,
+    drift: str = "none",
     per_run_offset: bool | None = None,
     start_at_saturation: bool | None = None,
 ) -> LstsqTables:
@@ -165,6 +226,11 @@ def fit_tables_lstsq(
 
     ``exclude``: ``{run name: boolean mask}`` of samples kept out of the regression (held out, e.g. for
     cross-validation; they still drive the memory and are counted).
+
+    ``drift``: ``"leakage"`` fits a leakage rate with the table (the output gains ``rate · ∫u dt`` from each run's
+    start: output unit per input unit · s), ``"none"`` (default) does not, ``"auto"`` does when the branches do
+    not close (:func:`saturation_closure` above :data:`OPEN_BRANCH_SHARE`) and keeps it only when it closes them
+    (halves the closure): an open loop from a changing gain (heating) is not a leakage.
 
     ``per_run_offset`` / ``start_at_saturation``: the former boolean spellings of ``offsets`` / ``initial_state``.
     """
@@ -185,6 +251,8 @@ def fit_tables_lstsq(
         raise BmrError(f"iterations must be a positive integer, got {iterations!r}")
     if not (math.isfinite(gain_prior) and gain_prior > 0):
         raise BmrError(f"gain_prior must be positive and finite, got {gain_prior!r}")
+    if drift not in DRIFTS:
+        raise BmrError(f"drift must be one of {', '.join(DRIFTS)}, got {drift!r}")
     us = [run_input(r) for r in runs]
     ys = [run_output(r, friction) for r in runs]
     lo, hi = input_range if input_range is not None else input_range_of(us)
@@ -192,6 +260,9 @@ def fit_tables_lstsq(
         raise BmrError(f"runs {', '.join(repr(r.name) for r in runs)}: the input never varies; nothing to identify")
     grid = np.linspace(lo, hi, int(n_intervals) + 1)
     tol = SATURATION_TOL * (hi - lo)
+    closure = saturation_closure(us, ys, lo, hi, tol)
+    leakage = drift == "leakage" or (drift == "auto" and closure > OPEN_BRANCH_SHARE)
+    integrals = [running_integral(u, r.t) for r, u in zip(runs, us)] if leakage else None
     total = sum(u.size for u in us)
     stride = max(1, math.ceil(total / max_rows))
     per_run = offsets == "per_run"
@@ -223,6 +294,11 @@ def fit_tables_lstsq(
 
     histories: list[list[float]] = [[] for _ in runs]
     run_gains = [1.0] * len(runs)
+    rate = 0.0
+
+    def hysteretic(k: int) -> np.ndarray:
+        """Run ``k``'s output less the leakage found so far (what the table has to explain)."""
+        return ys[k] - rate * integrals[k] if integrals is not None else ys[k]
 
     def pack() -> list[tuple]:
         return [(np.ascontiguousarray(u), np.ascontiguousarray(y), w, k if per_run else 0, h, g)
@@ -242,23 +318,29 @@ def fit_tables_lstsq(
         if sum(np.count_nonzero(known[i]) for i in with_rows) >= 4 * grid.size:
             first = [(np.ascontiguousarray(us[i]), np.ascontiguousarray(ys[i]), known[i], j if per_run else 0)
                      for j, i in enumerate(with_rows)]
-            res = _fit(grid, first, len(with_rows) if per_run else 1, smoothing, ridge)
+            res = _fit(grid, first, len(with_rows) if per_run else 1, smoothing, ridge,
+                       [integrals[i] for i in with_rows] if integrals is not None else None)
         else:
-            res = _fit(grid, pack(), n_off, smoothing, ridge)
+            res = _fit(grid, pack(), n_off, smoothing, ridge, integrals)
     else:
-        res = _fit(grid, pack(), n_off, smoothing, ridge)
+        res = _fit(grid, pack(), n_off, smoothing, ridge, integrals)
+    if integrals is not None:
+        rate = float(res.drift)
 
     rounds = iterations if (initial_state == "estimate" or gains) else 0
     for _ in range(rounds):
         model = res.model
         offs = res.offsets
+        own = [hysteretic(k) for k in range(len(runs))]
         if initial_state == "estimate":
-            for k, (u, y, w) in enumerate(zip(us, ys, weights)):
-                h, _, _ = model.best_initial_state(u, y, w, free_offset=per_run, gain=run_gains[k])
+            for k, (u, w) in enumerate(zip(us, weights)):
+                h, _, _ = model.best_initial_state(u, own[k], w, free_offset=per_run, gain=run_gains[k])
                 histories[k] = list(h)
         if gains:
-            run_gains = _fit_gains(model, us, ys, weights, histories, offs, per_run, gain_prior)
-        res = _fit(grid, pack(), n_off, smoothing, ridge)
+            run_gains = _fit_gains(model, us, own, weights, histories, offs, per_run, gain_prior)
+        res = _fit(grid, pack(), n_off, smoothing, ridge, integrals)
+        if integrals is not None:
+            rate = float(res.drift)
 
     model = res.model
     offs = res.offsets
@@ -268,6 +350,8 @@ def fit_tables_lstsq(
     calib = []
     for k, (r, u, y, w) in enumerate(zip(runs, us, ys, weights)):
         part = run_gains[k] * everett.simulate(u, 0.0, histories[k])
+        if integrals is not None:
+            part = part + rate * integrals[k]
         pred = run_offsets[k] + part
         sel = w > 0
         e = (y - pred)[sel]
@@ -277,14 +361,24 @@ def fit_tables_lstsq(
         calib.append(RunCalibration(r.name, float(run_offsets[k]), float(run_gains[k]), tuple(histories[k]),
                                     state, float(np.sqrt(np.mean(e * e))) if e.size else float("nan"),
                                     int(np.count_nonzero(sel)), float(y[0] - part[0])))
+    if drift == "auto" and integrals is not None:
+        closed = saturation_closure(us, [hysteretic(k) for k in range(len(runs))], lo, hi, tol)
+        if not closed < 0.5 * closure:
+            return fit_tables_lstsq(runs, friction, n_intervals=n_intervals, input_range=(lo, hi),
+                                    smoothing=smoothing, ridge=ridge, offsets=offsets, gains=gains,
+                                    gain_prior=gain_prior, initial_state=initial_state, iterations=iterations,
+                                    max_rows=max_rows, curve_subdivisions=curve_subdivisions, exclude=exclude,
+                                    drift="none")
     asc, desc = everett.first_order_curves(subdivisions=curve_subdivisions)
     settings = {"smoothing": smoothing, "ridge": ridge, "offsets": offsets, "gains": gains,
                 "gain_prior": gain_prior, "initial_state": initial_state, "iterations": iterations,
-                "max_rows": max_rows, "curve_subdivisions": curve_subdivisions}
+                "max_rows": max_rows, "curve_subdivisions": curve_subdivisions, "drift": drift}
     return LstsqTables(everett=everett, ascending=[(np.asarray(u), np.asarray(y)) for u, y in asc],
                        descending=[(np.asarray(u), np.asarray(y)) for u, y in desc], input_range=(lo, hi),
                        rms=res.rms, n_rows=res.n_rows, iterations=res.iterations,
-                       runs=calib, samples=account, n_intervals=int(n_intervals), settings=settings)
+                       runs=calib, samples=account, n_intervals=int(n_intervals), settings=settings,
+                       leakage_rate=rate if integrals is not None else None, closure=closure,
+                       conditioning=Conditioning.of(res))
 
 
 def _fit_gains(model: Any, us: Sequence[np.ndarray], ys: Sequence[np.ndarray], weights: Sequence[np.ndarray],

@@ -224,6 +224,7 @@ def identify(
     subdivisions: int = 4,
     deadband_a: float | None = None,
     n_nodes: int | None = None,
+    drift: str = "auto",
 ) -> Model:
     """Identify friction and hysteresis from ``bundle`` and return a ``bmr.Model`` whose ``identification``
     (an :class:`IdentificationReport`) says what was done.
@@ -233,7 +234,9 @@ def identify(
     family is enough), ``"lstsq"`` (Everett table by least squares from the runs of ``train_kinds``, default the
     ``first_order_*`` runs, or every non-off-state run when there are none) or ``"both"`` (as ``"auto"``, and
     an error when one of them is impossible). ``offsets``, ``gains``, ``initial_state``: the least-squares fit's
-    per-run calibration (see ``fit_tables_lstsq``). ``subdivisions``: curves added per interval between measured
+    per-run calibration (see ``fit_tables_lstsq``); ``drift``: its leakage term (default ``"auto"``: fitted with the
+    table when the branches do not close and it closes them; the rate is in ``model.identification.lstsq``).
+    ``subdivisions``: curves added per interval between measured
     reversals of the first-order tables. ``deadband``: reversal dead-band in input units (``deadband_a``: its
     former name; ``n_nodes`` is ignored: curve nodes now follow the data).
     """
@@ -282,7 +285,8 @@ def identify(
             raise BmrError("no runs to train the least-squares tables on")
         t = time.perf_counter()
         tables = fit_tables_lstsq(train, friction, n_intervals=n_intervals, smoothing=smoothing,
-                                  input_range=(lo, hi), offsets=offsets, gains=gains, initial_state=initial_state)
+                                  input_range=(lo, hi), offsets=offsets, gains=gains, initial_state=initial_state,
+                                  drift=drift)
         candidates["lstsq"] = _lstsq_model(tables, friction, limits, q)
         accounts["lstsq"] = tables.samples
         times["lstsq"] = time.perf_counter() - t

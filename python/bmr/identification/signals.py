@@ -7,7 +7,7 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["run_input", "run_output"]
+__all__ = ["run_input", "run_output", "running_integral"]
 
 
 def run_input(run: Any) -> np.ndarray:
@@ -22,3 +22,13 @@ def run_output(run: Any, friction: Any = None) -> np.ndarray:
     if friction is not None and angle is not None:
         y = y - friction(np.asarray(angle, dtype=float))
     return y
+
+
+def running_integral(u: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """``∫u dt`` from the first sample (trapezoids; input unit × s): what a leakage current through the sample adds
+    to a charge measurement, up to its conductance."""
+    u = np.asarray(u, dtype=float)
+    t = np.asarray(t, dtype=float)
+    if u.size < 2:
+        return np.zeros(u.size)
+    return np.concatenate([[0.0], np.cumsum(0.5 * np.diff(t) * (u[1:] + u[:-1]))])

@@ -117,9 +117,17 @@ def html_section(d: Any) -> str:
              f"{e['heldout_rms_before_nmm']:.4g} → {e['heldout_rms_after_nmm']:.4g}", _fmt_params(e["params"])]
             for e in d.effects]
     rows += [[r["name"], "rejected", f"{r['gain'] * 100:.1f} %", f"{r['folds_positive']}/{d.folds}",
-              f"{r['heldout_rms_before_nmm']:.4g} → {r['heldout_rms_after_nmm']:.4g}", ""] for r in d.rejected]
+              f"{r['heldout_rms_before_nmm']:.4g} → {r['heldout_rms_after_nmm']:.4g}",
+              r["reason"] if r.get("reason", "").startswith("parameters outside") else ""] for r in d.rejected]
     parts.append("<h3>Selection</h3>" + _table(rows, ["effect", "decision", "held-out gain", "folds positive",
                                                       f"held-out RMS ({q.output.unit})", "parameters"]))
+    for a in d.alternatives:
+        parts.append(f"<p><b>Not separable:</b> {html.escape(a.message)}.</p>")
+    drift = d.identification_drift
+    if drift:
+        parts.append(f"<p><b>Identification:</b> the branches did not close (a saturation output moved by "
+                     f"{100 * drift['closure']:.3g} % of the span); a leakage of {drift['leakage_rate']:.4g} "
+                     f"{yu} per {html.escape(q.input.unit)}·s was fitted with the tables.</p>")
     if d.learned:
         lr = d.learned
         verdict = "kept" if lr["accepted"] else "not kept (held-out gain too small)"
