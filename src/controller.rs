@@ -7,7 +7,7 @@
 //!
 //! ```text
 //! c ← c + ki·dt·(r_prev − y)                (frozen at a saturated command pushing further: anti-windup)
-//! (g, b) ← RLS with forgetting on y ≈ g·ŷ + b (bounded, frozen on a missing sample)
+//! (g, b) ← RLS with forgetting on y ≈ g·ŷ + b (bounded; skipped on a missing sample or a saturated command)
 //! command = Compensator[(r + c − b) / g]
 //! ```
 //!
@@ -368,7 +368,9 @@ impl<S: AsRef<[f64]>, const N: usize, const K: usize> Controller<S, N, K> {
             st.correction = correction;
         }
         st.head = (st.head + 1) % PREDICTION_HISTORY;
-        st.predictions[st.head] = if command.fault {
+        // A saturated command drives the model out of the region it describes (its saturation plateau is not the
+        // plant's): the adaptation skips that sample rather than learn a gain from it.
+        st.predictions[st.head] = if command.fault || command.saturated {
             f64::NAN
         } else {
             self.compensator.model_torque_nmm()

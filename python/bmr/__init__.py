@@ -3,9 +3,11 @@ hysteretic device identified from its measured data.
 
 Core (Rust): ``Hysteresis`` (CBH operator), ``Friction`` (angle-periodic seal friction), ``Compensator``
 (exact or paper inverse + friction feedforward, coil split, current limit; ``Compensator.from_model`` adds the
-stages of what a diagnosis found, ``ExtendedSimulation`` runs them forwards), ``VirtualActuator`` (a physical
-simulator of the rig; ``EFFECTS`` names its switchable effects, ``effect_parameters()`` documents them),
-``VirtualDevice`` (a hysteretic device with one input and one output and no angle: ``DEVICE_PRESETS``).
+stages of what a diagnosis found, ``ExtendedSimulation`` runs them forwards), ``Controller`` (the compensator as
+feedforward + integral feedback on the measured torque + gain/offset adaptation; ``simulate_closed_loop`` runs it
+on a virtual actuator), ``VirtualActuator`` (a physical simulator of the rig; ``EFFECTS`` names its switchable
+effects, ``effect_parameters()`` documents them), ``VirtualDevice`` (a hysteretic device with one input and one
+output and no angle: ``DEVICE_PRESETS``).
 Experiment protocols and bundles of them: ``bmr.experiments`` (:mod:`bmr.simulation.experiments`).
 Package layout, in data-flow order: :mod:`bmr.data` (bundles, lab readers) → :mod:`bmr.identification`
 (friction, first-order curves, least-squares tables, ``Model``) → :mod:`bmr.diagnosis` → :mod:`bmr.report`;
@@ -38,6 +40,9 @@ from bmr._core import (
     Command,
     Compensator,
     CompensatorState,
+    Controller,
+    ControllerDesign,
+    ControllerState,
     CurveFit,
     CurveReport,
     EverettFit,
@@ -59,6 +64,7 @@ from bmr._core import (
     effect_parameters,
     fit_everett,
 )
+from bmr.closed_loop import ClosedLoopRun, simulate_closed_loop
 from bmr.data import (
     Bundle,
     Quantities,
@@ -100,6 +106,10 @@ __all__ = [
     "Compensator",
     "ExtendedSimulation",
     "CompensatorState",
+    "ClosedLoopRun",
+    "Controller",
+    "ControllerDesign",
+    "ControllerState",
     "CurveFit",
     "CurveReport",
     "Diagnosis",
@@ -138,6 +148,7 @@ __all__ = [
     "import_logs",
     "predict",
     "read_bundle",
+    "simulate_closed_loop",
     "read_table",
     "read_tables",
     "write_bundle",

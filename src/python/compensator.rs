@@ -430,6 +430,17 @@ impl PyCompensator {
     }
 }
 
+impl PyCompensator {
+    /// The Rust compensator (the closed-loop controller starts from a copy of it).
+    pub(crate) fn core(&self) -> &Core {
+        &self.core
+    }
+    /// Control period the stages were built for (s), None without extensions.
+    pub(crate) fn control_period_s(&self) -> Option<f64> {
+        self.dt_s
+    }
+}
+
 #[pymethods]
 impl PyCompensator {
     /// `hysteresis`: the current→torque operator (N·mm without friction); `friction`: seal friction (optional);

@@ -5,6 +5,7 @@ use pyo3::{PyClass, PyTypeInfo};
 
 mod arrays;
 mod compensator;
+mod controller;
 mod curve_fit;
 mod effect_signals;
 mod filters;
@@ -206,6 +207,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     virtual_actuator::register(m)?;
     virtual_device::register(m)?;
     compensator::register(m)?;
+    controller::register(m)?;
     effect_signals::register(m)?;
     filters::register(m)?;
     Ok(())

@@ -99,7 +99,7 @@ pub struct PyVirtualActuator {
 
 impl PyVirtualActuator {
     /// The simulation, or `InUseError` while another thread runs it.
-    fn sim(&self) -> PyResult<MutexGuard<'_, VirtualActuator>> {
+    pub(crate) fn sim(&self) -> PyResult<MutexGuard<'_, VirtualActuator>> {
         match self.inner.try_lock() {
             Ok(guard) => Ok(guard),
             Err(TryLockError::WouldBlock) => Err(InUseError::new_err(
