@@ -112,6 +112,13 @@ def measure_calibration(repeat: int) -> None:
             "--workers", "2", "--record"])
 
 
+def measure_calibration_independent(repeat: int) -> None:
+    """Blind diagnoses on the independently written plant family (``tests/python/independent_plant.py``; the
+    calibration script records its own section): every mechanism at medium size, one seed, clean and pairs."""
+    _timed(["nice", sys.executable, "benches/diagnosis_calibration.py", "--family", "independent", "--plants",
+            "independent", "--sizes", "1", "--seeds", "1", "--workers", "1", "--record"])
+
+
 def measure_diagnosis_speed(repeat: int) -> None:
     """CPU time, wall time and peak memory of ``bmr diagnose`` on a quick and a full bundle
     (``benches/diagnosis_speed.py`` records its own section)."""
@@ -139,6 +146,7 @@ MEASURE: dict[str, Callable[[int], None]] = {"demo": measure_demo, "performance"
                                              "closed_loop": measure_closed_loop,
                                              "identification": measure_identification,
                                              "calibration": measure_calibration,
+                                             "calibration_independent": measure_calibration_independent,
                                              "diagnosis_speed": measure_diagnosis_speed,
                                              "slac_diagnosis": measure_slac_diagnosis,
                                              "real_data": measure_real_data}
@@ -299,7 +307,8 @@ def _rate(x: float | None) -> str:
 
 def render_calibration(rec: dict[str, Any]) -> str:
     v = rec["values"]
-    units = {"rig_preisach": "N·mm", "rig_soft": "N·mm", "piezo": "µm"}
+    units = {"rig_preisach": "N·mm", "rig_soft": "N·mm", "piezo": "µm", "independent": "N·mm",
+             "independent_coarse": "N·mm"}
     text = ["| plant | hidden effect | size | detected | wrong name | false alarm | median param. error | "
             "held-out RMS nominal → extended (noise floor) |", "|---|---|---|---|---|---|---|---|"]
     for g in v["groups"]:
@@ -375,6 +384,7 @@ RENDER: dict[str, Callable[[dict[str, Any]], str]] = {"demo": render_demo, "perf
                                                        "closed_loop": render_closed_loop,
                                                        "identification": render_identification,
                                                        "calibration": render_calibration,
+                                                       "calibration_independent": render_calibration,
                                                        "diagnosis_speed": render_diagnosis_speed,
                                                        "slac_diagnosis": render_slac_diagnosis,
                                                        "real_data": render_real_data}

@@ -164,7 +164,8 @@ class IndependentRig:
         for name, params in self.mechanisms.items():
             self.mechanisms[name] = {**MECHANISMS[name].medium, **params}
         self.sample_rate_hz = float(sample_rate_hz)
-        self.rng = np.random.default_rng(seed)
+        self.rng = np.random.default_rng(seed)  # sensor noise
+        self.calibration_rng = np.random.default_rng([seed, 1])  # per-recording calibration draws
         self.core = Core()
         self.core.reset()
         self.time_s = 0.0
@@ -196,8 +197,8 @@ class IndependentRig:
         gain, offset = 1.0, 0.0
         if "recalibration" in m:
             p = m["recalibration"]
-            gain = 1.0 + float(self.rng.uniform(-p["gain_span"], p["gain_span"]))
-            offset = float(self.rng.uniform(-p["offset_span_nmm"], p["offset_span_nmm"]))
+            gain = 1.0 + float(self.calibration_rng.uniform(-p["gain_span"], p["gain_span"]))
+            offset = float(self.calibration_rng.uniform(-p["offset_span_nmm"], p["offset_span_nmm"]))
         self.calibrations.append((gain, offset))
         delay = m.get("fractional_delay")
         coil = m.get("coil_eddy_circuit")
@@ -235,8 +236,8 @@ class IndependentRig:
             # Coil L/R and a shorted eddy loop opposing a share of every change (backward Euler).
             if coil:
                 prev = self.coil
-                self.coil = (self.coil + dt / coil["tau_coil_s"] * i_coil_in) / (1 + dt / coil["tau_coil_s"])
-                te = coil["tau_eddy_s"]
+                tc, te = coil["tau_coil_s"], coil["tau_eddy_s"]
+                self.coil = (tc * self.coil + dt * i_coil_in) / (tc + dt)
                 self.eddy = (te * self.eddy - coil["eddy_share"] * te * (self.coil - prev)) / (te + dt)
                 h = self.coil + self.eddy
             else:
@@ -336,11 +337,12 @@ def _plan(protocol: str) -> list[Callable[[Any], Run]]:
 
 
 def independent_bundle(mechanisms: dict[str, dict[str, float]] | None = None, *, seed: int = 0,
-                       protocol: str = "diagnosis") -> Bundle:
+                       protocol: str = "diagnosis", sample_rate_hz: float = 500.0) -> Bundle:
     """A bundle of the independent rig with ``mechanisms`` switched on (name → parameters; missing parameters
     at their medium size), recorded back to back with bmr's protocols. The manifest keeps the mechanisms under
-    ``"independent_plant"`` (not ``"simulator"``: no bmr simulator can rebuild this plant)."""
-    rig = IndependentRig(mechanisms, seed=seed)
+    ``"independent_plant"`` (not ``"simulator"``: no bmr simulator can rebuild this plant). At 1500 Hz the
+    diagnosis protocol is 327 k samples."""
+    rig = IndependentRig(mechanisms, seed=seed, sample_rate_hz=sample_rate_hz)
     runs = [fn(rig) for fn in _plan(protocol)]
     for r, (g, o) in zip(runs, rig.calibrations):
         if "recalibration" in rig.mechanisms:

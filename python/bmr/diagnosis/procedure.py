@@ -40,7 +40,7 @@ from bmr.diagnosis.effects import ANGLE_EFFECTS, LIBRARY, PHYSICAL
 from bmr.diagnosis.field import FieldPath
 from bmr.diagnosis.noise import from_residual
 from bmr.diagnosis.extended_model import ExtendedModel, extensions_from_selection, with_extensions
-from bmr.diagnosis.residuals import prepare, signal_label, structure
+from bmr.diagnosis.residuals import one_blas_thread, prepare, signal_label, structure
 from bmr.diagnosis.selection import MIN_EXCESS, NOISE_MARGIN, Fitter, forward_selection, t975
 from bmr.identification.procedure import identify
 from bmr.identification.model import LOOP_STAGES, Model
@@ -192,6 +192,7 @@ def nominal_model(bundle: Bundle) -> Any:
     return identify(bundle, method=method, max_order=NOMINAL_FRICTION_ORDER, subdivisions=1)
 
 
+@one_blas_thread
 def diagnose(bundle: Bundle | str | Path, model: Any = None, *, folds: int = 5, seed: int = 0,
              progress: bool = True, closed_loop: bool = True) -> Diagnosis:
     """Diagnose ``bundle`` (a :class:`bmr.Bundle` or its folder) against ``model`` (default: the nominal model
@@ -245,6 +246,7 @@ def diagnose(bundle: Bundle | str | Path, model: Any = None, *, folds: int = 5, 
     # Residuals on all data (nominal with its offset, extended) for the figures and the structure study.
     r_nom, _ = fitter.fit(FieldPath.nominal(model), [])
     r_ext, _ = fitter.fit(config.path, config.linear)
+    fitter.reidentifier.release()  # every table is identified: free the regressions before the library is built
     split = np.cumsum([r.n_eval for r in data.runs])[:-1]
     nom_runs, ext_runs = np.split(r_nom, split), np.split(r_ext, split)
     struct_nom = structure(data, nom_runs, lo, hi)
