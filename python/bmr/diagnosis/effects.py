@@ -55,10 +55,14 @@ class Effect(ABC):
     field = False
     doc = ""
     needs_reidentify = False  # the effect needs least-squares core tables (compare against those)
-    needs_angle = False  # the effect lives on the rotor angle (seal friction, ripple): actuators only
     # Order in which fitted effects are removed from the protocol runs before re-identification: additive terms
     # (rank 0) before multiplicative gains (rank 1).
     removal_rank = 0
+
+    @property
+    def needs_angle(self) -> bool:
+        """The effect lives on the rotor angle (seal friction, ripple): actuators only (the vocabulary says)."""
+        return self.name in _core.ANGLE_EFFECTS
 
     def grid(self, data: EvalData) -> list[Any]:
         return [None]
@@ -280,7 +284,6 @@ class ThermalDrift(Effect):
 
 class FrictionCurrent(Effect):
     name = "friction_current"
-    needs_angle = True
     doc = "seal friction grows with current: angle-dependent friction × (1 + gain_per_a·|I|)"
 
     def columns(self, data, value, y_field, model):
@@ -306,7 +309,6 @@ class FrictionCurrent(Effect):
 
 class FrictionHarmonics(Effect):
     name = "friction_harmonics"
-    needs_angle = True
     doc = "a friction harmonic above the 3rd: amplitude_nmm·sin(order·θ + phase_rad)"
 
     def grid(self, data: EvalData) -> list[Any]:
@@ -332,7 +334,6 @@ class FrictionHarmonics(Effect):
 
 class TorqueRipple(Effect):
     name = "torque_ripple"
-    needs_angle = True
     doc = "eccentric gap: field × (1 + eps·cos(θ + phase_rad))"
     removal_rank = 1
 
@@ -591,5 +592,6 @@ class Accommodation(Effect):
 LIBRARY: tuple[Effect, ...] = (CoilLag(), ThermalDrift(), FrictionCurrent(), FrictionHarmonics(), TorqueRipple(),
                                SensorDrift(), TimeDelay(), NonCongruent(), Creep(), RateDependence(),
                                RunGainOffset(), Leakage(), Accommodation(), TableResolution())
-PHYSICAL = tuple(e.name for e in LIBRARY if e.name != "table_resolution")
-ANGLE_EFFECTS = tuple(e.name for e in LIBRARY if e.needs_angle)
+# The candidates that are physical effects of the vocabulary (the others are notes on the tables).
+PHYSICAL = tuple(e.name for e in LIBRARY if e.name in _core.EFFECTS)
+ANGLE_EFFECTS: tuple[str, ...] = _core.ANGLE_EFFECTS

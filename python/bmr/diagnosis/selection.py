@@ -454,12 +454,12 @@ def forward_selection(fitter: Fitter, *, library: Sequence[Effect] = LIBRARY, ma
         eff_name = row["name"]
         if eff_name in final_params:
             row["params"] = final_params[eff_name]
+    # A field effect's parameters are those of the final field path (later rounds may have refined it).
+    by_name = {e.name: e for e in library}
     for row in accepted:
-        if row["name"] in ("coil_lag", "time_delay", "non_congruent", "rate_dependence"):
-            path = config.path
-            row["params"] = {"coil_lag": {"tau_s": path.lag_tau_s}, "time_delay": {"delay_s": path.delay_s},
-                             "non_congruent": {"curvature": path.curvature, "scale_nmm": path.scale_nmm},
-                             "rate_dependence": {"tau_s": path.rate_tau_s}}[row["name"]]
+        effect = by_name.get(row["name"])
+        if effect is not None and effect.field:
+            row["params"] = effect.params(None, None, config.path)
     names = {r["name"] for r in accepted}
     rejected = []
     for name, c in last.items():
