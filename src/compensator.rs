@@ -26,8 +26,12 @@ pub enum InverseKind<S, const N: usize> {
     Paper(Hysteresis<S, N>),
 }
 
-/// One control-period command.
+/// One control-period command: nominal current, coil currents (A), converter voltages (V) and flags.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
+#[cfg_attr(
+    feature = "python",
+    pyo3::pyclass(name = "Command", module = "bmr", frozen, get_all, eq)
+)]
 pub struct Command {
     /// Nominal current (A): negative drives coil 1, positive coil 2.
     pub current_a: f64,
@@ -523,7 +527,7 @@ fn limit(x: f64, limit: f64) -> f64 {
 }
 
 /// First word of a serialised [`CompensatorState`] (format tag and version).
-const STATE_TAG: u64 = 0x626d_725f_636f_0001;
+const STATE_TAG: u64 = 0x626d_725f_636f_0002;
 
 #[cfg(feature = "alloc")]
 impl<const N: usize> CompensatorState<N> {

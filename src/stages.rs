@@ -26,7 +26,7 @@
 //! A new stage (creep, rate dependence, ...) is a struct with those three operations, a field in [`Stages`] and
 //! one line in each walk.
 use crate::accommodation::Accommodation;
-use crate::creep::Creep;
+use crate::creep::{Creep, MAX_CREEP_TERMS};
 use crate::filters::{DelayLine, Heating, Lag};
 use crate::friction::{AngleTerms, FrictionError};
 use crate::rate_dependence::RateDependence;
@@ -387,20 +387,345 @@ impl From<FrictionError> for StageError {
     }
 }
 
-/// The stages of one extended model (each `None` when its effect is off) and the changes to the friction model.
-#[derive(Clone, Copy, Debug, PartialEq, Default)]
-pub struct Stages {
-    pub coil_lag: Option<CoilLag>,
-    pub time_delay: Option<Predictor>,
-    pub thermal: Option<Thermal>,
-    pub ripple: Option<Ripple>,
-    pub output_map: Option<OutputMap>,
-    pub friction_current: Option<FrictionCurrent>,
-    pub creep: Option<Creep>,
-    pub rate: Option<RateDependence>,
-    pub accommodation: Option<Accommodation>,
-    /// `leakage`: measured output added per unit of input-time (output/(input·s)); measurement only.
-    pub leak_per_s: f64,
+/// One stage as the stage list ([`Stages`]) walks it: what a snapshot keeps, how it rests and how its state is
+/// written as words. Implemented once per stage type, next to it.
+pub trait Stage: Copy + PartialEq {
+    /// The effect it undoes or reproduces.
+    const KIND: EffectKind;
+    /// What a snapshot keeps of it: the stage itself when it carries state, `()` when it carries none.
+    type Saved: Copy + PartialEq + fmt::Debug;
+    fn save(&self) -> Self::Saved;
+    /// Take `saved`, kept from a stage with the same configuration (else `false` and nothing changes).
+    fn load(&mut self, saved: &Self::Saved) -> bool;
+    /// Back to rest at field current `field_a` (A) with core output `core_out` (output units).
+    fn rest(&mut self, field_a: f64, core_out: f64);
+    /// Its state as plain words, handed to `push` one by one.
+    fn write_words(&self, push: &mut dyn FnMut(u64));
+    /// Its state read from `words` (advanced past them); `None` if they do not fit or a value is not finite.
+    fn read_words(&mut self, words: &mut &[u64]) -> Option<()>;
+    /// The words of a kept state (what [`Stage::write_words`] writes for the stage it was kept from).
+    fn write_saved(saved: &Self::Saved, push: &mut dyn FnMut(u64));
+}
+
+/// The presence mask of the stage list: bit `i` set when its `i`-th stage is on.
+fn mask_of<const N: usize>(on: [bool; N]) -> u64 {
+    on.iter()
+        .enumerate()
+        .fold(0, |m, (i, &o)| m | (u64::from(o) << i))
+}
+
+fn take_word(w: &mut &[u64]) -> Option<u64> {
+    let (&first, rest) = w.split_first()?;
+    *w = rest;
+    Some(first)
+}
+
+fn take_float(w: &mut &[u64]) -> Option<f64> {
+    Some(f64::from_bits(take_word(w)?)).filter(|v| v.is_finite())
+}
+
+/// `saved` into `stage` if both have the same configuration (their states at rest are equal).
+fn load_same<T: Stage>(stage: &mut T, saved: &T) -> bool {
+    let (mut a, mut b) = (*stage, *saved);
+    a.rest(0.0, 0.0);
+    b.rest(0.0, 0.0);
+    if a != b {
+        return false;
+    }
+    *stage = *saved;
+    true
+}
+
+/// A stage carrying state: the snapshot keeps the stage itself.
+macro_rules! stateful {
+    ($ty:ty, $kind:ident) => {
+        const KIND: EffectKind = EffectKind::$kind;
+        type Saved = $ty;
+        fn save(&self) -> $ty {
+            *self
+        }
+        fn load(&mut self, saved: &$ty) -> bool {
+            load_same(self, saved)
+        }
+        fn write_saved(saved: &$ty, push: &mut dyn FnMut(u64)) {
+            saved.write_words(push);
+        }
+    };
+}
+
+/// A stage without state: nothing to keep, rest or write.
+macro_rules! stateless {
+    ($kind:ident) => {
+        const KIND: EffectKind = EffectKind::$kind;
+        type Saved = ();
+        fn save(&self) {}
+        fn load(&mut self, _: &()) -> bool {
+            true
+        }
+        fn rest(&mut self, _: f64, _: f64) {}
+        fn write_words(&self, _: &mut dyn FnMut(u64)) {}
+        fn read_words(&mut self, _: &mut &[u64]) -> Option<()> {
+            Some(())
+        }
+        fn write_saved(_: &(), _: &mut dyn FnMut(u64)) {}
+    };
+}
+
+impl Stage for Predictor {
+    stateful!(Predictor, TimeDelay);
+    fn rest(&mut self, _: f64, _: f64) {
+        self.reset();
+    }
+    fn write_words(&self, push: &mut dyn FnMut(u64)) {
+        push(self.seen as u64);
+        push(self.refs.samples() as u64);
+        self.refs.values().for_each(|v| push(v.to_bits()));
+        self.thetas.values().for_each(|v| push(v.to_bits()));
+    }
+    fn read_words(&mut self, words: &mut &[u64]) -> Option<()> {
+        let seen = usize::try_from(take_word(words)?).ok()?;
+        let window = usize::try_from(take_word(words)?).ok()?;
+        if window != self.refs.samples() || seen > window {
+            return None;
+        }
+        let mut refs = [0.0; PREDICT_WINDOW];
+        let mut thetas = [0.0; PREDICT_WINDOW];
+        for v in refs.iter_mut().take(window) {
+            *v = take_float(words)?;
+        }
+        for v in thetas.iter_mut().take(window) {
+            *v = take_float(words)?;
+        }
+        self.refs.set_values(refs);
+        self.thetas.set_values(thetas);
+        self.seen = seen;
+        Some(())
+    }
+}
+
+impl Stage for CoilLag {
+    stateful!(CoilLag, CoilLag);
+    fn rest(&mut self, field_a: f64, _: f64) {
+        self.reset(field_a);
+    }
+    fn write_words(&self, push: &mut dyn FnMut(u64)) {
+        push(self.field_a().to_bits());
+    }
+    fn read_words(&mut self, words: &mut &[u64]) -> Option<()> {
+        self.reset(take_float(words)?);
+        Some(())
+    }
+}
+
+impl Stage for RateDependence {
+    stateful!(RateDependence, RateDependence);
+    fn rest(&mut self, field_a: f64, core_out: f64) {
+        self.reset(field_a, core_out);
+    }
+    fn write_words(&self, push: &mut dyn FnMut(u64)) {
+        self.state().iter().for_each(|v| push(v.to_bits()));
+    }
+    fn read_words(&mut self, words: &mut &[u64]) -> Option<()> {
+        let mut s = [0.0; 4];
+        for v in &mut s {
+            *v = take_float(words)?;
+        }
+        self.set_state(s).then_some(())
+    }
+}
+
+impl Stage for Creep {
+    stateful!(Creep, Creep);
+    fn rest(&mut self, _: f64, core_out: f64) {
+        self.reset(core_out);
+    }
+    fn write_words(&self, push: &mut dyn FnMut(u64)) {
+        self.states()[..self.terms()]
+            .iter()
+            .for_each(|v| push(v.to_bits()));
+    }
+    fn read_words(&mut self, words: &mut &[u64]) -> Option<()> {
+        let mut s = [0.0; MAX_CREEP_TERMS];
+        for v in s.iter_mut().take(self.terms()) {
+            *v = take_float(words)?;
+        }
+        self.set_states(&s).then_some(())
+    }
+}
+
+impl Stage for OutputMap {
+    stateless!(NonCongruent);
+}
+
+impl Stage for Accommodation {
+    stateful!(Accommodation, Accommodation);
+    fn rest(&mut self, _: f64, _: f64) {
+        self.reset();
+    }
+    fn write_words(&self, push: &mut dyn FnMut(u64)) {
+        self.state().iter().for_each(|v| push(v.to_bits()));
+    }
+    fn read_words(&mut self, words: &mut &[u64]) -> Option<()> {
+        let mut s = [0.0; 11];
+        for v in &mut s {
+            *v = take_float(words)?;
+        }
+        self.set_state(&s).then_some(())
+    }
+}
+
+impl Stage for Thermal {
+    stateful!(Thermal, ThermalDrift);
+    fn rest(&mut self, _: f64, _: f64) {
+        self.reset(0.0);
+    }
+    fn write_words(&self, push: &mut dyn FnMut(u64)) {
+        push(self.state().to_bits());
+    }
+    fn read_words(&mut self, words: &mut &[u64]) -> Option<()> {
+        self.reset(take_float(words)?);
+        Some(())
+    }
+}
+
+impl Stage for Ripple {
+    stateless!(TorqueRipple);
+}
+
+impl Stage for FrictionCurrent {
+    stateful!(FrictionCurrent, FrictionCurrent);
+    fn rest(&mut self, field_a: f64, _: f64) {
+        self.reset(field_a);
+    }
+    fn write_words(&self, push: &mut dyn FnMut(u64)) {
+        push(self.current_a().to_bits());
+    }
+    fn read_words(&mut self, words: &mut &[u64]) -> Option<()> {
+        self.smooth.set_output(take_float(words)?);
+        Some(())
+    }
+}
+
+/// The one list of stages, in loop order (the vocabulary's `stage.order`; a test holds the two together). From
+/// it: the [`Stages`] fields, the snapshot [`StageState`], and every walk over them (any, has, kinds, reset,
+/// state, restore, words). A new stage is one line here and its [`Stage`] impl.
+macro_rules! stage_list {
+    ($($(#[$doc:meta])* $field:ident: $ty:ty,)*) => {
+        /// The stages of one extended model (each `None` when its effect is off) and the measurement-only
+        /// leakage rate.
+        #[derive(Clone, Copy, Debug, PartialEq, Default)]
+        pub struct Stages {
+            $($(#[$doc])* pub $field: Option<$ty>,)*
+            /// `leakage`: measured output added per unit of input-time (output/(input·s)); measurement only.
+            pub leak_per_s: f64,
+        }
+
+        /// The state of the stages (part of a compensator snapshot).
+        #[derive(Clone, Copy, Debug, PartialEq)]
+        pub struct StageState {
+            $($field: Option<<$ty as Stage>::Saved>,)*
+        }
+
+        impl Stages {
+            /// The effects that have a stage, in loop order.
+            pub const KINDS: &'static [EffectKind] = &[$(<$ty as Stage>::KIND,)*];
+
+            /// Whether any stage is on.
+            pub fn any(&self) -> bool {
+                false $(|| self.$field.is_some())*
+            }
+
+            /// Whether the stage of `kind` is on.
+            pub fn has(&self, kind: EffectKind) -> bool {
+                $(if kind == <$ty as Stage>::KIND {
+                    return self.$field.is_some();
+                })*
+                false
+            }
+
+            /// The stages that are on, in loop order.
+            pub fn kinds(&self) -> impl Iterator<Item = EffectKind> + '_ {
+                Self::KINDS.iter().copied().filter(|&k| self.has(k))
+            }
+
+            /// Back to rest: field current `field_a` with core output `core_out` (creep settled there), cold
+            /// coils, no reference history, no accommodation.
+            pub fn reset(&mut self, field_a: f64, core_out: f64) {
+                $(if let Some(s) = &mut self.$field {
+                    s.rest(field_a, core_out);
+                })*
+            }
+
+            /// What a snapshot keeps of the stages (a plain copy).
+            pub fn state(&self) -> StageState {
+                StageState {
+                    $($field: self.$field.as_ref().map(Stage::save),)*
+                }
+            }
+
+            /// Return to `s` (taken from stages with the same configuration, else `false` and nothing changes).
+            pub fn restore(&mut self, s: &StageState) -> bool {
+                let mut next = *self;
+                $(match (&mut next.$field, &s.$field) {
+                    (None, None) => {}
+                    (Some(stage), Some(saved)) => {
+                        if !stage.load(saved) {
+                            return false;
+                        }
+                    }
+                    _ => return false,
+                })*
+                *self = next;
+                true
+            }
+
+            /// Read stage states written by [`StageState::to_words`] for stages
+            /// configured like these, from `words` (advanced past them); `None` if they do not fit this
+            /// configuration or a value is not finite.
+            pub fn state_from_words(&self, words: &mut &[u64]) -> Option<StageState> {
+                if take_word(words)? != mask_of([$(self.$field.is_some()),*]) {
+                    return None;
+                }
+                let mut st = *self;
+                $(if let Some(s) = &mut st.$field {
+                    s.read_words(words)?;
+                })*
+                Some(st.state())
+            }
+        }
+
+        impl StageState {
+            /// The words of [`StageState::to_words`], handed to `push`: the presence mask, then each stage
+            /// that is on, in list order.
+            pub fn words(&self, push: &mut dyn FnMut(u64)) {
+                push(mask_of([$(self.$field.is_some()),*]));
+                $(if let Some(saved) = &self.$field {
+                    <$ty as Stage>::write_saved(saved, push);
+                })*
+            }
+        }
+    };
+}
+
+stage_list! {
+    time_delay: Predictor,
+    coil_lag: CoilLag,
+    rate: RateDependence,
+    creep: Creep,
+    output_map: OutputMap,
+    accommodation: Accommodation,
+    thermal: Thermal,
+    ripple: Ripple,
+    friction_current: FrictionCurrent,
+}
+
+#[cfg(feature = "alloc")]
+impl StageState {
+    /// The states as plain words: a presence mask, then each present stage's values (read back by
+    /// [`Stages::state_from_words`]).
+    pub fn to_words(&self, out: &mut alloc::vec::Vec<u64>) {
+        self.words(&mut |w| out.push(w));
+    }
 }
 
 /// What the friction model gains from the extensions: an extra harmonic and a current gain.
@@ -575,139 +900,6 @@ impl Stages {
         }
         Ok((st, fr))
     }
-
-    /// Whether any stage is on.
-    pub fn any(&self) -> bool {
-        self.coil_lag.is_some()
-            || self.time_delay.is_some()
-            || self.thermal.is_some()
-            || self.ripple.is_some()
-            || self.output_map.is_some()
-            || self.friction_current.is_some()
-            || self.creep.is_some()
-            || self.rate.is_some()
-            || self.accommodation.is_some()
-    }
-
-    /// Back to rest: field current `field_a` with core output `core_out` (creep settled there), cold coils, no
-    /// reference history, no accommodation.
-    pub fn reset(&mut self, field_a: f64, core_out: f64) {
-        if let Some(c) = &mut self.creep {
-            c.reset(core_out);
-        }
-        if let Some(r) = &mut self.rate {
-            r.reset(field_a, core_out);
-        }
-        if let Some(a) = &mut self.accommodation {
-            a.reset();
-        }
-        if let Some(l) = &mut self.coil_lag {
-            l.reset(field_a);
-        }
-        if let Some(p) = &mut self.time_delay {
-            p.reset();
-        }
-        if let Some(t) = &mut self.thermal {
-            t.reset(0.0);
-        }
-        if let Some(f) = &mut self.friction_current {
-            f.reset(field_a);
-        }
-    }
-
-    /// The stateful stages (a plain copy).
-    pub fn state(&self) -> StageState {
-        StageState {
-            coil_lag: self.coil_lag,
-            time_delay: self.time_delay,
-            thermal: self.thermal,
-            friction_current: self.friction_current,
-            creep: self.creep,
-            rate: self.rate,
-            accommodation: self.accommodation,
-        }
-    }
-
-    /// Return to `s` (taken from stages with the same configuration, else `false` and nothing changes).
-    pub fn restore(&mut self, s: &StageState) -> bool {
-        fn same<T: Copy + PartialEq>(
-            a: &Option<T>,
-            b: &Option<T>,
-            config: impl Fn(&T) -> T,
-        ) -> bool {
-            match (a, b) {
-                (None, None) => true,
-                (Some(x), Some(y)) => config(x) == config(y),
-                _ => false,
-            }
-        }
-        let ok = same(&self.coil_lag, &s.coil_lag, |l| {
-            let mut l = *l;
-            l.reset(0.0);
-            l
-        }) && same(&self.time_delay, &s.time_delay, |p| {
-            let mut p = *p;
-            p.reset();
-            p
-        }) && same(&self.thermal, &s.thermal, |t| {
-            let mut t = *t;
-            t.reset(0.0);
-            t
-        }) && same(&self.friction_current, &s.friction_current, |f| {
-            let mut f = *f;
-            f.reset(0.0);
-            f
-        }) && same(&self.creep, &s.creep, |c| {
-            let mut c = *c;
-            c.reset(0.0);
-            c
-        }) && same(&self.rate, &s.rate, |r| {
-            let mut r = *r;
-            r.reset(0.0, 0.0);
-            r
-        }) && same(&self.accommodation, &s.accommodation, |a| {
-            let mut a = *a;
-            a.reset();
-            a
-        });
-        if ok {
-            self.coil_lag = s.coil_lag;
-            self.time_delay = s.time_delay;
-            self.thermal = s.thermal;
-            self.friction_current = s.friction_current;
-            self.creep = s.creep;
-            self.rate = s.rate;
-            self.accommodation = s.accommodation;
-        }
-        ok
-    }
-}
-
-#[cfg(feature = "alloc")]
-impl StageState {
-    /// The states as plain words: a presence mask, then each present stage's values.
-    pub fn to_words(&self, out: &mut alloc::vec::Vec<u64>) {
-        let mask = u64::from(self.coil_lag.is_some())
-            | (u64::from(self.time_delay.is_some()) << 1)
-            | (u64::from(self.thermal.is_some()) << 2)
-            | (u64::from(self.friction_current.is_some()) << 3);
-        out.push(mask);
-        if let Some(l) = &self.coil_lag {
-            out.push(l.field_a().to_bits());
-        }
-        if let Some(p) = &self.time_delay {
-            out.push(p.seen as u64);
-            out.push(p.refs.samples() as u64);
-            out.extend(p.refs.values().map(f64::to_bits));
-            out.extend(p.thetas.values().map(f64::to_bits));
-        }
-        if let Some(t) = &self.thermal {
-            out.push(t.state().to_bits());
-        }
-        if let Some(f) = &self.friction_current {
-            out.push(f.current_a().to_bits());
-        }
-    }
 }
 
 impl Stages {
@@ -732,70 +924,6 @@ impl Stages {
         }
         field
     }
-}
-
-impl Stages {
-    /// Read stage states written by [`StageState::to_words`] for stages configured like these, from `words`
-    /// (advanced past them); `None` if they do not fit this configuration or a value is not finite.
-    pub fn state_from_words(&self, words: &mut &[u64]) -> Option<StageState> {
-        fn take(w: &mut &[u64]) -> Option<u64> {
-            let (&first, rest) = w.split_first()?;
-            *w = rest;
-            Some(first)
-        }
-        fn float(w: &mut &[u64]) -> Option<f64> {
-            Some(f64::from_bits(take(w)?)).filter(|v| v.is_finite())
-        }
-        let mask = take(words)?;
-        let want = u64::from(self.coil_lag.is_some())
-            | (u64::from(self.time_delay.is_some()) << 1)
-            | (u64::from(self.thermal.is_some()) << 2)
-            | (u64::from(self.friction_current.is_some()) << 3);
-        if mask != want {
-            return None;
-        }
-        let mut st = self.state();
-        if let Some(l) = &mut st.coil_lag {
-            l.reset(float(words)?);
-        }
-        if let Some(p) = &mut st.time_delay {
-            let seen = usize::try_from(take(words)?).ok()?;
-            let window = usize::try_from(take(words)?).ok()?;
-            if window != p.refs.samples() || seen > window {
-                return None;
-            }
-            let mut refs = [0.0; PREDICT_WINDOW];
-            let mut thetas = [0.0; PREDICT_WINDOW];
-            for v in refs.iter_mut().take(window) {
-                *v = float(words)?;
-            }
-            for v in thetas.iter_mut().take(window) {
-                *v = float(words)?;
-            }
-            p.refs.set_values(refs);
-            p.thetas.set_values(thetas);
-            p.seen = seen;
-        }
-        if let Some(t) = &mut st.thermal {
-            t.reset(float(words)?);
-        }
-        if let Some(f) = &mut st.friction_current {
-            f.smooth.set_output(float(words)?);
-        }
-        Some(st)
-    }
-}
-
-/// The state of the stateful stages (part of a compensator snapshot).
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct StageState {
-    coil_lag: Option<CoilLag>,
-    time_delay: Option<Predictor>,
-    thermal: Option<Thermal>,
-    friction_current: Option<FrictionCurrent>,
-    creep: Option<Creep>,
-    rate: Option<RateDependence>,
-    accommodation: Option<Accommodation>,
 }
 
 #[cfg(test)]

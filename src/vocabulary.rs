@@ -60,11 +60,44 @@ impl Acts {
     }
 }
 
+/// Where an effect's compensator stage sits in the loop and what it needs and carries.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct LoopStage {
+    /// Place in the physical chain, command side first (the compensator walks it backwards); unique.
+    pub order: u8,
+    /// The stage is built for a sample period (a filter, a delay, a rate): it cannot be built without one.
+    pub needs_period: bool,
+    /// The state it carries from sample to sample (empty: none), with units.
+    pub state: &'static str,
+}
+
+const fn stage(order: u8, needs_period: bool, state: &'static str) -> Option<LoopStage> {
+    Some(LoopStage {
+        order,
+        needs_period,
+        state,
+    })
+}
+
+/// The stage needs the sample period.
+const PERIOD: bool = true;
+/// The stage needs no sample period.
+const NO_PERIOD: bool = false;
+/// Never compensated (acts on the measurement, or no stage undoes it).
+const NOT_IN_LOOP: Option<LoopStage> = None;
+/// The effect lives on the rotor angle (an actuator's seal friction or rotor): it needs an angle signal.
+const ON_ANGLE: bool = true;
+const NO_ANGLE: bool = false;
+
 /// Everything the vocabulary says about one effect.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct EffectSpec {
     pub name: &'static str,
     pub acts: Acts,
+    /// Its compensator stage, if the compensator undoes it.
+    pub stage: Option<LoopStage>,
+    /// It depends on the rotor angle (needs an angle signal to be seen or fitted).
+    pub on_angle: bool,
     /// The physics and the signature it leaves in the data.
     pub doc: &'static str,
     pub params: &'static [ParamSpec],
@@ -119,7 +152,8 @@ pub const MAX_HARMONIC: usize = 24;
 pub const MAX_PARAMS: usize = 4;
 
 macro_rules! vocabulary {
-    ($($kind:ident = $name:literal, $acts:ident, $doc:expr, [$($param:expr),* $(,)?];)*) => {
+    ($($kind:ident = $name:literal, $acts:ident, $stage:expr, $angle:expr, $doc:expr,
+       [$($param:expr),* $(,)?];)*) => {
         /// The names of the effect vocabulary, in vocabulary order.
         #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
         pub enum EffectKind {
@@ -128,7 +162,14 @@ macro_rules! vocabulary {
 
         /// Every effect, in vocabulary order (`SPECS[kind as usize]` describes `kind`).
         pub static SPECS: &[EffectSpec] = &[
-            $(EffectSpec { name: $name, acts: Acts::$acts, doc: $doc, params: &[$($param),*] },)*
+            $(EffectSpec {
+                name: $name,
+                acts: Acts::$acts,
+                stage: $stage,
+                on_angle: $angle,
+                doc: $doc,
+                params: &[$($param),*],
+            },)*
         ];
 
         impl EffectKind {
@@ -138,42 +179,45 @@ macro_rules! vocabulary {
 }
 
 vocabulary! {
-    CoilLag = "coil_lag", Current,
+    CoilLag = "coil_lag", Current, stage(2, PERIOD, "field current (A)"), NO_ANGLE,
         "The field lags the coil current (coil L/R, eddy currents): each coil's magnetising current is a \
          first-order lag of the converter current with time constant tau_s. Signature: residual proportional to \
          the current rate; loops widen with frequency.",
         [p("tau_s", "s", 0.02, 0.0, 10.0, "first-order field time constant")];
     ThermalDrift = "thermal_drift", Field,
+        stage(7, PERIOD, "coil heating state (1 = steady full current)"), NO_ANGLE,
         "Coil heating lowers the torque gain: a thermal state driven by (I/I_full)^2 with time constant tau_s \
          scales the field torque by (1 - gain_loss * state). Signature: slow multiplicative drift.",
         [p("gain_loss", "1", 0.08, -0.9, 0.9,
            "fractional torque-gain loss at steady full current (negative: the gain rises)"),
          p("tau_s", "s", 120.0, 1e-3, 1e6, "thermal time constant")];
     FrictionCurrent = "friction_current", Friction,
+        stage(10, PERIOD, "smoothed |field current| (A)"), ON_ANGLE,
         "Seal friction grows with current (magnetic pull on the seals): the angle-dependent friction is scaled \
          by (1 + gain_per_a * |I|). Signature: angle ripple whose size grows with |current|.",
         [p("gain_per_a", "1/A", 0.6, -0.5, 100.0,
            "relative growth of the angle-dependent friction per ampere of |I|")];
-    FrictionHarmonics = "friction_harmonics", Friction,
+    FrictionHarmonics = "friction_harmonics", Friction, stage(9, NO_PERIOD, ""), ON_ANGLE,
         "A friction harmonic above the 3rd (gear mesh, seal lobes): amplitude_nmm * sin(order * theta + \
          phase_rad). Signature: a periodogram line at order cycles/rev.",
         [whole(p("order", "cycles/rev", 5.0, 4.0, MAX_HARMONIC as f64, "harmonic number k (a whole number)")),
          p("amplitude_nmm", "N·mm", 6.0, -1e4, 1e4, "amplitude"),
          p("phase_rad", "rad", 0.0, -1e3, 1e3, "phase")];
-    TorqueRipple = "torque_ripple", Field,
+    TorqueRipple = "torque_ripple", Field, stage(8, NO_PERIOD, ""), ON_ANGLE,
         "Eccentric gap: the field torque is multiplied by (1 + eps * cos(theta + phase_rad)). Signature: angle \
          ripple proportional to |torque|.",
         [p("eps", "1", 0.05, 0.0, 0.9, "relative field-torque modulation"),
          p("phase_rad", "rad", 0.0, -1e3, 1e3, "phase of the once-per-revolution modulation")];
-    SensorDrift = "sensor_drift", Sensor,
+    SensorDrift = "sensor_drift", Sensor, NOT_IN_LOOP, NO_ANGLE,
         "The torque sensor offset drifts linearly with time at rate_nmm_per_s (from the actuator's start). \
          Signature: a trend in zero-torque segments.",
         [p("rate_nmm_per_s", "N·mm/s", 0.02, -1e3, 1e3, "offset drift rate")];
     TimeDelay = "time_delay", Current,
+        stage(1, PERIOD, "the last references and angles (output units, rad)"), NO_ANGLE,
         "Pure delay of delay_s (rounded to whole samples) between the commanded current and the coils. \
          Signature: residual proportional to rate, no loop widening with amplitude.",
         [p("delay_s", "s", 0.01, 0.0, 1.0, "command-to-coil delay")];
-    NonCongruent = "non_congruent", Field,
+    NonCongruent = "non_congruent", Field, stage(5, NO_PERIOD, ""), NO_ANGLE,
         "Extra output nonlinearity after the Preisach core: the field torque T becomes S * n (1 + curvature \
          |n|) / (1 + curvature) with n = T / S and S the full-scale torque. Signature: error only after \
          higher-order reversals (minor loops scale with the local slope).",
@@ -182,7 +226,7 @@ vocabulary! {
          zero_or_at_least(1e-3, p("scale_nmm", "N·mm", 0.0, 0.0, 1e9,
            "full-scale torque S (0: the actuator's own — the plant's full_torque_nmm per rotor, a model's \
             largest |torque|; else at least 1e-3)"))];
-    Creep = "creep", Field,
+    Creep = "creep", Field, stage(4, PERIOD, "the relaxations' outputs (output units)"), NO_ANGLE,
         "After every change of the output (a reversal, a step, a dwell) a share of the change keeps arriving: the \
          magnetic after-effect of steel, the creep of a piezo stack. The core output v is the equilibrium and \
          y = v + fraction * sum_i w_i (x_i - v) with x_i first-order lags of v, time constants spaced evenly in \
@@ -192,24 +236,27 @@ vocabulary! {
          p("tau_min_s", "s", 0.1, 1e-4, 1e5, "shortest relaxation time"),
          p("tau_max_s", "s", 100.0, 1e-4, 1e6, "longest relaxation time (tau_min_s..tau_max_s: log-uniform)")];
     RateDependence = "rate_dependence", Current,
+        stage(3, PERIOD, "core input and its last value (input units), last core output, relative slope"),
+        NO_ANGLE,
         "The loop widens with the input rate: a dynamic field opposes the change of the material's state (eddy \
          currents in solid steel, domain-wall damping), u_core = u - k dy/dt. The core input lags the applied \
          input with a time constant tau_s * s / s_ref that follows the differential slope s of the branch \
          (s_ref: the major loop's mean slope), so steep branches lag and saturated ones do not. Signature: loop \
          widening with rate that grows with the local slope, unlike coil_lag (one time constant) or time_delay.",
         [p("tau_s", "s", 0.005, 0.0, 10.0, "dynamic-field time constant at the reference slope")];
-    RunGainOffset = "run_gain_offset", Sensor,
+    RunGainOffset = "run_gain_offset", Sensor, NOT_IN_LOOP, NO_ANGLE,
         "The calibration changes between recordings (runs, days): each run's measured output is \
          gain_k * y + offset_k with gain_k and offset_k drawn around 1 and 0 with spreads gain_sd and offset_sd \
          (a measurement effect). Signature: per-run scale and offset of the residual.",
         [p("gain_sd", "1", 0.02, 0.0, 0.5, "standard deviation of the per-run gain"),
          p("offset_sd", "N·mm", 3.0, 0.0, 1e6, "standard deviation of the per-run offset (output units)")];
-    Leakage = "leakage", Sensor,
+    Leakage = "leakage", Sensor, NOT_IN_LOOP, NO_ANGLE,
         "The measured output integrates the input: a leakage current through the sample into a charge \
          amplifier (ferroelectric, charge measurements) adds rate_per_s * integral of u dt from the start of \
          the run. Signature: residual that follows the running integral of the input.",
         [p("rate_per_s", "N·mm/(A·s)", 1.0, -1e6, 1e6, "output added per unit of input-time (output/(input·s))")];
     Accommodation = "accommodation", Field,
+        stage(6, NO_PERIOD, "reversal memory (input, output units) and the shift (output units)"), NO_ANGLE,
         "Minor loops drift over repeated cycling between the same extremes (accommodation, reptation): once the \
          input has reversed twice since a saturation, the output carries a shift that relaxes, per loop cycle, \
          towards -kappa * (loop centre - output-range centre), settling in `cycles` cycles; a saturation wipes \
@@ -223,6 +270,8 @@ pub static MODEL_ENTRIES: &[EffectSpec] = &[
     EffectSpec {
         name: "core_tables",
         acts: Acts::Field,
+        stage: stage(0, NO_PERIOD, ""),
+        on_angle: NO_ANGLE,
         doc: "The hysteretic core's own first-order curve tables (refined by least squares, or identified \
               again under the field effects); they replace the model's tables.",
         params: &[],
@@ -230,6 +279,8 @@ pub static MODEL_ENTRIES: &[EffectSpec] = &[
     EffectSpec {
         name: "table_resolution",
         acts: Acts::Field,
+        stage: NOT_IN_LOOP,
+        on_angle: NO_ANGLE,
         doc: "Not physics: the first-order curve tables were too coarse or noisy and were refined (the refined \
               tables are the core_tables entry).",
         params: &[p(
@@ -244,6 +295,8 @@ pub static MODEL_ENTRIES: &[EffectSpec] = &[
     EffectSpec {
         name: "learned_discrepancy",
         acts: Acts::Sensor,
+        stage: NOT_IN_LOOP,
+        on_angle: NO_ANGLE,
         doc: "A term no named effect explains, learned by sparse regression of the residual on signals of the run \
               (its `terms`: signal names of bmr._core.CANDIDATES with coefficients in the declared units, an \
               `intercept` and the reversal `deadband`); added to the predicted output, never compensated.",
@@ -252,6 +305,8 @@ pub static MODEL_ENTRIES: &[EffectSpec] = &[
     EffectSpec {
         name: "offset",
         acts: Acts::Sensor,
+        stage: NOT_IN_LOOP,
+        on_angle: NO_ANGLE,
         doc: "Constant torque-sensor offset fitted by the diagnosis (measurement only).",
         params: &[p("offset_nmm", "N·mm", 0.0, -1e6, 1e6, "sensor offset")],
     },
@@ -273,6 +328,10 @@ impl EffectKind {
     pub fn acts(self) -> Acts {
         self.spec().acts
     }
+    /// Its compensator stage is built for a sample period.
+    pub fn needs_period(self) -> bool {
+        self.spec().stage.is_some_and(|s| s.needs_period)
+    }
     /// The effect named `name`, if the vocabulary has one.
     pub fn from_name(name: &str) -> Option<EffectKind> {
         EffectKind::ALL.into_iter().find(|k| k.name() == name)
@@ -283,6 +342,17 @@ impl fmt::Display for EffectKind {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         f.write_str(self.name())
     }
+}
+
+/// The entries of a model file the compensator undoes (effects and [`MODEL_ENTRIES`]), in loop order (command
+/// side first).
+pub fn loop_stages() -> impl Iterator<Item = &'static EffectSpec> {
+    (0..=u8::MAX).filter_map(|order| {
+        SPECS
+            .iter()
+            .chain(MODEL_ENTRIES)
+            .find(|s| s.stage.is_some_and(|st| st.order == order))
+    })
 }
 
 /// The spec of a model-file extension entry: an effect or one of [`MODEL_ENTRIES`].
@@ -452,6 +522,23 @@ mod tests {
             assert!(s.params.len() <= MAX_PARAMS);
             Params::defaults(s);
         }
+    }
+
+    #[test]
+    fn loop_orders_are_unique_and_only_compensated_effects_have_one() {
+        let with_stage = SPECS
+            .iter()
+            .chain(MODEL_ENTRIES)
+            .filter(|s| s.stage.is_some())
+            .count();
+        assert_eq!(loop_stages().count(), with_stage, "a loop order used twice");
+        for s in SPECS {
+            if s.acts == Acts::Sensor {
+                assert!(s.stage.is_none(), "{} acts on the measurement only", s.name);
+            }
+        }
+        let first = loop_stages().next().unwrap();
+        assert_eq!(first.name, "core_tables");
     }
 
     #[test]

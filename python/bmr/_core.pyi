@@ -54,6 +54,9 @@ __all__ = [
     "DEVICE_PRESETS",
     "FRICTION_MAX_ORDER",
     "MODEL_EXTENSIONS",
+    "LOOP_STAGES",
+    "PERIOD_EFFECTS",
+    "ANGLE_EFFECTS",
     "VirtualDevice",
     "accommodation_shift",
     "candidate_signals",
@@ -436,6 +439,14 @@ PRESETS: tuple[str, ...]
 """Names of the virtual actuator presets."""
 ACTUATOR_PARAMETERS: tuple[str, ...]
 """Dotted names of the physical parameters ``VirtualActuator(overrides=...)`` can change."""
+
+LOOP_STAGES: tuple[str, ...]
+"""The model-file entries the compensator undoes (effects and ``core_tables``), in loop order (command side
+first): the vocabulary's ``loop_order``."""
+PERIOD_EFFECTS: tuple[str, ...]
+"""Effects whose compensator stage keeps time (needs the control period ``dt_s``)."""
+ANGLE_EFFECTS: tuple[str, ...]
+"""Effects that live on the rotor angle (need an angle signal)."""
 
 MODEL_EXTENSIONS: tuple[str, ...]
 """Names a model file's ``extensions`` may hold: the effects plus ``core_tables``, ``table_resolution``,

@@ -5,12 +5,12 @@ use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyTuple};
 
 use crate::cbh::Initial;
-use crate::compensator::Compensator;
+use crate::compensator::{Command, Compensator};
 use crate::controller::{Controller, ControllerDesign, ControllerSettings, ControllerState};
 use crate::friction::MAX_ORDER;
 use crate::limits::{MAX_GENERATED_SAMPLES, check};
 use crate::python::arrays::{extract_f64_array, to_numpy};
-use crate::python::compensator::{PyCommand, PyCompensator};
+use crate::python::compensator::PyCompensator;
 use crate::python::hysteresis::{MEMORY, initial_or_negative};
 use crate::python::virtual_actuator::PyVirtualActuator;
 use crate::python::{BmrError, bmr_err, bytes_to_words, limit_err, table_err, words_to_bytes};
@@ -203,11 +203,8 @@ impl PyController {
         reference_nmm: f64,
         theta_rad: f64,
         measured_nmm: f64,
-    ) -> PyResult<PyCommand> {
-        Ok(busy(slf)?
-            .core
-            .step(reference_nmm, theta_rad, measured_nmm)
-            .into())
+    ) -> PyResult<Command> {
+        Ok(busy(slf)?.core.step(reference_nmm, theta_rad, measured_nmm))
     }
 
     /// The loop as designed.

@@ -7,7 +7,7 @@ use crate::plant::{ActuatorConfig, SETTABLE, Sample, VirtualActuator};
 use crate::python::arrays::{extract_f64_array, to_numpy};
 use crate::python::errors::InUseError;
 use crate::python::{BmrError, bmr_err, bytes_to_words, limit_err, words_to_bytes};
-use crate::vocabulary::{EffectSpec, MODEL_ENTRIES, SPECS};
+use crate::vocabulary::{EffectSpec, MODEL_ENTRIES, SPECS, loop_stages};
 use numpy::PyArray1;
 use pyo3::exceptions::PyTypeError;
 use pyo3::prelude::*;
@@ -635,7 +635,8 @@ impl PyVirtualActuator {
     }
 }
 
-/// Every effect's documentation and parameters: ``{name: {"doc": str, "acts": str, "params": {param: {"unit",
+/// Every effect's documentation and parameters: ``{name: {"doc": str, "acts": str, "loop_order": int | None,
+/// "needs_period": bool, "state": str, "on_angle": bool, "params": {param: {"unit",
 /// "default", "min", "max", "whole", "smallest_nonzero", "doc"}}}}`` (``smallest_nonzero``: where 0 means
 /// automatic, the smallest magnitude a set value may have; else 0); ``model_entries=True`` adds the model-file entries that are not
 /// physical effects (``core_tables``, ``table_resolution``, ``offset``).
@@ -648,6 +649,10 @@ fn effect_parameters(py: Python<'_>, model_entries: bool) -> PyResult<Bound<'_, 
         let entry = PyDict::new(py);
         entry.set_item("doc", spec.doc)?;
         entry.set_item("acts", spec.acts.name())?;
+        entry.set_item("loop_order", spec.stage.map(|st| st.order))?;
+        entry.set_item("needs_period", spec.stage.is_some_and(|st| st.needs_period))?;
+        entry.set_item("state", spec.stage.map_or("", |st| st.state))?;
+        entry.set_item("on_angle", spec.on_angle)?;
         let params = PyDict::new(py);
         for s in spec.params {
             let p = PyDict::new(py);
@@ -685,6 +690,21 @@ pub(crate) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
                 .map(|s| s.name)
                 .collect::<Vec<_>>(),
         )?,
+    )?;
+    let names = |keep: fn(&EffectSpec) -> bool| -> Vec<&'static str> {
+        SPECS.iter().filter(|s| keep(s)).map(|s| s.name).collect()
+    };
+    m.add(
+        "LOOP_STAGES",
+        PyTuple::new(m.py(), loop_stages().map(|s| s.name).collect::<Vec<_>>())?,
+    )?;
+    m.add(
+        "PERIOD_EFFECTS",
+        PyTuple::new(m.py(), names(|s| s.stage.is_some_and(|st| st.needs_period)))?,
+    )?;
+    m.add(
+        "ANGLE_EFFECTS",
+        PyTuple::new(m.py(), names(|s| s.on_angle))?,
     )?;
     m.add("PRESETS", PyTuple::new(m.py(), PRESETS)?)?;
     m.add("ACTUATOR_PARAMETERS", PyTuple::new(m.py(), SETTABLE)?)?;

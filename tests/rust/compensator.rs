@@ -345,6 +345,51 @@ proptest! {
         let mut other = extended(paper, 1.25, &StageDraw { tau_s: d.tau_s + 0.01, ..d.clone() });
         prop_assert!(other.restore(&snap).is_err());
     }
+
+    #[test]
+    fn every_stage_alone_and_all_together_continue_bit_for_bit_from_words_and_snapshots(
+        head in prop::collection::vec((-700.0f64..700.0, 0.0f64..6.3), 1..80),
+        tail in prop::collection::vec((-700.0f64..700.0, 0.0f64..6.3), 1..80),
+        which in 0usize..=EffectKind::ALL.len(), d in stage_draw()) {
+        // `which`: one effect of the draw alone, or (past the last) all of them.
+        let all = effects(&d);
+        let fx: Vec<Params> = match all.get(which) {
+            Some(p) => vec![*p],
+            None => all.clone(),
+        };
+        let build = || {
+            let f = Friction::from_amplitude_phase(12.0, &[25.0, 8.0, 4.0], &[0.3, 1.1, -0.7]).unwrap();
+            Comp24::new(forward(), InverseKind::Exact, f, 0.125, 1.25)
+                .unwrap()
+                .with_extensions(&fx, DT, 300.0)
+                .unwrap()
+        };
+        let mut c = build();
+        for &(r, th) in &head {
+            c.step(r, th);
+        }
+        let words = c.snapshot().to_words();
+        let snap = c.snapshot();
+        let run = |c: &mut Comp24| -> Vec<(u64, u64)> {
+            tail.iter()
+                .map(|&(r, th)| (c.step(r, th).current_a.to_bits(), c.model_torque_nmm().to_bits()))
+                .collect()
+        };
+        let first = run(&mut c);
+        // Words into a fresh compensator of the same configuration (what unpickling does).
+        let mut fresh = build();
+        let s = fresh.state_from_words(&words).unwrap();
+        fresh.restore(&s).unwrap();
+        prop_assert_eq!(&first, &run(&mut fresh));
+        // A snapshot into a copy.
+        let mut copy = build();
+        copy.restore(&snap).unwrap();
+        prop_assert_eq!(&first, &run(&mut copy));
+        // Read back, the state writes the very same words (every stage that is on has its state in them).
+        let mut again = build();
+        again.restore(&again.state_from_words(&words).unwrap()).unwrap();
+        prop_assert_eq!(again.snapshot().to_words(), words);
+    }
 }
 
 #[test]
@@ -539,6 +584,59 @@ fn a_finite_reference_whose_friction_correction_overflows_is_a_fault_with_zero_c
     assert!(cmd.volt1_v.is_finite() && cmd.volt2_v.is_finite());
     let cmd = c.step(100.0, 0.3);
     assert!(!cmd.fault && cmd.current_a.is_finite());
+}
+
+#[test]
+fn the_stage_list_is_the_vocabulary_loop_order_and_refuses_a_missing_period() {
+    use bmr::stages::{Scales, Stages};
+    use bmr::vocabulary::loop_stages;
+    let in_loop: Vec<EffectKind> = loop_stages()
+        .filter_map(|s| EffectKind::from_name(s.name))
+        .collect();
+    let at: Vec<usize> = Stages::KINDS
+        .iter()
+        .map(|k| {
+            in_loop
+                .iter()
+                .position(|x| x == k)
+                .expect("a stage of an effect outside the loop")
+        })
+        .collect();
+    assert!(
+        at.windows(2).all(|w| w[0] < w[1]),
+        "stage list out of loop order: {:?}",
+        Stages::KINDS
+    );
+    for k in &in_loop {
+        // An effect that carries state has a stage in the list (else its state would be lost in a snapshot).
+        if !k.spec().stage.unwrap().state.is_empty() {
+            assert!(
+                Stages::KINDS.contains(k),
+                "{k} carries state but has no stage"
+            );
+        }
+    }
+    let scales = Scales {
+        full_current_a: 1.25,
+        full_torque_nmm: 300.0,
+        input_range: (-1.25, 1.25),
+        output_range: (-300.0, 300.0),
+    };
+    for k in EffectKind::ALL {
+        let p = Params::defaults(k.spec());
+        for dt in [0.0, -1e-3, f64::NAN, f64::INFINITY] {
+            assert!(
+                Stages::new(&[p], dt, scales).is_err(),
+                "{k} built at dt = {dt}"
+            );
+        }
+        let (st, _) = Stages::new(&[p], 1e-3, scales).unwrap();
+        assert_eq!(
+            st.has(k),
+            Stages::KINDS.contains(&k),
+            "{k}: its default builds its stage"
+        );
+    }
 }
 
 #[test]

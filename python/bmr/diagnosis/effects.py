@@ -59,7 +59,6 @@ class Effect(ABC):
     # it from another effect).
     excitation = "a run with a different excitation"
     needs_reidentify = False  # the effect needs least-squares core tables (compare against those)
-    needs_angle = False  # the effect lives on the rotor angle (seal friction, ripple): actuators only
     # Order in which fitted effects are removed from the protocol runs before re-identification: additive terms
     # (rank 0) before multiplicative gains (rank 1).
     removal_rank = 0
@@ -67,6 +66,11 @@ class Effect(ABC):
     # calibration looks like more or less seal friction): it is judged on what it explains
     # beyond the per-run calibration, so that structure the calibration explains is not named after it.
     beyond_run_calibration = False
+
+    @property
+    def needs_angle(self) -> bool:
+        """The effect lives on the rotor angle (seal friction, ripple): actuators only (the vocabulary says)."""
+        return self.name in _core.ANGLE_EFFECTS
 
     def grid(self, data: EvalData) -> list[Any]:
         return [None]
@@ -295,7 +299,6 @@ class FrictionCurrent(Effect):
     name = "friction_current"
     beyond_run_calibration = True
     excitation = "rotation at several constant currents (angle ripple growing with |current|)"
-    needs_angle = True
     doc = "seal friction grows with current: angle-dependent friction × (1 + gain_per_a·|I|)"
 
     def columns(self, data, value, y_field, model):
@@ -322,7 +325,6 @@ class FrictionCurrent(Effect):
 class FrictionHarmonics(Effect):
     name = "friction_harmonics"
     excitation = "rotation at constant current over several revolutions (a line at the harmonic's order)"
-    needs_angle = True
     doc = "a friction harmonic above the 3rd: amplitude_nmm·sin(order·θ + phase_rad)"
 
     def grid(self, data: EvalData) -> list[Any]:
@@ -349,7 +351,6 @@ class FrictionHarmonics(Effect):
 class TorqueRipple(Effect):
     name = "torque_ripple"
     excitation = "rotation at several constant torques (once-per-revolution ripple proportional to torque)"
-    needs_angle = True
     doc = "eccentric gap: field × (1 + eps·cos(θ + phase_rad))"
     removal_rank = 1
 
@@ -621,5 +622,6 @@ class Accommodation(Effect):
 LIBRARY: tuple[Effect, ...] = (CoilLag(), ThermalDrift(), FrictionCurrent(), FrictionHarmonics(), TorqueRipple(),
                                SensorDrift(), TimeDelay(), NonCongruent(), Creep(), RateDependence(),
                                RunGainOffset(), Leakage(), Accommodation(), TableResolution())
-PHYSICAL = tuple(e.name for e in LIBRARY if e.name != "table_resolution")
-ANGLE_EFFECTS = tuple(e.name for e in LIBRARY if e.needs_angle)
+# The candidates that are physical effects of the vocabulary (the others are notes on the tables).
+PHYSICAL = tuple(e.name for e in LIBRARY if e.name in _core.EFFECTS)
+ANGLE_EFFECTS: tuple[str, ...] = _core.ANGLE_EFFECTS

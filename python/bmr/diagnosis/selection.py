@@ -600,8 +600,15 @@ def forward_selection(fitter: Fitter, *, library: Sequence[Effect] = LIBRARY, ma
     # Every accepted effect's parameters in the final configuration (checked in range when it was accepted).
     final_params = _config_params(fitter, config, field_effects)
     for row in accepted:
-        if row["name"] in final_params:
-            row["params"] = final_params[row["name"]]
+        eff_name = row["name"]
+        if eff_name in final_params:
+            row["params"] = final_params[eff_name]
+    # A field effect's parameters are those of the final field path (later rounds may have refined it).
+    by_name = {e.name: e for e in library}
+    for row in accepted:
+        effect = by_name.get(row["name"])
+        if effect is not None and effect.field:
+            row["params"] = effect.params(None, None, config.path)
     names = {r["name"] for r in accepted}
     rejected = []
     for name, c in last.items():

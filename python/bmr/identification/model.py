@@ -52,10 +52,9 @@ from bmr.identification.friction import FrictionFit
 
 __all__ = ["FORMAT", "LOOP_STAGES", "Model"]
 
-# Extensions the compensator can undo, in the order the physics acts (the others are measurement-only or notes).
-LOOP_STAGES = ("core_tables", "time_delay", "coil_lag", "rate_dependence", "creep", "non_congruent",
-               "accommodation", "thermal_drift", "torque_ripple",
-               "friction_harmonics", "friction_current")
+# Extensions the compensator can undo, in the order the physics acts (the vocabulary's loop order; the others
+# are measurement-only or notes).
+LOOP_STAGES: tuple[str, ...] = _core.LOOP_STAGES
 
 FORMAT = "bmr-model/2"
 FORMATS = ("bmr-model/1", FORMAT)
@@ -317,8 +316,7 @@ class Model:
         if not on:
             return Compensator(self.hysteresis, friction, **kwargs)
         effects = [e for e in self.extensions if e["name"] in on and e["name"] != "core_tables"]
-        needs_dt = any(e["name"] in ("time_delay", "coil_lag", "thermal_drift", "friction_current", "creep",
-                                     "rate_dependence") for e in effects)
+        needs_dt = any(e["name"] in _core.PERIOD_EFFECTS for e in effects)
         if needs_dt and dt_s is None:
             raise BmrError(f"this model's extensions ({', '.join(on)}) need the control period: pass dt_s")
         core = self.core_hysteresis(refined="core_tables" in on)
@@ -631,3 +629,16 @@ def _compact_number_lists(text: str) -> str:
 def _num(v: Any) -> float:
     return float("nan") if v is None else float(v)
 
+
+def _compensator_from_model(model: Model | str | Path, *, dt_s: float, **kwargs: Any) -> Compensator:
+    """The full (extended) compensator of a model: a ``bmr.Model`` or the path of a model file
+    (:meth:`Model.compensator` with ``dt_s`` and ``kwargs``)."""
+    if isinstance(model, (str, Path)) or hasattr(model, "__fspath__"):
+        model = Model.load(model)
+    if not isinstance(model, Model):
+        raise TypeError(f"model: expected a bmr.Model or the path of a model file, got {type(model).__name__}")
+    return model.compensator(dt_s, **kwargs)
+
+
+# Building a compensator from a model belongs to the model: the core takes plain data and never reads model files.
+Compensator.from_model = staticmethod(_compensator_from_model)  # type: ignore[attr-defined]
