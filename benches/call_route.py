@@ -1,6 +1,6 @@
 """The route a bundle takes through bmr's Python modules in ``identify`` and ``diagnose``: which modules are
 visited, how often the flow comes back to a module it already left, and how often a run's arrays are built from
-its table (``Run.column``: one pandas column to a numpy array, per run and signal).
+its table (``Run.column`` building a numpy array from a pandas column, per run and signal).
 
     python benches/call_route.py [--bundle DIR] [--what identify,diagnose]
 
@@ -36,7 +36,10 @@ class Route:
             return
         if frame.f_code.co_name == "column" and module == "bmr.data.bundle":
             run = frame.f_locals.get("self")
-            self.columns[(getattr(run, "name", "?"), str(frame.f_locals.get("name")))] += 1
+            name = str(frame.f_locals.get("name"))
+            cached = getattr(run, "_arrays", {})
+            if not (name in cached and getattr(run, "_arrays_of", None) == id(run.data)):
+                self.columns[(getattr(run, "name", "?"), name)] += 1  # built from the table, not kept
         if module != self.current:
             if module in self.visited:
                 self.returns += 1
@@ -67,7 +70,7 @@ def main(argv: list[str] | None = None) -> int:
             "diagnose": lambda: bmr.diagnose(bundle, progress=False, closed_loop=False)}
     print(f"{bundle!r}")
     print("| call | modules visited | calls returning to a module already visited (distinct module pairs) "
-          "| run arrays built (Run.column calls) | most per run and signal |")
+          "| run arrays built from the table | most per run and signal |")
     print("|---|---|---|---|---|")
     for name in args.what.split(","):
         r = trace(jobs[name])
