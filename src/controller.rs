@@ -183,18 +183,18 @@ impl GainOffset {
 
     /// One update with prediction `x` and measurement `z` (both finite, normalised).
     #[inline]
-    fn update(&mut self, x: f64, z: f64, lambda: f64, offset_bound: f64) {
+    fn update(&mut self, x: f64, z: f64, lambda: f64, inv_lambda: f64, offset_bound: f64) {
         let px0 = self.p00 * x + self.p01;
         let px1 = self.p01 * x + self.p11;
-        let denom = lambda + x * px0 + px1;
-        let k0 = px0 / denom;
-        let k1 = px1 / denom;
+        let inv_denom = 1.0 / (lambda + x * px0 + px1);
+        let k0 = px0 * inv_denom;
+        let k1 = px1 * inv_denom;
         let residual = z - (self.gain * x + self.beta);
         let gain = self.gain + k0 * residual;
         let beta = self.beta + k1 * residual;
-        let mut p00 = (self.p00 - k0 * px0) / lambda;
-        let mut p01 = (self.p01 - k0 * px1) / lambda;
-        let mut p11 = (self.p11 - k1 * px1) / lambda;
+        let mut p00 = (self.p00 - k0 * px0) * inv_lambda;
+        let mut p01 = (self.p01 - k0 * px1) * inv_lambda;
+        let mut p11 = (self.p11 - k1 * px1) * inv_lambda;
         let trace = p00 + p11;
         if trace > COVARIANCE_BOUND {
             let s = COVARIANCE_BOUND / trace;
@@ -265,6 +265,9 @@ pub struct Controller<S, const N: usize, const K: usize> {
     compensator: Compensator<S, N, K>,
     design: ControllerDesign,
     state: LoopState,
+    /// Reciprocals of the forgetting factor and the full torque (a multiply per step instead of a division).
+    inv_forgetting: f64,
+    inv_full_torque: f64,
 }
 
 impl<S: AsRef<[f64]>, const N: usize, const K: usize> Controller<S, N, K> {
@@ -277,6 +280,8 @@ impl<S: AsRef<[f64]>, const N: usize, const K: usize> Controller<S, N, K> {
         let design = design(&compensator, dt_s, &settings)?;
         Ok(Controller {
             compensator,
+            inv_forgetting: 1.0 / design.forgetting,
+            inv_full_torque: 1.0 / design.full_torque_nmm,
             design,
             state: LoopState {
                 adaptation_frozen: !settings.adaptation,
@@ -337,11 +342,12 @@ impl<S: AsRef<[f64]>, const N: usize, const K: usize> Controller<S, N, K> {
                 let i = (st.head + PREDICTION_HISTORY - back) % PREDICTION_HISTORY;
                 let predicted = st.predictions[i];
                 if predicted.is_finite() {
-                    let scale = d.full_torque_nmm;
+                    let inv_scale = self.inv_full_torque;
                     st.estimate.update(
-                        predicted / scale,
-                        measured_nmm / scale,
+                        predicted * inv_scale,
+                        measured_nmm * inv_scale,
                         d.forgetting,
+                        self.inv_forgetting,
                         OFFSET_SHARE,
                     );
                 }

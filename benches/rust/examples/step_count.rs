@@ -1,9 +1,10 @@
 //! Runs `N` compensator steps (exact inverse) on a random multi-peak reference: a fixed workload for counting
 //! instructions per step with callgrind (`benches/callgrind.sh`). Usage: `step_count N [hysteresis|compensator|
-//! extended]` (`extended`: every extension stage on).
+//! extended|controller]` (`extended`: every extension stage on; `controller`: the closed loop around it, measuring
+//! 0.95 × the model's torque plus 2 N·mm).
 use bmr_bench as workload;
 
-use bmr::{Compensator, InverseKind};
+use bmr::{Compensator, Controller, ControllerSettings, InverseKind};
 use std::hint::black_box;
 
 fn main() {
@@ -19,6 +20,24 @@ fn main() {
             let mut op = h;
             for i in 0..n {
                 acc += op.step(black_box(refs[i % refs.len()] / 240.0));
+            }
+        }
+        "controller" => {
+            let c = Compensator::new(h, InverseKind::Exact, f, 0.125, 1.25)
+                .unwrap()
+                .with_extensions(&workload::every_stage(), 0.001, 300.0)
+                .unwrap();
+            let mut c = Controller::new(c, 0.001, ControllerSettings::default()).unwrap();
+            let mut y = f64::NAN;
+            for i in 0..n {
+                acc += c
+                    .step(
+                        black_box(refs[i % refs.len()]),
+                        black_box(i as f64 * 0.002),
+                        black_box(y),
+                    )
+                    .current_a;
+                y = 0.95 * c.compensator().model_torque_nmm() + 2.0;
             }
         }
         "compensator" | "extended" => {
