@@ -1,6 +1,8 @@
 """Diagnosis cost: CPU time, wall time and peak memory of ``bmr diagnose`` (each in a fresh process, as a user
-runs it), next to ``bmr identify`` on the same bundle, for a quick diagnosis bundle and the full ``bmr2013``
-experiment set. CPU time is the stable figure on a shared machine; wall time is reported next to it.
+runs it), next to ``bmr identify`` on the same bundle, for a quick diagnosis bundle, the diagnosis protocol of the
+independently written plant at 1500 Hz (327 k samples; ``tests/python/independent_plant.py`` with its coil circuit
+and seal lobes) and the full ``bmr2013`` experiment set. CPU time is the stable figure on a shared machine; wall
+time is reported next to it.
 
 Usage: ``python benches/diagnosis_speed.py [--full] [--record]`` (``--record`` stores the figures for the README,
 ``docs/measurements.json``, section ``diagnosis_speed``).
@@ -57,6 +59,13 @@ def main(argv: list[str] | None = None) -> int:
         quick = Path(tmp) / "quick"
         write_bundle(diagnosis_bundle("rig_preisach", effects={"coil_lag": {"tau_s": 0.02}}, seed=1000), quick)
         rows.append(measure(quick, "quick diagnosis bundle (rig_preisach + coil_lag, 99 k samples)"))
+        sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "tests" / "python"))
+        from independent_plant import independent_bundle
+
+        independent = Path(tmp) / "independent"
+        write_bundle(independent_bundle({"coil_eddy_circuit": {}, "seal_lobes": {}}, seed=1000,
+                                        sample_rate_hz=1500.0), independent)
+        rows.append(measure(independent, "independent plant, coil circuit + seal lobes (327 k samples)"))
         if args.full:
             full = Path(tmp) / "full"
             subprocess.run(["bmr", "simulate", "--preset", "bmr2013", "-o", str(full)], check=True,

@@ -1,11 +1,11 @@
-"""Measure the README's figures and write them into the README, so that they cannot drift.
+"""Measure the figures of the README and of docs/results.md and write them in, so that they cannot drift.
 
     python benches/readme_figures.py measure [SECTION ...]   # run the measurements (all sections by default)
-    python benches/readme_figures.py render                  # rewrite the README's generated sections
-    python benches/readme_figures.py check                   # exit 1 if the README differs from the record
+    python benches/readme_figures.py render                  # rewrite the documents' generated sections
+    python benches/readme_figures.py check                   # exit 1 if a document differs from the record
 
 Measurements land in ``docs/measurements.json`` (see ``benches/measurements.py``: other bench scripts record
-their own sections there too). The README holds each generated section between
+their own sections there too). The documents (``DOCUMENTS``) hold each generated section between
 ``<!-- generated: NAME -->`` and ``<!-- end: NAME -->``; ``render`` replaces it from the record, and the tests
 run ``check``. Timings are repeated (``--repeat``, default 3) and reported as the median with the spread of the
 repeats, CPU time next to wall time: the machines here are shared, so the spread says how much to trust a figure.
@@ -28,7 +28,10 @@ from typing import Any, Callable
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from measurements import ROOT, load, record  # noqa: E402
 
-README = ROOT / "README.md"
+from bmr.data.files import write_text  # noqa: E402
+
+# The documents that hold generated sections: the README (the demo) and the results page (everything else).
+DOCUMENTS = (ROOT / "README.md", ROOT / "docs" / "results.md")
 
 
 # ------------------------------------------------------------------------------------------------ measuring
@@ -109,6 +112,13 @@ def measure_calibration(repeat: int) -> None:
             "--workers", "2", "--record"])
 
 
+def measure_calibration_independent(repeat: int) -> None:
+    """Blind diagnoses on the independently written plant family (``tests/python/independent_plant.py``; the
+    calibration script records its own section): every mechanism at medium size, one seed, clean and pairs."""
+    _timed(["nice", sys.executable, "benches/diagnosis_calibration.py", "--family", "independent", "--plants",
+            "independent", "--sizes", "1", "--seeds", "1", "--workers", "1", "--record"])
+
+
 def measure_diagnosis_speed(repeat: int) -> None:
     """CPU time, wall time and peak memory of ``bmr diagnose`` on a quick and a full bundle
     (``benches/diagnosis_speed.py`` records its own section)."""
@@ -126,12 +136,20 @@ def measure_slac_diagnosis(repeat: int) -> None:
     record("slac_diagnosis", "python benches/readme_figures.py measure slac_diagnosis", out)
 
 
+def measure_real_data(repeat: int) -> None:
+    """Every recording in ``../shared/data`` through import → identify → predict (→ diagnose) with the defaults
+    (``benches/real_data.py``, which records its own section)."""
+    _timed([sys.executable, "benches/real_data.py", "--record"])
+
+
 MEASURE: dict[str, Callable[[int], None]] = {"demo": measure_demo, "performance": measure_performance,
                                              "closed_loop": measure_closed_loop,
                                              "identification": measure_identification,
                                              "calibration": measure_calibration,
+                                             "calibration_independent": measure_calibration_independent,
                                              "diagnosis_speed": measure_diagnosis_speed,
-                                             "slac_diagnosis": measure_slac_diagnosis}
+                                             "slac_diagnosis": measure_slac_diagnosis,
+                                             "real_data": measure_real_data}
 
 
 # ------------------------------------------------------------------------------------------------ rendering
@@ -161,10 +179,10 @@ def render_demo(rec: dict[str, Any]) -> str:
     text = [f"Errors on `{m['preset']}`, seed {m['seed']} (full run, {m['sample_rate_hz']:g} Hz; "
             f"FS = {fs:.4g} N·mm, the model's full-scale torque):", "", *rows, ""]
     if d:
-        steps = " → ".join([f"{d['effects'][0]['heldout_rms_before_nmm']:.3g}" if d.get("effects") else "",
-                            *[f"{e['heldout_rms_after_nmm']:.3g}" for e in d.get("effects", [])]]).strip(" →")
+        steps = " → ".join([f"{d['effects'][0]['heldout_rms_before']:.3g}" if d.get("effects") else "",
+                            *[f"{e['heldout_rms_after']:.3g}" for e in d.get("effects", [])]]).strip(" →")
         text.append(f"The demo's diagnosis names **`{d['cause']}`**; held-out RMS {steps} N·mm "
-                    f"(noise floor {d['noise_floor_nmm']:.3g} N·mm).")
+                    f"(noise floor {d['noise_floor']:.3g} N·mm).")
         text.append("")
     text.append(f"Time: full programme {_pm(t['full']['wall_s'], '{:.0f}', ' s')} wall, "
                 f"{_pm(t['full']['cpu_s'], '{:.0f}', ' s')} CPU; `--quick` {_pm(t['quick']['wall_s'], '{:.0f}', ' s')}"
@@ -289,7 +307,8 @@ def _rate(x: float | None) -> str:
 
 def render_calibration(rec: dict[str, Any]) -> str:
     v = rec["values"]
-    units = {"rig_preisach": "N·mm", "rig_soft": "N·mm", "piezo": "µm"}
+    units = {"rig_preisach": "N·mm", "rig_soft": "N·mm", "piezo": "µm", "independent": "N·mm",
+             "independent_coarse": "N·mm"}
     text = ["| plant | hidden effect | size | detected | wrong name | false alarm | median param. error | "
             "held-out RMS nominal → extended (noise floor) |", "|---|---|---|---|---|---|---|---|"]
     for g in v["groups"]:
@@ -355,12 +374,20 @@ def render_slac_diagnosis(rec: dict[str, Any]) -> str:
     return "\n".join(text)
 
 
+def render_real_data(rec: dict[str, Any]) -> str:
+    from real_data import render
+
+    return render(rec["values"])
+
+
 RENDER: dict[str, Callable[[dict[str, Any]], str]] = {"demo": render_demo, "performance": render_performance,
                                                        "closed_loop": render_closed_loop,
                                                        "identification": render_identification,
                                                        "calibration": render_calibration,
+                                                       "calibration_independent": render_calibration,
                                                        "diagnosis_speed": render_diagnosis_speed,
-                                                       "slac_diagnosis": render_slac_diagnosis}
+                                                       "slac_diagnosis": render_slac_diagnosis,
+                                                       "real_data": render_real_data}
 
 
 def _footer(rec: dict[str, Any]) -> str:
@@ -370,7 +397,7 @@ def _footer(rec: dict[str, Any]) -> str:
 
 
 def rendered(readme: str, data: dict[str, Any]) -> str:
-    """The README with every generated section replaced from the record (sections without a record stay)."""
+    """The document with every generated section replaced from the record (sections without a record stay)."""
     def sub(m: re.Match[str]) -> str:
         name = m.group(1)
         rec = data.get(name)
@@ -398,15 +425,21 @@ def main(argv: list[str] | None = None) -> int:
             print(f"measuring {name} ...", file=sys.stderr)
             MEASURE[name](args.repeat)
         args.cmd = "render"
-    text = README.read_text()
-    new = rendered(text, load())
-    if args.cmd == "check":
-        if new != text:
-            print("README.md differs from docs/measurements.json: run `python benches/readme_figures.py render` "
-                  "(or measure again)", file=sys.stderr)
-            return 1
-        return 0
-    README.write_text(new)
+    data = load()
+    stale = []
+    for doc in DOCUMENTS:
+        text = doc.read_text()
+        new = rendered(text, data)
+        if new == text:
+            continue
+        if args.cmd == "check":
+            stale.append(doc.relative_to(ROOT).as_posix())
+        else:
+            write_text(doc, new)
+    if stale:
+        print(f"{', '.join(stale)} differ(s) from docs/measurements.json: run `python benches/readme_figures.py "
+              "render` (or measure again)", file=sys.stderr)
+        return 1
     return 0
 
 

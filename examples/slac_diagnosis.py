@@ -30,14 +30,14 @@ def run(data_dir: Path, folds: int = 5) -> tuple[dict, object]:
     res = import_logs([data_dir / f"strplt.ru{k}" for k in range(3, 9)], input="MAIN:A", output="BL:T",
                       output_sigma="sigBL", output_name="integrated gradient", holdout=["run7", "run8"])
     d = diagnose(res.bundle, folds=folds, progress=False, closed_loop=False)
-    sigma = d.noise_floor_nmm
+    sigma = d.noise_floor
     out = {"named": [e["name"] for e in d.effects], "cause": d.cause,
            "learned": d.learned["equation"] if d.learned and d.learned["accepted"] else None,
            "learned_tried": d.learned["equation"] if d.learned else None,
-           "heldout_rms_before_t": d.nominal_heldout_rms_nmm, "heldout_rms_after_t": d.residual_rms_nmm,
+           "heldout_rms_before_t": d.nominal_heldout_rms, "heldout_rms_after_t": d.residual_rms,
            "sigma_t": sigma, "noise_method": d.noise["method"],
-           "heldout_rms_before_sigmas": d.nominal_heldout_rms_nmm / sigma,
-           "heldout_rms_after_sigmas": d.residual_rms_nmm / sigma,
+           "heldout_rms_before_sigmas": d.nominal_heldout_rms / sigma,
+           "heldout_rms_after_sigmas": d.residual_rms / sigma,
            "unexplained": d.unexplained,
            "rejected": {r["name"]: {"gain": r["gain"], "folds_positive": r["folds_positive"],
                                     "heldout_rms_after_t": r["heldout_rms_after_nmm"]} for r in d.rejected},
@@ -49,7 +49,7 @@ def figure(d: object, path: Path) -> None:
     from bmr import plot
 
     runs = d._signals["runs"]  # type: ignore[attr-defined]
-    sigma = d.noise_floor_nmm  # type: ignore[attr-defined]
+    sigma = d.noise_floor  # type: ignore[attr-defined]
     with plot.style():
         fig, axes = plot.figure("wide", nrows=2, height=5.2)
         for name, t, rn, re in runs:

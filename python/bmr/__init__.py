@@ -17,7 +17,7 @@ calibration explicit, against the single-valued baseline: a ``Prediction``); ``f
 ``import_logs`` (raw logs of any device, with declared ``Quantities``, into a bundle), ``read_tables`` (instrument
 formats), ``read_table``, ``bundle_from_files`` (actuator logs with a column mapping).
 Diagnosis: ``diagnose`` (what the model gets wrong, the named cause, the extended model, the held-out gain) giving a
-``Diagnosis`` (``bmr-diagnosis/1`` JSON, HTML report); ``diagnose_many`` (many bundles on Dask, one Parquet table).
+``Diagnosis`` (``bmr-diagnosis/2`` JSON, HTML report); ``diagnose_many`` (many bundles on Dask, one Parquet table).
 Units: the actuator's current in A (nominal current spans both coils: negative = coil 1, positive = coil 2),
 torque in N·mm, angles in rad, time in s, converter voltages in V; other devices declare theirs (``Quantities``).
 Errors: every problem with data is a ``BmrError`` (a ``ValueError``) or one of its kinds (``TableError``,

@@ -273,6 +273,6 @@ def run_cli(args: Any) -> int:
         print(f"  {key:52s} {c['rms_nmm']:9.2f} {c['max_abs_nmm']:9.2f} {c['rms_pct_fs']:8.2f} {c['max_pct_fs']:8.2f}")
     if res.diagnosis is not None:
         d = res.metrics["diagnosis"]
-        print(f"  diagnosis: cause {d.get('cause')!r}; residual {d.get('residual_rms_nmm', float('nan')):.2f} N·mm "
-              f"over a noise floor of {d.get('noise_floor_nmm', float('nan')):.2f} N·mm")
+        print(f"  diagnosis: cause {d.get('cause')!r}; residual {d.get('residual_rms', float('nan')):.2f} N·mm "
+              f"over a noise floor of {d.get('noise_floor', float('nan')):.2f} N·mm")
     return 0

@@ -54,6 +54,46 @@ def write_aixacct(path: Path, tables: Sequence[tuple[dict[str, str], Sequence[st
     return path
 
 
+def write_micromag(path: Path, curves: Sequence[tuple[np.ndarray, np.ndarray]], *, h_cal: float,
+                   m_cal: Sequence[float], system: str = "cgs", column_header: bool = False) -> Path:
+    """A MicroMag 2900/3900 FORC export: header lines, optionally a column header and a units line (Latin-1
+    ``²``), then per curve a one-point segment at the calibration field and the curve, blank-line separated, CRLF."""
+    units = {"cgs": ("Oe", "emu"), "SI": ("A/m", "Am\u00b2"), "Hybrid SI": ("T", "Am\u00b2")}[system]
+    lines = ["MicroMag 2900/3900 Data File (Series 0015)", "First-order reversal curves", "Configuration   :  VSM",
+             f"Units of measure:  {system}", "Temperature in  :  Kelvin", "01/22/2015  17:35", '"test sample"', "",
+             "Averaging time = +1.000000E-01", f"HCal           = {h_cal:+.6E}", f"NCrv           = {len(curves)}",
+             ""]
+    if column_header:
+        lines += ["Field,Moment", f"({units[0]}),({units[1]})", ""]
+    for (h, m), mc in zip(curves, m_cal):
+        lines += [f"{h_cal:+.6E},{mc:+.6E}", ""]
+        lines += [f"{a:+.6E},{b:+.6E}" for a, b in zip(h, m)] + [""]
+    lines.append("MicroMag 2900/3900 Data File ends")
+    path.write_bytes("\r\n".join(lines).encode("latin-1"))
+    return path
+
+
+def write_lakeshore(path: Path, curves: Sequence[tuple[np.ndarray, np.ndarray]], *, h_cal: float,
+                    m_cal: Sequence[float], dt: float = 0.1) -> Path:
+    """A Lake Shore VSM FORC export: settings, ``##DATA TABLE``, a Latin-1 header with ``µ0H`` and ``A·m²``, rows
+    of ``Step,Iteration,Segment,Field,Moment,Time Stamp,Field Status,Moment Status`` in blank-line separated
+    segments (calibration point, curve, ...), CRLF."""
+    lines = ["#FIELD CONFIGURATIONS", "Magnet: EM4-CSB", "#FORC MEASUREMENT", "Saturation field: 1.5 T",
+             "Averaging time: 0.1 s", "#DATA: 1", "##DATA TABLE Moment (m) [A\u00b7m\u00b2] vs Field (\u00b50H) [T]",
+             "Step,Iteration,Segment,Field (\u00b50H) [T],Moment (m) [A\u00b7m\u00b2],Time Stamp [s],Field Status,"
+             "Moment (m) Status"]
+    t, seg = 0.0, 0
+    for (h, m), mc in zip(curves, m_cal):
+        for hs, ms in ((np.array([h_cal]), np.array([mc])), (h, m)):
+            for a, b in zip(hs, ms):
+                lines.append(f"1,0,{seg},{float(a)!r},{float(b)!r},{t:.2f},GOOD,GOOD")
+                t += dt
+            lines.append("")
+            seg += 1
+    path.write_bytes("\r\n".join(lines).encode("latin-1"))
+    return path
+
+
 def write_slac(folder: Path, run: int, current: np.ndarray, bl: np.ndarray, *, t: np.ndarray | None = None,
                comment: str = "minor loop") -> tuple[Path, Path]:
     """``strdat.ru<run>`` and ``strplt.ru<run>`` in the SLAC magnetic-measurement layout."""

@@ -4,15 +4,20 @@ a file-size limit) never leaves a half-written file in place of the previous one
 """
 from __future__ import annotations
 
+import dataclasses
 import json
+import math
 import os
 import tempfile
 from pathlib import Path
 from typing import IO, Any, Callable
 
+import numpy as np
+
 from bmr._core import BmrError
 
-__all__ = ["check_output_file", "check_output_folder", "contained", "read_json", "write_atomic", "write_text"]
+__all__ = ["check_output_file", "check_output_folder", "contained", "jsonable", "read_json", "write_atomic", "write_json",
+           "write_text"]
 
 
 def write_atomic(path: str | Path, write: Callable[[IO[bytes]], None], *, what: str = "file",
@@ -44,6 +49,33 @@ def write_text(path: str | Path, text: str, *, what: str = "file", error: type[B
     """Write ``text`` (UTF-8) to ``path`` atomically (see :func:`write_atomic`)."""
     data = text.encode("utf-8")
     return write_atomic(path, lambda fh: fh.write(data), what=what, error=error)
+
+
+def jsonable(x: Any) -> Any:
+    """``x`` made JSON-safe, the one rule for every file bmr writes: dataclasses and mappings to objects with string
+    keys, tuples and numpy arrays to lists, numpy scalars to Python numbers, non-finite floats to ``None`` (files
+    say "not computed" as null; readers turn it back into NaN or infinity where the field documents it)."""
+    if dataclasses.is_dataclass(x) and not isinstance(x, type):
+        return {f.name: jsonable(getattr(x, f.name)) for f in dataclasses.fields(x)}
+    if isinstance(x, dict):
+        return {str(k): jsonable(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [jsonable(v) for v in x]
+    if isinstance(x, np.ndarray):
+        return jsonable(x.tolist())
+    if isinstance(x, (bool, np.bool_)):
+        return bool(x)
+    if isinstance(x, (np.floating, float)):
+        v = float(x)
+        return v if math.isfinite(v) else None
+    if isinstance(x, np.integer):
+        return int(x)
+    return x
+
+
+def write_json(path: str | Path, content: Any, *, what: str = "file", error: type[BmrError] = BmrError) -> Path:
+    """Write ``content`` (made :func:`jsonable`) as indented JSON, atomically."""
+    return write_text(path, json.dumps(jsonable(content), indent=1, allow_nan=False) + "\n", what=what, error=error)
 
 
 def _writable_folder(folder: Path, shown: Path, what: str, error: type[BmrError]) -> None:

@@ -4,7 +4,7 @@
     bmr import strplt.ru3 strplt.ru4 ... --input MAIN:A --output BL:T --output-name "integrated gradient" \\
         --output-sigma sigBL --holdout run7,run8 -o quad
 
-Every table of every file (:func:`bmr.data.tables.read_tables`: CSV, Parquet, TDMS, MAT, ControlDesk captures,
+Every table of every file (:func:`bmr.data.formats.read_tables`: CSV, Parquet, TDMS, MAT, ControlDesk captures,
 analyzer exports, SLAC tables) that holds the declared columns becomes a run. A column is given as ``COL``,
 ``COL:UNIT`` (the bundle stores ``UNIT``; values are converted from the unit the file states) or
 ``COL:SOURCE:UNIT`` (the file's values are in ``SOURCE``, for files that state no unit). The protocol's reversals
@@ -26,9 +26,10 @@ import pandas as pd
 from bmr import _core
 from bmr._core import BmrError, BundleError
 from bmr.data.bundle import Bundle, Run, write_bundle
+from bmr.data.formats import read_tables
 from bmr.data.quantities import ANGLE, Quantities, Quantity
-from bmr.data.signals import SampleRate, default_deadband, sample_rate
-from bmr.data.tables import Table, read_tables
+from bmr.data.signals import CaptureEdges, SampleRate, capture_edges, default_deadband, sample_rate
+from bmr.data.tables import Table
 from bmr.data.units import format_number, unit
 
 __all__ = ["PROTOCOLS", "ColumnSpec", "ImportedRun", "ImportResult", "import_logs", "run_cli"]
@@ -36,7 +37,8 @@ __all__ = ["PROTOCOLS", "ColumnSpec", "ImportedRun", "ImportResult", "import_log
 PROTOCOLS = ("forc-ascending", "forc-descending", "major-loop", "any")
 _KIND = {"forc-ascending": "first_order_ascending", "forc-descending": "first_order_descending",
          "major-loop": "major_loop", "any": "custom"}
-_TIME_NAMES = ("t_s", "time", "t", "zeit", "timestamp")
+# "tout" is Simulink's time variable ("Save to workspace"), the time of MATLAB logs of plain variables.
+_TIME_NAMES = ("t_s", "time", "t", "zeit", "timestamp", "tout")
 
 
 @dataclass(frozen=True)
@@ -78,11 +80,13 @@ class ImportedRun:
     curves: int | None
     input_range: tuple[float, float]
     duration_s: float
+    edges: CaptureEdges = field(default_factory=CaptureEdges)
 
     def to_dict(self) -> dict[str, Any]:
         return {"name": self.name, "source": self.source, "kind": self.kind, "role": self.role,
                 "samples": self.samples, "reversals": self.reversals, "first_order_curves": self.curves,
-                "input_range": list(self.input_range), "duration_s": self.duration_s}
+                "input_range": list(self.input_range), "duration_s": self.duration_s,
+                "idle_hold_samples": self.edges.hold, "end_jump_samples": self.edges.jump}
 
 
 @dataclass
@@ -173,9 +177,72 @@ def _time(table: Table, spec: ColumnSpec | None, rate_hz: float | None, notes: l
         return Quantity("time", "s", "t_s").from_unit(table.columns[key], stated or "s",
                                                       what=f"{table.source}: column {key!r} (time)")
     if rate_hz is None:
-        raise BundleError(f"{table.source}: no time column (looked for {', '.join(_TIME_NAMES)}; columns: "
-                          f"{', '.join(table.columns)}); give it with --time COL[:UNIT] or set --sample-rate HZ")
+        # Quasi-static records (a hysteresisgraph's B(H) loops) have no time: the samples are numbered.
+        notes.append(f"{table.source}: no time column (looked for {', '.join(_TIME_NAMES)}); samples numbered "
+                     "1 s apart (give --time COL[:UNIT] or --sample-rate HZ for the real time)")
+        rate_hz = 1.0
     return np.arange(table.n_samples) / float(rate_hz)
+
+
+# ------------------------------------------------------------------------------------------ table layouts
+def _per_column(table: Table, specs: list[ColumnSpec]) -> list[Table]:
+    """A table whose declared columns are matrices (``name[1]``, ``name[2]`` ... : one loop per column) as one
+    table per column index, each holding ``name``; other tables as they are."""
+    grouped = [s.column for s in specs if table.find(s.column) is None and table.find(f"{s.column}[1]") is not None]
+    if not grouped:
+        return [table]
+    count = 1
+    while all(table.find(f"{g}[{count + 1}]") is not None for g in grouped):
+        count += 1
+    out = []
+    for k in range(1, count + 1):
+        columns = {n: v for n, v in table.columns.items() if not re.search(r"\[\d+\]$", n)}
+        for g in grouped:
+            columns[g] = table.columns[table.find(f"{g}[{k}]") or g]
+        out.append(Table(f"{table.name}-{k}", columns, f"{table.source} (column {k})", dict(table.units),
+                         table.time_column, dict(table.meta)))
+    return out
+
+
+def _joined(read: list[tuple[Path, list[Table]]], in_spec: ColumnSpec, out_spec: ColumnSpec,
+            notes: list[str]) -> list[tuple[Path, list[Table]]]:
+    """Input and output in separate files (a hysteresisgraph's ``H_*.mat`` and ``B_*.mat``): the tables of a file
+    that hold only the input are joined, in order, with those of another file that hold only the output and as many
+    samples."""
+    def holds(t: Table, spec: ColumnSpec) -> bool:
+        return t.find(spec.column) is not None
+
+    inputs = [(p, t) for p, ts in read for t in ts if holds(t, in_spec) and not holds(t, out_spec)]
+    outputs = [(p, t) for p, ts in read for t in ts if holds(t, out_spec) and not holds(t, in_spec)]
+    if not inputs or not outputs:
+        return read
+    joined: dict[Path, list[Table]] = {}
+    used: set[int] = set()
+    for p, a in inputs:
+        match = next((k for k, (q, b) in enumerate(outputs)
+                      if k not in used and q != p and b.n_samples == a.n_samples), None)
+        if match is None:
+            continue
+        used.add(match)
+        q, b = outputs[match]
+        columns = {**{f"{n}": v for n, v in b.columns.items()}, **a.columns}
+        units = {**b.units, **a.units}
+        name = _common_suffix(a.name, b.name) or f"{a.name}+{b.name}"
+        joined.setdefault(p, []).append(Table(name, columns, f"{a.source} + {b.source}", units,
+                                              a.time_column or b.time_column, {**b.meta, **a.meta}))
+    if not joined:
+        return read
+    notes.append(f"input and output read from separate files: {sum(map(len, joined.values()))} table(s) joined "
+                 "in file order")
+    rest = [(p, [t for t in ts if holds(t, in_spec) and holds(t, out_spec)]) for p, ts in read]
+    return [(p, ts) for p, ts in joined.items()] + [(p, ts) for p, ts in rest if ts]
+
+
+def _common_suffix(a: str, b: str) -> str:
+    n = 0
+    while n < min(len(a), len(b)) and a[-1 - n] == b[-1 - n]:
+        n += 1
+    return a[len(a) - n:].strip("._- ") if n else ""
 
 
 # ---------------------------------------------------------------------------------------------- protocol
@@ -247,6 +314,7 @@ def import_logs(
     device: str = "",
     sample_rate_hz: float | None = None,
     deadband: float | None = None,
+    keep_edges: bool = False,
 ) -> ImportResult:
     """Read raw logs into a bundle (``ImportResult.bundle``) with the declared quantities.
 
@@ -254,9 +322,10 @@ def import_logs(
     ``COL:SOURCE:UNIT`` (or :class:`ColumnSpec`); the angle is stored in rad and time in s (a single unit given
     for them is the file's), the sigma in the output's unit. ``input_name``/``output_name`` name the quantities
     (default: from the unit's dimension, e.g. V → voltage). ``protocol``: one of ``PROTOCOLS``; ``holdout``: run
-    or file names labelled for evaluation. ``format`` forces a reader (see :data:`bmr.data.tables.FORMATS`).
+    or file names labelled for evaluation. ``format`` forces a reader (see :data:`bmr.data.formats.FORMATS`).
     ``sample_rate_hz`` builds time from the sample index for files without a time column. ``deadband``: the
-    reversal dead-band in input units.
+    reversal dead-band in input units. An idle hold at a run's start and a command jump at its end
+    (:func:`bmr.data.signals.capture_edges`) are left out and named in the notes unless ``keep_edges``.
     """
     if protocol not in PROTOCOLS:
         raise BundleError(f"unknown protocol {protocol!r}; use one of {', '.join(PROTOCOLS)}")
@@ -282,8 +351,10 @@ def import_logs(
     skipped: list[tuple[str, str]] = []
     notes: list[str] = []
     found: list[tuple[Path, Table]] = []
-    for path in paths:
-        tables = read_tables(path, format)
+    specs = [s for s in (in_spec, out_spec, angle_spec, sigma_spec) if s is not None]
+    read = [(path, [u for t in read_tables(path, format) for u in _per_column(t, specs)]) for path in paths]
+    read = _joined(read, in_spec, out_spec, notes)
+    for path, tables in read:
         usable = []
         first_missing = ""
         for t in tables:
@@ -304,6 +375,15 @@ def import_logs(
     first = found[0][1]
     q_in = _quantity(first, in_spec, input_name, "input")
     q_out = _quantity(first, out_spec, output_name, "output")
+    if q_in.name == q_out.name:
+        # Same unit on both sides (a piezo drive and its sensor, both in V): each is named by its column.
+        if input_name is None:
+            q_in = Quantity.declare(q_in.unit, in_spec.column)
+        if output_name is None:
+            q_out = Quantity.declare(q_out.unit, out_spec.column)
+        if q_in.column == q_out.column:
+            raise BundleError(f"the input and the output are both {q_in.label}; name them apart with --input-name "
+                              "and --output-name")
     q_sigma = (Quantity(f"{q_out.name} sigma", q_out.unit, f"{q_out.column}_sigma")
                if sigma_spec is not None else None)
     quantities = Quantities(q_in, q_out, ANGLE if angle_spec is not None else None, q_sigma)
@@ -332,6 +412,27 @@ def import_logs(
     if unknown:
         raise BundleError(f"holdout {', '.join(map(repr, unknown))} names no imported run or file (runs: "
                           f"{', '.join(n for _, _, n, _ in built)})")
+
+    # A capture's idle hold before the excitation and a command jump as it ends are not the experiment: left out
+    # of the bundle (so of identification and scoring), counted per run and named in the notes.
+    edges: dict[str, CaptureEdges] = {}
+    if not keep_edges:
+        trimmed = []
+        for path, t, name, df in built:
+            e = capture_edges(df[q_in.column].to_numpy())
+            if e.any:
+                edges[name] = e
+                tt = df["t_s"].to_numpy()
+                if e.hold:
+                    notes.append(f"{t.source} (run {name!r}): idle hold at the start, {e.hold} samples "
+                                 f"({format_number(tt[e.hold] - tt[0], 4)} s at {q_in.format(e.hold_level, 4)}) "
+                                 "left out (its last sample kept as the run's start)")
+                if e.jump:
+                    notes.append(f"{t.source} (run {name!r}): command jump at the end, the last {e.jump} sample(s) "
+                                 "left out")
+                df = df.iloc[e.hold:len(df) - e.jump].reset_index(drop=True)
+            trimmed.append((path, t, name, df))
+        built = trimmed
 
     inputs = [df[q_in.column].to_numpy() for *_, df in built]
     for (path, t, name, df), u in zip(built, inputs):
@@ -364,7 +465,9 @@ def import_logs(
                 if role == "identification":
                     off_protocol.append(exc)
                     notes.append(f"{exc}; kept as a custom run (not used as first-order curves)")
+        e = edges.get(name, CaptureEdges())
         meta = {"source": t.source, "reversals": int(rev.size),
+                **({"idle_hold_samples": e.hold, "end_jump_samples": e.jump} if e.any else {}),
                 **({"first_order_curves": curves} if curves is not None else {}),
                 **_jsonable_meta(t.meta)}
         try:
@@ -373,7 +476,7 @@ def import_logs(
             raise BundleError(f"{t.source}: {exc}") from None
         tt = df["t_s"].to_numpy()
         report.append(ImportedRun(name, t.source, kind, role, len(df), int(rev.size), curves,
-                                  (float(u.min()), float(u.max())), float(tt[-1] - tt[0])))
+                                  (float(u.min()), float(u.max())), float(tt[-1] - tt[0]), e))
     if off_protocol and not any(r.role == "identification" and r.kind != "custom" for r in runs):
         raise off_protocol[0]
     rate = sample_rate([r.time for r in runs])
@@ -391,7 +494,7 @@ def run_cli(args: Any) -> int:
     result = import_logs(args.files, input=args.input, output=args.output, angle=args.angle, time=args.time,
                          output_sigma=args.output_sigma, input_name=args.input_name, output_name=args.output_name,
                          protocol=args.protocol, holdout=holdout, format=args.format, device=args.device or "",
-                         sample_rate_hz=args.sample_rate, deadband=args.deadband)
+                         sample_rate_hz=args.sample_rate, deadband=args.deadband, keep_edges=args.keep_edges)
     write_bundle(result.bundle, out, fmt=args.file_format)
     print(f"bmr import: {len(args.files)} file(s) -> {out}")
     for line in result.summary().splitlines():

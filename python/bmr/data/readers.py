@@ -24,8 +24,9 @@ import pandas as pd
 
 from bmr._core import BundleError
 from bmr.data.bundle import OPTIONAL_COLUMNS, REQUIRED_COLUMNS, Bundle, Run
+from bmr.data.formats import read_tables
 from bmr.data.signals import nominal_sample_rate
-from bmr.data.tables import Table, read_tables
+from bmr.data.tables import Table
 from bmr.data.units import convert, unit, units_of
 
 __all__ = ["COLUMN_UNITS", "convert_units", "read_table", "bundle_from_files", "supported_units"]
@@ -77,7 +78,7 @@ def read_table(
     """Read one lab file into a DataFrame with bundle columns.
 
     ``path``: ``.csv``/``.txt``, ``.parquet``/``.pq``, ``.tdms`` or ``.mat`` (read by
-    :func:`bmr.data.tables.read_tables`).
+    :func:`bmr.data.formats.read_tables`).
     ``mapping``: bundle column -> source name (CSV/Parquet column; TDMS ``"group/channel"`` or a channel name unique
     across groups; MAT variable, ``"struct.field"`` or ControlDesk channel). Unmapped bundle columns are taken from
     a source of the same name when present.

@@ -1,20 +1,10 @@
-"""Measurement tables read from lab files, before they become bundle runs.
+"""Measurement tables read from lab files, before they become bundle runs, and the generic readers.
 
 A :class:`Table` is one measurement as a file holds it: named numeric columns of equal length, the unit the file
 states for each column (if any), the column the format designates as time (if any), where it came from and the
 file's metadata. A file may hold several tables (an analyzer export with one table per measurement, a capture
-with several rasters). :func:`read_tables` picks the reader from the file's extension and content, or takes the
-one named by ``format``:
-
-| format | files | reader |
-|---|---|---|
-| ``csv`` | ``.csv`` (any delimiter), headers ``Name``, ``Name [unit]`` or ``Name (unit)`` | :func:`read_csv` |
-| ``parquet`` | ``.parquet``, ``.pq`` | :func:`read_parquet` |
-| ``tdms`` | NI TDMS (``group/channel``; ``unit_string`` property) | :func:`read_tdms` |
-| ``mat`` | MATLAB v5/v7 variables and ``struct.field`` | :func:`read_mat` |
-| ``controldesk`` | dSPACE ControlDesk captures (``.mat``) | :mod:`bmr.data.controldesk` |
-| ``aixacct`` | tab-separated analyzer exports (``.dat``, ``.txt``, ``.tsv``) | :mod:`bmr.data.aixacct` |
-| ``slac`` | SLAC magnetic-measurement tables (``strdat.ruN``, ``strplt.ruN``) | :mod:`bmr.data.slac` |
+with several rasters). The generic readers here (CSV, Parquet, TDMS, MATLAB variables) and the instrument formats
+are registered in :mod:`bmr.data.formats`, whose ``read_tables`` picks the reader for a file.
 """
 from __future__ import annotations
 
@@ -29,7 +19,7 @@ import pandas as pd
 from bmr._core import BmrError, BundleError
 from bmr.data.units import unit as parse_unit
 
-__all__ = ["Table", "FORMATS", "read_tables", "read_text", "split_name_unit", "read_csv", "read_parquet",
+__all__ = ["Table", "read_text", "split_name_unit", "read_csv", "read_parquet",
            "read_tdms", "read_mat", "load_mat"]
 
 
@@ -313,7 +303,8 @@ def load_mat(path: Path) -> dict[str, Any]:
 
 
 def read_mat(path: str | Path) -> list[Table]:
-    """MATLAB variables: numeric vectors by name, struct fields as ``struct.field``."""
+    """MATLAB variables: numeric vectors by name, struct fields as ``struct.field``, and each column of a matrix
+    as ``name[k]`` (1-based: one loop per column, as hysteresisgraphs store concentric loops)."""
     p = Path(path)
     mat = load_mat(p)
     columns: dict[str, np.ndarray] = {}
@@ -324,8 +315,14 @@ def read_mat(path: str | Path) -> list[Table]:
                 add(f"{name}.{f}", getattr(value, f))
             return
         arr = np.asarray(value)
-        if arr.dtype.kind in "iuf" and (arr.ndim == 1 or (arr.ndim == 2 and 1 in arr.shape)) and arr.size > 1:
+        if arr.dtype.kind not in "iuf" or arr.size <= 1:
+            return
+        if arr.ndim == 1 or (arr.ndim == 2 and 1 in arr.shape):
             columns[name] = arr.ravel().astype(float)
+        elif arr.ndim == 2:
+            matrix = arr if arr.shape[0] >= arr.shape[1] else arr.T  # samples along the longer side
+            for k in range(matrix.shape[1]):
+                columns[f"{name}[{k + 1}]"] = matrix[:, k].astype(float)
 
     for key, value in mat.items():
         if not key.startswith("__"):
@@ -351,46 +348,3 @@ def _split_by_length(path: Path, columns: dict[str, np.ndarray], units: dict[str
         out.append(Table(f"{path.stem}-{n}", {k: columns[k] for k in keys}, f"{path} ({n}-sample columns)",
                          {k: u for k, u in units.items() if k in keep}, aliases={a: v for a, v in al.items() if v}))
     return out
-
-
-# ------------------------------------------------------------------------------------------------ dispatch
-def _readers() -> dict[str, Callable[[Path], list[Table]]]:
-    from bmr.data import aixacct, controldesk, slac
-
-    return {"csv": read_csv, "parquet": read_parquet, "tdms": read_tdms, "mat": read_mat,
-            "controldesk": controldesk.read, "aixacct": aixacct.read, "slac": slac.read}
-
-
-FORMATS = ("csv", "parquet", "tdms", "mat", "controldesk", "aixacct", "slac")
-
-
-def detect_format(path: Path) -> str:
-    """The reader for ``path`` from its extension and, for ``.mat`` and text files, its content."""
-    from bmr.data import aixacct, controldesk, slac
-
-    suffix = path.suffix.lower()
-    if suffix in (".parquet", ".pq"):
-        return "parquet"
-    if suffix == ".tdms":
-        return "tdms"
-    if suffix == ".mat":
-        return "controldesk" if controldesk.looks_like(path) else "mat"
-    if slac.looks_like(path):
-        return "slac"
-    if suffix == ".csv":
-        return "csv"
-    return "aixacct" if aixacct.looks_like(path) else "csv"
-
-
-def read_tables(path: str | Path, format: str | None = None) -> list[Table]:
-    """Every measurement table in ``path``, read with the reader named by ``format`` (one of ``FORMATS``) or the
-    one its extension and content call for."""
-    p = Path(path)
-    if not p.is_file():
-        raise BundleError(f"{str(p)!r} does not exist" if not p.exists() else f"{str(p)!r} is not a file")
-    readers = _readers()
-    if format is None:
-        format = detect_format(p)
-    if format not in readers:
-        raise BundleError(f"unknown file format {format!r}; use one of {', '.join(FORMATS)}")
-    return readers[format](p)

@@ -65,6 +65,7 @@ DIMENSION_QUANTITY = {
     "pressure": "pressure",
     "polarization": "polarization",
     "charge": "charge",
+    "magnetic moment": "moment",
     "temperature": "temperature",
     "dimensionless": "value",
 }
@@ -125,6 +126,10 @@ UNITS: tuple[Unit, ...] = (
     _u("µC", "uc", "charge", 1e-6, "uC", "μC"),
     _u("nC", "nc", "charge", 1e-9),
     _u("pC", "pc", "charge", 1e-12),
+    # Magnetometers write the moment in SI (A·m²) or cgs (emu = 1e-3 A·m²).
+    _u("A·m²", "am2", "magnetic moment", 1.0, "A*m^2", "A*m2", "A·m2", "A.m2", "Am2", "Am^2", "Am²", "A m2",
+       "A m^2", "J/T"),
+    _u("emu", "emu", "magnetic moment", 1e-3),
     _u("K", "k", "temperature", 1.0),
     _u("°C", "degc", "temperature", 1.0, "degC", "deg C", offset=273.15),
     _u("°F", "degf", "temperature", 5.0 / 9.0, "degF", "deg F", offset=273.15 - 32.0 * 5.0 / 9.0),

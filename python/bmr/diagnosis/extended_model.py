@@ -19,11 +19,10 @@ import copy
 import math
 from typing import Any, Sequence
 
-import numpy as np
+from bmr._core import check_extensions, effect_parameters
+from bmr.identification.extended import extended_simulation, learned_term, simulate_extended
 
-from bmr._core import BmrError, ExtendedSimulation, check_extensions, effect_parameters
-
-__all__ = ["ExtendedModel", "extensions_from_selection", "with_extensions"]
+__all__ = ["ExtendedModel", "extensions_from_selection", "learned_term", "with_extensions"]
 
 
 def _clip(value: float, param: dict[str, Any]) -> float:
@@ -79,52 +78,20 @@ class ExtendedModel:
 
     def simulation(self, dt_s: float) -> Any:
         """The forward chain as a ``bmr.ExtendedSimulation`` at sample period ``dt_s``."""
-        m = self.model
-        friction = m.friction.to_friction() if m.friction is not None else None
-        return ExtendedSimulation(m.core_hysteresis(), friction, extensions=m.extensions, dt_s=dt_s,
-                                  full_current_a=m.full_current_a, full_torque_nmm=m.full_torque_nmm)
+        return extended_simulation(self.model, dt_s)
 
     def simulate(self, current_a: Any, theta_rad: Any, *, dt_s: float, t0_s: float = 0.0,
                  thermal_x0: float = 0.0, measured: bool = True) -> np.ndarray:
         """Torque (N·mm) for commanded current (A) and angle (rad) sampled every ``dt_s``, from negative
         saturation with heating state ``thermal_x0``; ``measured`` adds the sensor terms (offset and drift from
         bundle time ``t0_s``)."""
-        u = np.ascontiguousarray(current_a, dtype=float)
-        th = np.ascontiguousarray(theta_rad, dtype=float)
-        if u.ndim != 1 or th.shape != u.shape:
-            raise BmrError(f"current and theta must be 1-D of one length (got {u.shape} and {th.shape})")
-        out = self.simulation(dt_s).run(u, th, heating=thermal_x0, t0_s=t0_s)
-        y = out["measured_nmm" if measured else "torque_nmm"]
-        learned = self.model.extension("learned_discrepancy")
-        if learned is not None and measured:
-            y = y + learned_term(learned, u, y, th, dt_s)
-        return y
+        return simulate_extended(self.model, current_a, theta_rad, dt_s=dt_s, t0_s=t0_s, heating=thermal_x0,
+                                 measured=measured)
 
     def compensator(self, *, dt_s: float, **kwargs: Any) -> Any:
         """The extended ``bmr.Compensator`` (``Model.compensator``; by default every stage: ``stages="all"``)."""
         kwargs.setdefault("stages", "all")
         return self.model.compensator(dt_s, **kwargs)
-
-
-def learned_term(entry: dict[str, Any], u: np.ndarray, y: np.ndarray, theta: np.ndarray | None, dt_s: float
-                 ) -> np.ndarray:
-    """The ``learned_discrepancy`` entry's term along a run (input ``u``, model output ``y``, angle, sample period):
-    its intercept plus each signal of ``bmr._core.candidate_signals`` times its coefficient."""
-    from bmr._core import CANDIDATES, candidate_signals
-
-    names = [c[0] for c in CANDIDATES]
-    harmonics = max((int(t["name"][4:].split("θ")[0]) for t in entry.get("terms", [])
-                     if t["name"].startswith(("sin(", "cos("))), default=0)
-    lib = candidate_signals(np.arange(u.size) * dt_s, u, y, deadband=float(entry["deadband"]),
-                            theta_rad=theta if harmonics else None, harmonics=harmonics)
-    for k in range(1, harmonics + 1):
-        names += [f"sin({k}θ)", f"cos({k}θ)"]
-    out = np.full(u.size, float(entry.get("intercept", 0.0)))
-    for t in entry.get("terms", []):
-        if t["name"] not in names:
-            raise BmrError(f"learned_discrepancy: unknown signal {t['name']!r}")
-        out += float(t["coefficient"]) * lib[:, names.index(t["name"])]
-    return out
 
 
 def with_extensions(model: Any, extensions: Sequence[dict[str, Any]]) -> Any:

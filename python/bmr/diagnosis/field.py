@@ -137,6 +137,11 @@ class Reidentifier:
         self.input_range = (float(lo), float(hi))
         self.runs = [ProtocolRun(r, t0_s, model, context) for r, t0_s in self.protocol]
 
+    def release(self) -> None:
+        """Drop the prepared regressions (tens of MB each on a long bundle) once no more tables will be
+        identified; the tables identified so far stay."""
+        self._regressions.clear()
+
     def curves(self, path: "FieldPath") -> Curves:
         key = (path.lag_tau_s, path.delay_s, path.rate_tau_s, path.curvature, path.corrections)
         if key in self._tables:

@@ -16,9 +16,9 @@ system), a :class:`bmr.Bundle` (pickled to the worker), or a zero-argument calla
 worker). ``bundles`` is a sequence (rows named by folder, or ``bundle-<i>``) or a mapping of names to bundles.
 
 Table columns: ``index`` (position in ``bundles``), ``bundle`` (name), ``status`` (``ok`` / ``error``),
-``error``, ``actuator``, ``cause``, ``effects`` (accepted names, comma-separated), ``n_samples``,
-``noise_floor_nmm``, ``nominal_heldout_rms_nmm``, ``residual_rms_nmm``, ``cpu_s`` and ``wall_s`` of the
-diagnosis, ``worker`` (host:pid) and ``diagnosis`` (the whole ``bmr-diagnosis/1`` JSON).
+``error``, ``device``, ``cause``, ``effects`` (accepted names, comma-separated), ``n_samples``, ``output_unit``,
+``noise_floor``, ``nominal_heldout_rms``, ``residual_rms`` (in ``output_unit``), ``cpu_s`` and ``wall_s`` of the
+diagnosis, ``worker`` (host:pid) and ``diagnosis`` (the whole ``bmr-diagnosis/2`` JSON).
 """
 from __future__ import annotations
 
@@ -37,16 +37,16 @@ from bmr._core import BmrError
 
 __all__ = ["diagnose_many", "COLUMNS", "run_cli"]
 
-COLUMNS = ("index", "bundle", "status", "error", "actuator", "cause", "effects", "n_samples", "noise_floor_nmm",
-           "nominal_heldout_rms_nmm", "residual_rms_nmm", "cpu_s", "wall_s", "worker", "diagnosis")
+COLUMNS = ("index", "bundle", "status", "error", "device", "cause", "effects", "n_samples", "output_unit",
+           "noise_floor", "nominal_heldout_rms", "residual_rms", "cpu_s", "wall_s", "worker", "diagnosis")
 DASK_HINT = "pip install 'bmr[dask]'"
 
 
 def _schema() -> Any:
     import pyarrow as pa
 
-    types = {"index": pa.int64(), "n_samples": pa.int64(), "noise_floor_nmm": pa.float64(),
-             "nominal_heldout_rms_nmm": pa.float64(), "residual_rms_nmm": pa.float64(), "cpu_s": pa.float64(),
+    types = {"index": pa.int64(), "n_samples": pa.int64(), "noise_floor": pa.float64(),
+             "nominal_heldout_rms": pa.float64(), "residual_rms": pa.float64(), "cpu_s": pa.float64(),
              "wall_s": pa.float64()}
     return pa.schema([(c, types.get(c, pa.string())) for c in COLUMNS])
 
@@ -83,10 +83,10 @@ def diagnose_one(index: int, name: str, source: Any, model: Any = None, folds: i
         m = Model.from_dict(model) if isinstance(model, dict) else model
         d = diagnose(bundle, m, folds=folds, seed=seed, progress=False, closed_loop=closed_loop)
         doc = d.to_dict()
-        row.update(status="ok", error="", actuator=str(bundle.actuator), cause=d.cause,
+        row.update(status="ok", error="", device=str(d.device), cause=d.cause,
                    effects=",".join(e["name"] for e in d.effects),
-                   n_samples=int(sum(len(r.data) for r in bundle.runs)), noise_floor_nmm=d.noise_floor_nmm,
-                   nominal_heldout_rms_nmm=d.nominal_heldout_rms_nmm, residual_rms_nmm=d.residual_rms_nmm,
+                   n_samples=int(sum(len(r.data) for r in bundle.runs)), output_unit=d.quantities.output.unit,
+                   noise_floor=d.noise_floor, nominal_heldout_rms=d.nominal_heldout_rms, residual_rms=d.residual_rms,
                    diagnosis=json.dumps(doc, allow_nan=False))
     except Exception as exc:  # a failed bundle is a row, never the end of the batch
         msg = str(exc) if isinstance(exc, BmrError) else "".join(
@@ -228,7 +228,7 @@ def run_cli(args: Any) -> int:
     for r in table.itertuples():
         if r.status == "ok":
             print(f"{r.bundle}: cause {r.cause}; effects {r.effects or '-'}; held-out RMS "
-                  f"{r.nominal_heldout_rms_nmm:.3f} -> {r.residual_rms_nmm:.3f} N·mm (noise {r.noise_floor_nmm:.3f}); "
+                  f"{r.nominal_heldout_rms:.4g} -> {r.residual_rms:.4g} {r.output_unit} (noise {r.noise_floor:.4g}); "
                   f"{r.cpu_s:.1f} CPU-s")
         else:
             failed += 1

@@ -13,35 +13,36 @@ held-out gain; ``bmr diagnose`` on the command line.
 5. When the bundle records the simulator that made it, the closed-loop gain is measured too: tracking error of
    the extended compensator vs the nominal one on that same plant.
 
-JSON (``bmr-diagnosis/1``): ``cause`` (the accepted physical effect that removed the most held-out RMS;
-``table_resolution`` when only the tables were at fault; ``"none"``), ``effects`` (accepted in order: ``name``,
-``params``, ``heldout_rms_before_nmm``, ``heldout_rms_after_nmm``, ``gain``, ``folds_positive``), ``rejected``,
-``noise_floor_nmm``, ``residual_rms_nmm`` (held-out RMS of the extended model), ``unexplained`` (``signal``,
-``strength`` in N·mm RMS), ``alternatives`` (pairs of effects the excitation could not tell apart, with what
-would separate them), ``identification_drift`` (the leakage the nominal identification found, when its branches
-did not close) and more detail (per-run RMS, nominal held-out RMS, closed loop, timing).
+JSON (``bmr-diagnosis/2``, every value in the bundle's declared output unit, named in ``units``): ``cause`` (the
+accepted physical effect that removed the most held-out RMS; ``table_resolution`` when only the tables were at
+fault; ``"none"``), ``effects`` (accepted in order: ``name``, ``params``, ``heldout_rms_before``,
+``heldout_rms_after``, ``gain``, ``folds_positive``), ``rejected``, ``noise_floor``, ``residual_rms`` (held-out RMS
+of the extended model), ``unexplained`` (``signal``, ``strength`` RMS), ``alternatives`` (pairs of effects the
+excitation could not tell apart, with what would separate them), ``identification_drift`` (the leakage the nominal
+identification fitted with its tables when their branches did not close) and more detail (per-run RMS, nominal
+held-out RMS, closed loop, timing). Version 1 named the same fields with an ``_nmm`` suffix whatever the unit.
 """
 from __future__ import annotations
 
-import json
 import math
 import sys
 import time
 import warnings
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable
 
 import numpy as np
 
 from bmr._core import BmrError, ModelFileError, TableError, VirtualActuator
-from bmr.data.files import check_output_file, write_text
+from bmr.data.files import check_output_file, jsonable, write_json, write_text
 from bmr.data.bundle import Bundle, read_bundle
 from bmr.diagnosis.discrepancy import candidate_library, learn
 from bmr.diagnosis.effects import ANGLE_EFFECTS, LIBRARY, PHYSICAL
 from bmr.diagnosis.field import FieldPath
 from bmr.diagnosis.noise import from_residual
 from bmr.diagnosis.extended_model import ExtendedModel, extensions_from_selection, with_extensions
-from bmr.diagnosis.residuals import prepare, signal_label, structure
+from bmr.diagnosis.residuals import one_blas_thread, prepare, signal_label, structure
 from bmr.diagnosis.selection import MIN_EXCESS, NOISE_MARGIN, Alternative, Fitter, forward_selection, t975
 from bmr.identification.procedure import identify
 from bmr.identification.model import LOOP_STAGES, Model
@@ -50,43 +51,85 @@ from bmr.simulation.experiments import MULTIPEAK_SEED, reference_multipeak, trac
 
 __all__ = ["FORMAT", "Diagnosis", "diagnose", "closed_loop_gain", "check_duration_s", "run_cli", "PHYSICAL"]
 
-FORMAT = "bmr-diagnosis/1"
+FORMAT = "bmr-diagnosis/2"
 # A learned equation (no mechanism behind it) must earn more held-out gain than a named effect.
 LEARNED_MIN_GAIN = 0.05
 # Nominal friction: the paper's 3 harmonics (eq 21-22); higher ones are the friction_harmonics effect.
 NOMINAL_FRICTION_ORDER = 3
 
 
-class Diagnosis:
-    """The result of :func:`diagnose`. ``extended_model`` is the nominal ``bmr.Model`` with the accepted effects in
-    its ``extensions``; ``to_dict()`` is the ``bmr-diagnosis/1`` JSON; ``html_section()`` a self-contained HTML
-    fragment; ``write_report(path)`` a whole page."""
+# Keys of an effect row in the JSON, and the row keys they come from (the selection's rows keep the actuator's
+# historical names).
+_ROW_KEYS = {"name": "name", "params": "params", "heldout_rms_before": "heldout_rms_before_nmm",
+             "heldout_rms_after": "heldout_rms_after_nmm", "gain": "gain", "folds_positive": "folds_positive",
+             "gain_interval": "gain_interval", "gain_interval_bootstrap": "gain_interval_bootstrap",
+             "fold_gains": "fold_gains", "excess_explained": "excess_explained", "round": "round",
+             "reason": "reason"}
 
-    def __init__(self, **kw: Any) -> None:
-        self.actuator: str = kw["actuator"]
-        self.cause: str = kw["cause"]
-        self.effects: list[dict[str, Any]] = kw["effects"]
-        self.rejected: list[dict[str, Any]] = kw["rejected"]
-        self.noise_floor_nmm: float = kw["noise_floor_nmm"]
-        self.residual_rms_nmm: float = kw["residual_rms_nmm"]
-        self.nominal_heldout_rms_nmm: float = kw["nominal_heldout_rms_nmm"]
-        self.unexplained: list[dict[str, Any]] = kw["unexplained"]
-        self.structure_nominal: dict[str, float] = kw["structure_nominal"]
-        self.structure_extended: dict[str, float] = kw["structure_extended"]
-        self.per_run_rms: dict[str, tuple[float, float]] = kw["per_run_rms"]
-        self.folds: int = kw["folds"]
-        self.seed: int = kw["seed"]
-        self.wall_time_s: float = kw["wall_time_s"]
-        self.model = kw["model"]
-        self.extended_model = kw["extended_model"]
-        self.closed_loop: dict[str, Any] | None = kw.get("closed_loop")
-        self.quantities = kw["quantities"]
-        self.noise: dict[str, Any] = kw["noise"]
-        self.learned: dict[str, Any] | None = kw.get("learned")
-        self.alternatives: list[Alternative] = kw.get("alternatives", [])
-        self.identification_drift: dict[str, float] | None = kw.get("identification_drift")
-        self._signals = kw["signals"]
-        self._figures: dict[str, str] | None = None
+
+@dataclass(eq=False, repr=False)
+class Diagnosis:
+    """The result of :func:`diagnose`. Every level and RMS is in the bundle's declared output unit
+    (``quantities.output.unit``).
+
+    ``device``: what the bundle says it was recorded on. ``cause``: the accepted physical effect that removed the
+    most held-out RMS (``table_resolution`` when only the tables were at fault; ``"none"``). ``effects`` /
+    ``rejected``: the selection's rows, accepted in order / rejected (``name``, ``params``, held-out RMS before and
+    after, ``gain``, fold gains and intervals). ``noise_floor``: the measurement noise (one standard deviation),
+    estimated as ``noise["method"]`` says. ``nominal_heldout_rms`` / ``residual_rms``: held-out RMS of the nominal
+    and of the extended model. ``unexplained``: residual structure above the threshold (``signal``, ``strength``).
+    ``structure_nominal`` / ``structure_extended``: residual RMS explained by each signal. ``per_run_rms``:
+    ``{run: (nominal, extended)}``. ``model`` / ``extended_model``: the nominal ``bmr.Model`` and the same with the
+    accepted effects in its ``extensions``. ``learned``: the sparse regression of what no effect names (or None).
+    ``closed_loop``: the tracking check of the extended compensator, when the bundle records its simulator.
+    ``alternatives``: pairs of effects the excitation could not tell apart (:class:`Alternative`, with what would
+    separate them). ``identification_drift``: the leakage the nominal identification fitted with its tables because
+    their branches did not close (``leakage_rate`` in output per input·s, ``closure`` the share of the span a
+    saturation output moved), or None.
+    ``to_dict()`` is the ``bmr-diagnosis/2`` JSON; ``html_section()`` a self-contained HTML fragment;
+    ``write_report(path)`` a whole page."""
+
+    device: str
+    cause: str
+    effects: list[dict[str, Any]]
+    rejected: list[dict[str, Any]]
+    noise_floor: float
+    residual_rms: float
+    nominal_heldout_rms: float
+    unexplained: list[dict[str, Any]]
+    structure_nominal: dict[str, float]
+    structure_extended: dict[str, float]
+    per_run_rms: dict[str, tuple[float, float]]
+    folds: int
+    seed: int
+    model: Any
+    extended_model: Any
+    quantities: Any
+    noise: dict[str, Any]
+    learned: dict[str, Any] | None = None
+    closed_loop: dict[str, Any] | None = None
+    alternatives: list[Alternative] = field(default_factory=list)
+    identification_drift: dict[str, float] | None = None
+    wall_time_s: float = 0.0
+    signals: dict[str, Any] = field(default_factory=dict)
+    _figures: dict[str, str] | None = field(default=None, init=False)
+
+    # The version-1 names (output unit whatever the device), kept readable for existing scripts.
+    @property
+    def actuator(self) -> str:
+        return self.device
+
+    @property
+    def noise_floor_nmm(self) -> float:
+        return self.noise_floor
+
+    @property
+    def residual_rms_nmm(self) -> float:
+        return self.residual_rms
+
+    @property
+    def nominal_heldout_rms_nmm(self) -> float:
+        return self.nominal_heldout_rms
 
     @property
     def extended(self) -> ExtendedModel:
@@ -94,35 +137,26 @@ class Diagnosis:
         return ExtendedModel(self.extended_model)
 
     def to_dict(self) -> dict[str, Any]:
-        def clean(x: Any) -> Any:
-            if isinstance(x, dict):
-                return {str(k): clean(v) for k, v in x.items()}
-            if isinstance(x, (list, tuple)):
-                return [clean(v) for v in x]
-            if isinstance(x, (np.floating, float)):
-                return float(x) if math.isfinite(float(x)) else None
-            if isinstance(x, np.integer):
-                return int(x)
-            return x
+        """The ``bmr-diagnosis/2`` JSON document (JSON-safe: non-finite numbers are null)."""
+        def row(e: dict[str, Any]) -> dict[str, Any]:
+            return {k: e[src] for k, src in _ROW_KEYS.items() if src in e}
 
-        keys = ("name", "params", "heldout_rms_before_nmm", "heldout_rms_after_nmm", "gain", "folds_positive",
-                "gain_interval", "gain_interval_bootstrap", "fold_gains", "excess_explained", "round", "reason")
-        return clean({
+        return jsonable({
             "format": FORMAT,
-            "actuator": self.actuator,
+            "device": self.device,
             "quantities": self.quantities.to_dict(),
             "units": {"input": self.quantities.input.unit, "output": self.quantities.output.unit},
             "cause": self.cause,
-            "effects": [{k: e[k] for k in keys if k in e} for e in self.effects],
-            "rejected": [{k: r[k] for k in keys if k in r} for r in self.rejected],
-            "noise_floor_nmm": self.noise_floor_nmm,
-            "noise_floor": self.noise,
+            "effects": [row(e) for e in self.effects],
+            "rejected": [row(r) for r in self.rejected],
+            "noise_floor": self.noise_floor,
+            "noise": self.noise,
             "learned": self.learned,
-            "residual_rms_nmm": self.residual_rms_nmm,
-            "nominal_heldout_rms_nmm": self.nominal_heldout_rms_nmm,
+            "residual_rms": self.residual_rms,
+            "nominal_heldout_rms": self.nominal_heldout_rms,
             "unexplained": self.unexplained,
             "structure": {"nominal": self.structure_nominal, "extended": self.structure_extended},
-            "per_run_rms_nmm": {k: {"nominal": b, "extended": a} for k, (b, a) in self.per_run_rms.items()},
+            "per_run_rms": {k: {"nominal": b, "extended": a} for k, (b, a) in self.per_run_rms.items()},
             "closed_loop": self.closed_loop,
             "alternatives": [a.to_dict() for a in self.alternatives],
             "identification_drift": self.identification_drift,
@@ -145,15 +179,15 @@ class Diagnosis:
         return write_text(path, html_page(self), what="report")
 
     def write_json(self, path: str | Path) -> Path:
-        """Write the ``bmr-diagnosis/1`` JSON (atomically)."""
-        return write_text(path, json.dumps(self.to_dict(), indent=1, allow_nan=False) + "\n", what="diagnosis")
+        """Write the ``bmr-diagnosis/2`` JSON (atomically)."""
+        return write_json(path, self.to_dict(), what="diagnosis")
 
     def __repr__(self) -> str:
         unit = self.quantities.output.unit
         learned = f", learned {self.learned['equation']!r}" if self.learned else ""
         return (f"Diagnosis(cause={self.cause!r}, effects={[e['name'] for e in self.effects]}{learned}, "
-                f"held-out RMS {self.nominal_heldout_rms_nmm:.3g} -> {self.residual_rms_nmm:.3g} {unit}, "
-                f"noise {self.noise_floor_nmm:.3g} {unit} ({self.noise['method']}))")
+                f"held-out RMS {self.nominal_heldout_rms:.3g} -> {self.residual_rms:.3g} {unit}, "
+                f"noise {self.noise_floor:.3g} {unit} ({self.noise['method']}))")
 
 
 def _rms(x: np.ndarray) -> float:
@@ -165,7 +199,7 @@ def nominal_model(bundle: Bundle) -> Any:
     first-order curves alone (no curves added between them). Least-squares tables when the bundle has no
     first-order runs, or when its curves give no tables (branches that do not close are a finding: the
     least-squares fit then estimates a leakage with the table, see ``fit_tables_lstsq``)."""
-    if bundle.by_kind("first_order_ascending", "first_order_descending"):
+    if bundle.roles().protocol:
         try:
             return identify(bundle, method="forc", max_order=NOMINAL_FRICTION_ORDER, subdivisions=1)
         except TableError:
@@ -173,6 +207,7 @@ def nominal_model(bundle: Bundle) -> Any:
     return identify(bundle, method="lstsq", max_order=NOMINAL_FRICTION_ORDER, subdivisions=1, drift="auto")
 
 
+@one_blas_thread
 def diagnose(bundle: Bundle | str | Path, model: Any = None, *, folds: int = 5, seed: int = 0,
              progress: bool = True, closed_loop: bool = True) -> Diagnosis:
     """Diagnose ``bundle`` (a :class:`bmr.Bundle` or its folder) against ``model`` (default: the nominal model
@@ -193,8 +228,7 @@ def diagnose(bundle: Bundle | str | Path, model: Any = None, *, folds: int = 5, 
         model = Model.load(model)
     lo, hi = model.hysteresis.input_range
     data = prepare(bundle, (lo, hi), folds, friction=model.friction)
-    protocol = [(r, data.run_start_s[r.name]) for r in
-                bundle.by_kind("first_order_ascending", "first_order_descending")]
+    protocol = [(r, data.run_start_s[r.name]) for r in bundle.roles().protocol]
     fitter = Fitter(data, model, protocol)
     if data.noise is None:
         # No off-state run, dwell, repeated run or declared uncertainty: the high-frequency part of the nominal
@@ -227,6 +261,7 @@ def diagnose(bundle: Bundle | str | Path, model: Any = None, *, folds: int = 5, 
     # Residuals on all data (nominal with its offset, extended) for the figures and the structure study.
     r_nom, _ = fitter.fit(FieldPath.nominal(model), [])
     r_ext, _ = fitter.fit(config.path, config.linear)
+    fitter.reidentifier.release()  # every table is identified: free the regressions before the library is built
     split = np.cumsum([r.n_eval for r in data.runs])[:-1]
     nom_runs, ext_runs = np.split(r_nom, split), np.split(r_ext, split)
     struct_nom = structure(data, nom_runs, lo, hi)
@@ -264,9 +299,9 @@ def diagnose(bundle: Bundle | str | Path, model: Any = None, *, folds: int = 5, 
                            "equation": learned["equation"]})
     ext_model = with_extensions(model, extensions)
     ext_model.meta["diagnosis"] = {"cause": cause, "effects": [e["name"] for e in accepted]}
-    d = Diagnosis(actuator=bundle.actuator, cause=cause, effects=accepted, rejected=sel["rejected"],
-                  noise_floor_nmm=data.noise_floor_nmm, residual_rms_nmm=resid_rms,
-                  nominal_heldout_rms_nmm=sel["nominal_heldout_rms_nmm"], unexplained=unexplained,
+    d = Diagnosis(device=bundle.actuator, cause=cause, effects=accepted, rejected=sel["rejected"],
+                  noise_floor=data.noise_floor_nmm, residual_rms=resid_rms,
+                  nominal_heldout_rms=sel["nominal_heldout_rms_nmm"], unexplained=unexplained,
                   structure_nominal=struct_nom, structure_extended=struct_ext, per_run_rms=per_run, folds=folds,
                   seed=seed, wall_time_s=0.0, model=model, extended_model=ext_model, signals=signals,
                   quantities=bundle.quantities, noise=data.noise.to_dict(), learned=learned,
@@ -475,9 +510,9 @@ def run_cli(args: Any) -> int:
     d = diagnose(args.bundle, args.model, folds=args.folds, seed=args.seed)
     q = d.quantities
     u = q.output.unit
-    print(f"bmr diagnose: {d.actuator} ({q.describe()}): cause {d.cause}; held-out RMS "
-          f"{q.output.format(d.nominal_heldout_rms_nmm, 4)} -> {q.output.format(d.residual_rms_nmm, 4)} "
-          f"(noise floor {q.output.format(d.noise_floor_nmm, 4)}, {d.noise['method'].replace('_', ' ')}), "
+    print(f"bmr diagnose: {d.device} ({q.describe()}): cause {d.cause}; held-out RMS "
+          f"{q.output.format(d.nominal_heldout_rms, 4)} -> {q.output.format(d.residual_rms, 4)} "
+          f"(noise floor {q.output.format(d.noise_floor, 4)}, {d.noise['method'].replace('_', ' ')}), "
           f"{d.wall_time_s:.1f} s")
     for e in d.effects:
         params = ", ".join(f"{k}={v:.4g}" for k, v in e["params"].items())
@@ -490,8 +525,8 @@ def run_cli(args: Any) -> int:
         print(f"  {a.message}")
     if d.identification_drift:
         print(f"  identification: branches open by {100 * d.identification_drift['closure']:.3g} % of the span; "
-              f"leakage {d.identification_drift['leakage_rate']:.4g} {u} per {q.input.unit}·s fitted with the "
-              "tables")
+              f"leakage {d.identification_drift['leakage_rate']:.4g} {q.output.unit} per {q.input.unit}·s fitted "
+              "with the tables")
     if d.learned:
         state = "learned" if d.learned["accepted"] else "not kept"
         print(f"  {state} (no named effect): {d.learned['equation']}; gain {100 * d.learned['gain']:.1f} % "

@@ -14,18 +14,35 @@ Units: torque N·mm, current A, angle rad, time s.
 """
 from __future__ import annotations
 
+import functools
 import math
 from collections import OrderedDict
 from dataclasses import dataclass, field
 from functools import cached_property
-from typing import Any, Callable, Sequence
+from typing import Any, Callable, Sequence, TypeVar
 
 import numpy as np
+from threadpoolctl import threadpool_limits
 
 from bmr import _core
 from bmr._core import BmrError
 from bmr.data.bundle import Bundle, Run
 from bmr.identification.spans import SATURATION_TOL, evaluation_start
+
+F = TypeVar("F", bound=Callable[..., Any])
+
+
+def one_blas_thread(fn: F) -> F:
+    """Run ``fn`` with the linear-algebra library on one thread (restored after). A diagnosis multiplies many small
+    matrices (a few dozen columns): threads add no speed there but spin while they wait, costing CPU time that,
+    on a loaded machine, is most of the diagnosis's."""
+
+    @functools.wraps(fn)
+    def wrapper(*args: Any, **kwargs: Any) -> Any:
+        with threadpool_limits(limits=1, user_api="blas"):
+            return fn(*args, **kwargs)
+
+    return wrapper  # type: ignore[return-value]
 
 __all__ = ["EvalRun", "EvalData", "BoundedCache", "prepare", "noise_floor", "reversal_order", "signal_label", "structure",
            "SIGNALS", "MAX_FIT_ROWS"]

@@ -59,6 +59,8 @@ NOISE_MARGIN = 1.03
 _T975 = {1: 12.706, 2: 4.303, 3: 3.182, 4: 2.776, 5: 2.571, 6: 2.447, 7: 2.365, 8: 2.306, 9: 2.262, 10: 2.228}
 # Relative eigenvalue below which a direction of the scaled normal equations is treated as rank deficient.
 _RCOND = 1e-13
+# Grid step of the first pass of an input-side effect's coarse-to-fine scan (grid values, see coarse_to_fine).
+COARSE_STRIDE = 4
 
 
 def t975(df: int) -> float:
@@ -351,6 +353,57 @@ def _fit_with(fitter: Fitter, config: Configuration, eff: Effect, value: Any, fo
     return ff, beta, path, linear
 
 
+def _input_side(eff: Effect) -> bool:
+    """An effect on the core's input: every grid value is a new input history, a least-squares re-identification
+    of the core tables (the costly part of a diagnosis), so its grid is scanned coarse to fine."""
+    return bool(eff.field and eff.needs_reidentify)
+
+
+def coarse_to_fine(n: int, score: Callable[[int], np.ndarray], stride: int = COARSE_STRIDE) -> dict[int, np.ndarray]:
+    """Scores (one per criterion, lower is better) of the indices ``0 … n−1`` of a grid, evaluated coarse to fine:
+    every ``stride``-th index and the last, then, halving the step, both neighbours of each criterion's best so far,
+    until every criterion's best has its immediate neighbours evaluated (the minimum of the full grid when a score
+    is unimodal along it). Returns the evaluated indices' scores."""
+    done: dict[int, np.ndarray] = {}
+
+    def ev(i: int) -> None:
+        if 0 <= i < n and i not in done:
+            done[i] = np.asarray(score(i), dtype=float).reshape(-1)
+
+    for i in list(range(0, n, max(1, stride))) + [n - 1]:
+        ev(i)
+    step = max(1, stride)
+    while True:
+        step = max(1, step // 2)
+        keys = sorted(done)
+        table = np.array([done[i] for i in keys])
+        table = np.where(np.isnan(table), np.inf, table)
+        best = {keys[int(j)] for j in np.argmin(table, axis=0)}
+        size = len(done)
+        for b in sorted(best):
+            ev(b - step)
+            ev(b + step)
+        if step == 1 and len(done) == size:
+            return done
+
+
+def _grid_fits(fitter: Fitter, config: Configuration, eff: Effect, grid: Sequence[Any], criterion: slice
+               ) -> list[FoldFit | None]:
+    """The fits of ``config`` plus ``eff`` at each grid value (None: not evaluated): every value, or, for an
+    input-side effect, those :func:`coarse_to_fine` needs to find the best by ``sse_train[criterion]``."""
+    data = fitter.data
+    if not (_input_side(eff) and len(grid) > 2 * COARSE_STRIDE):
+        return [fitter.solve(*_with(config, eff, v, data)) for v in grid]
+    fits: list[FoldFit | None] = [None] * len(grid)
+
+    def score(i: int) -> np.ndarray:
+        fits[i] = fitter.solve(*_with(config, eff, grid[i], data))
+        return fits[i].sse_train[criterion]
+
+    coarse_to_fine(len(grid), score)
+    return fits
+
+
 def evaluate(fitter: Fitter, config: Configuration, eff: Effect, before: Heldout) -> Candidate:
     """Held-out gain of adding ``eff`` to ``config`` in every fold (``before``: the configuration's held-out
     sums of squares per fold)."""
@@ -365,13 +418,15 @@ def evaluate(fitter: Fitter, config: Configuration, eff: Effect, before: Heldout
         # Compare at equal table method: the gain is the effect's, not the least-squares tables'.
         before = heldout(fitter, Configuration(config.path.with_(reidentify=True), config.linear))
     grid = eff.grid(data)
-    fits = [fitter.solve(*_with(config, eff, v, data)) for v in grid]
-    train_sse = np.array([f.sse_train[:data.folds] for f in fits])
+    fits = _grid_fits(fitter, config, eff, grid, slice(0, data.folds))
+    done = [f for f in fits if f is not None]
+    train_sse = np.array([f.sse_train[:data.folds] if f is not None else np.full(data.folds, np.inf)
+                          for f in fits])
     train_sse = np.where(np.isnan(train_sse), np.inf, train_sse)
     # Grid values may differ in their number of columns (nested variants, e.g. per-run offsets with or without
     # per-run gains): rank them on the training blocks by the Bayesian information criterion.
-    n_train = np.maximum(np.sum(fits[0].n_test) - fits[0].n_test, 2.0)
-    widths = np.array([sum(f.widths) for f in fits], dtype=float)
+    n_train = np.maximum(np.sum(done[0].n_test) - done[0].n_test, 2.0)
+    widths = np.array([sum(f.widths) if f is not None else 0 for f in fits], dtype=float)
     with np.errstate(divide="ignore", invalid="ignore"):
         train_sse = n_train * np.log(np.maximum(train_sse, 1e-300) / n_train) + widths[:, None] * np.log(n_train)
     reidentifies = type(eff).update_path is not Effect.update_path
@@ -379,6 +434,7 @@ def evaluate(fitter: Fitter, config: Configuration, eff: Effect, before: Heldout
     for k in range(data.folds):
         i = int(np.argmin(train_sse[:, k]))
         ff = fits[i]
+        assert ff is not None  # the best of each fold was evaluated
         if reidentifies:
             ff = _fit_with(fitter, config, eff, grid[i], k)[0]
         b, a = before.rms(k), ff.test_rms(k)
@@ -426,7 +482,11 @@ def refit(fitter: Fitter, config: Configuration, eff: Effect) -> tuple[Configura
         n = max(float(np.sum(ff.n_test)), 2.0)
         return float(n * math.log(max(float(ff.sse_train[data.folds]), 1e-300) / n) + sum(ff.widths) * math.log(n))
 
-    scores = [sse(v) for v in grid]
+    if _input_side(eff) and len(grid) > 2 * COARSE_STRIDE:
+        scanned = coarse_to_fine(len(grid), lambda j: np.array([sse(grid[j])]))
+        scores = [float(scanned[j][0]) if j in scanned else math.inf for j in range(len(grid))]
+    else:
+        scores = [sse(v) for v in grid]
     i = int(np.argmin(scores))
     best = grid[i]
     if eff.refine() and len(grid) > 2:

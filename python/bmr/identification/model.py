@@ -46,7 +46,7 @@ import numpy as np
 
 from bmr import _core
 from bmr._core import BmrError, Compensator, Hysteresis, ModelFileError, ResourceLimitError
-from bmr.data.files import read_json, write_text
+from bmr.data.files import jsonable, read_json, write_text
 from bmr.data.quantities import ACTUATOR, Quantities
 from bmr.identification.friction import FrictionFit
 
@@ -358,12 +358,12 @@ class Model:
         return {
             "format": FORMAT,
             "quantities": self.quantities.to_dict(),
-            "friction": _jsonable(self.friction.to_dict()) if self.friction is not None else None,
+            "friction": jsonable(self.friction.to_dict()) if self.friction is not None else None,
             "hysteresis": hyst,
             "limits": self.limits,
             "converter_gain_a_per_v": self.converter_gain_a_per_v,
             "extensions": self.extensions,
-            "meta": _jsonable(self.meta),
+            "meta": jsonable(self.meta),
         }
 
     def save(self, path: str | Path) -> Path:
@@ -631,18 +631,3 @@ def _compact_number_lists(text: str) -> str:
 def _num(v: Any) -> float:
     return float("nan") if v is None else float(v)
 
-
-def _jsonable(x: Any) -> Any:
-    """Meta made JSON-safe: numpy scalars/arrays to lists, non-finite floats to None."""
-    if isinstance(x, dict):
-        return {str(k): _jsonable(v) for k, v in x.items()}
-    if isinstance(x, (list, tuple)):
-        return [_jsonable(v) for v in x]
-    if isinstance(x, np.ndarray):
-        return _jsonable(x.tolist())
-    if isinstance(x, (np.floating, float)):
-        v = float(x)
-        return v if math.isfinite(v) else None
-    if isinstance(x, np.integer):
-        return int(x)
-    return x

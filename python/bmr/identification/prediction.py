@@ -18,7 +18,6 @@ descending major branches), with the run's gain and offset found the same way.
 """
 from __future__ import annotations
 
-import json
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -27,9 +26,11 @@ from typing import Any, Iterable, Mapping, Sequence
 import numpy as np
 
 from bmr._core import BmrError
-from bmr.data.bundle import Bundle, Run, read_bundle
+from bmr.data.bundle import Bundle, Run, read_bundle, runs_of
+from bmr.data.files import jsonable, write_json
 from bmr.data.quantities import Quantities
 from bmr.data.units import format_number
+from bmr.identification.extended import parts, simulate_extended
 from bmr.identification.model import Model
 from bmr.identification.signals import run_input, run_output
 from bmr.identification.spans import SATURATION_TOL, evaluation_start
@@ -133,6 +134,7 @@ class Prediction:
     model_source: str = ""
     bundle_source: str = ""
     baseline: str = BASELINE
+    ran: list[str] = field(default_factory=lambda: ["core tables"])
 
     @property
     def evaluated(self) -> int:
@@ -171,15 +173,16 @@ class Prediction:
 
     def to_dict(self) -> dict[str, Any]:
         """The ``bmr-prediction/1`` JSON content (non-finite numbers as null)."""
-        return _finite({
+        return jsonable({
             "format": FORMAT, "model": self.model_source, "bundle": self.bundle_source,
             "quantities": self.quantities.to_dict(), "output_unit": self.quantities.output.unit,
             "output_span": self.span, "out_of_range": self.out_of_range, "baseline": self.baseline,
+            "ran": list(self.ran),
             "runs": {r.name: r.stats() for r in self.runs}, "total": self.total(),
         })
 
     def write_json(self, path: str | Path) -> Path:
-        return _write_text(Path(path), json.dumps(self.to_dict(), indent=1, allow_nan=False) + "\n")
+        return write_json(path, self.to_dict(), what="prediction")
 
     def figure(self, path: str | Path) -> Path:
         """PNG: per run, measured and predicted output against the input (with the baseline), and the residual
@@ -236,37 +239,7 @@ class Prediction:
         return "\n".join(lines)
 
 
-def _finite(x: Any) -> Any:
-    if isinstance(x, dict):
-        return {k: _finite(v) for k, v in x.items()}
-    if isinstance(x, (list, tuple)):
-        return [_finite(v) for v in x]
-    if isinstance(x, (float, np.floating)):
-        return float(x) if math.isfinite(x) else None
-    if isinstance(x, np.integer):
-        return int(x)
-    return x
 
-
-def _write_text(p: Path, text: str) -> Path:
-    tmp = p.with_name(f".{p.name}.tmp")
-    try:
-        tmp.write_text(text)
-        tmp.replace(p)
-    except OSError as exc:
-        tmp.unlink(missing_ok=True)
-        raise BmrError(f"cannot write {str(p)!r}: {exc.strerror or exc}") from None
-    return p
-
-
-def _runs_of(runs: Bundle | Run | Iterable[Run]) -> list[Run]:
-    """A bundle's evaluation runs (its non-off-state runs when none is held out), one run, or the runs given."""
-    if isinstance(runs, Bundle):
-        held = runs.evaluation_runs()
-        return [r for r in (held or runs.runs) if r.kind != "off_state"]
-    if isinstance(runs, Run):
-        return [runs]
-    return list(runs)
 
 
 def _per_run(value: Any, name: str, default: Any) -> Any:
@@ -291,9 +264,33 @@ def _offset_prior(model: Any) -> dict[str, float] | None:
     at least two runs."""
     ident = getattr(model, "meta", {}).get("identification") or {}
     prior = (ident.get("lstsq_fit") or {}).get("offset_prior") if ident.get("chosen") == "lstsq" else None
-    if not prior or not all(math.isfinite(prior.get(k, math.nan)) for k in ("spread", "first_sample_error")):
+    if not prior:
         return None
-    return prior
+    # A model file stores an unknown figure as null (one training run has no spread).
+    values = {k: prior.get(k) for k in ("spread", "first_sample_error")}
+    if not all(isinstance(v, (int, float)) and math.isfinite(v) for v in values.values()):
+        return None
+    return {k: float(v) for k, v in values.items()}
+
+
+def _run_gain(model: Any, y: np.ndarray, p: np.ndarray, y_lo: float) -> tuple[float, str]:
+    """A run's gain on the model output about ``y_lo`` (with a free offset) when the training runs' fitted gains
+    spread, shrunk towards 1 by that spread; ``(1, "")`` otherwise."""
+    ident = getattr(model, "meta", {}).get("identification") or {}
+    runs = (ident.get("lstsq_fit") or {}).get("runs") or []
+    gains = np.array([r.get("gain") for r in runs if isinstance(r.get("gain"), (int, float))], dtype=float)
+    tau = float(np.std(gains, ddof=1)) if gains.size > 1 else 0.0
+    x = p - y_lo
+    if not (tau > 0 and math.isfinite(tau)) or y.size < 3 or float(np.var(x)) <= 0:
+        return 1.0, ""
+    xc, yc = x - x.mean(), y - y.mean()
+    g_ls = float(xc @ yc / (xc @ xc))
+    var = float(np.var(yc - g_ls * xc)) / float(xc @ xc)
+    weight = tau ** 2 / (tau ** 2 + var)
+    g = 1.0 + weight * (g_ls - 1.0)
+    if not (math.isfinite(g) and g > 0):
+        return 1.0, ""
+    return g, f"; gain {g:.4g} fitted on them (shrunk towards 1 by the training runs' gain spread {tau:.3g})"
 
 
 def _candidates(model: Any, u0: float) -> list[list[float]]:
@@ -356,11 +353,14 @@ def predict(
     calibration: int = 0,
     evaluate: str = "known",
     out_of_range: str = "clamp",
+    whole_model: bool = True,
 ) -> Prediction:
     """Predict ``runs`` (a bundle's evaluation runs, or all its non-off-state runs when none is held out; one run;
     a list; or a bundle folder) with ``model`` (or a model file) and score them.
 
-    ``offset``: ``"model"`` (the model's own output level), ``"first"`` (shift so the ``calibration`` leading
+    ``offset``: ``"model"`` (the model's own output level), ``"run"`` (the run's own, fitted on its scored
+    samples and shrunk towards the model's by how much the training runs' offsets spread; with a gain fitted
+    alike when the training runs' gains spread), ``"first"`` (shift so the ``calibration`` leading
     samples are matched on average; needs ``calibration >= 1``), ``"shrunk"`` (that shift shrunk towards the
     model's common offset, weighted by how much the training runs' offsets spread and how far one leading sample
     fell from a training run's fitted offset; ``"first"`` when the model has no such record), a number, or
@@ -372,7 +372,10 @@ def predict(
     run when ``calibration`` is 0 — then the state is fitted on the scored samples, and the result says so).
     ``evaluate``: ``"known"`` scores from the sample where the run has been to both saturation ends (all samples
     when it never gets there) or ``"all"``. ``out_of_range``: ``"clamp"`` or ``"extrapolate"`` (see
-    ``Model.simulate``). Friction is added when the model has it and the run has an angle.
+    ``Model.simulate``). Friction is added when the model has it and the run has an angle. A model with
+    extensions (``bmr diagnose --model-out``) runs whole — its stages, learned term and offset through
+    ``bmr.ExtendedSimulation``, from a saturation — unless ``whole_model`` is False (the core tables alone);
+    ``Prediction.ran`` names what ran.
     """
     model_source = str(model) if isinstance(model, (str, Path)) else ""
     bundle_source = str(runs) if isinstance(runs, (str, Path)) else ""
@@ -380,7 +383,7 @@ def predict(
         model = Model.load(model)
     if isinstance(runs, (str, Path)):
         runs = read_bundle(runs)
-    rs = _runs_of(runs)
+    rs = runs_of(runs, scored=True)
     if not rs:
         raise BmrError("predict needs at least one run")
     if evaluate not in ("known", "all"):
@@ -390,6 +393,7 @@ def predict(
     lo, hi = model.hysteresis.input_range
     y_lo, y_hi = model.hysteresis.output_range
     span = y_hi - y_lo
+    extended = bool(model.extensions) and whole_model
     tol = SATURATION_TOL * (hi - lo)
     out = []
     for r in rs:
@@ -429,14 +433,48 @@ def predict(
         else:
             history = [float(x) for x in init]
             state = _describe("negative", history)
-        p = model.simulate(u, initial=start, history=history, out_of_range=out_of_range)
+        if extended:
+            # The whole model: its stages, learned term and offset in the Rust forward chain, from saturation.
+            if estimated or history or not isinstance(start, str):
+                raise BmrError(f"run {r.name!r}: the extended model runs from a saturation: use initial "
+                               "'negative' or 'positive'")
+            theta = r.angle if r.angle is not None else np.zeros(n)
+            dt = float(np.median(np.diff(r.time))) if n > 1 else 1.0
+            p = simulate_extended(model, u, theta, dt_s=dt, t0_s=float(r.time[0]), initial=start) - friction
+        else:
+            p = model.simulate(u, initial=start, history=history, out_of_range=out_of_range)
         p = y_lo + g * (p - y_lo)
         base = y_lo + g * (single_valued_baseline(model, u) - y_lo)
+        dropped: dict[str, int] = {}
+        first = k
+        if k:
+            dropped[CALIBRATION] = k
+        top = bool(np.any(u >= hi - tol))
+        bottom = bool(np.any(u <= lo + tol))
+        if evaluate == "known" and top and bottom:
+            s = evaluation_start(u, lo, hi, tol)
+            if s > first:
+                dropped[BEFORE_KNOWN_STATE] = s - first
+                first = s
         off_spec = _per_run(offset, r.name, "model")
         if isinstance(off_spec, str):
             if off_spec == "model":
                 shift = shift_b = 0.0
                 source = "the model's"
+            elif off_spec == "run":
+                g, gain_note = _run_gain(model, y[first:], p[first:], y_lo) if g == 1.0 else (g, "")
+                p = y_lo + g * (p - y_lo)
+                base = y_lo + g * (base - y_lo)
+                res = y[first:] - p[first:]
+                spread = (_offset_prior(model) or {}).get("spread")
+                # The run's own offset, shrunk towards the model's by how much training runs' offsets spread.
+                s2 = float(np.var(res)) / max(res.size, 1)
+                weight = spread ** 2 / (spread ** 2 + s2) if spread is not None and spread ** 2 + s2 > 0 else 1.0
+                shift = weight * (float(np.mean(res)) if res.size else 0.0)
+                shift_b = weight * (float(np.mean(y[first:] - base[first:])) if res.size else 0.0)
+                source = (f"the run's own, fitted on its {res.size} scored samples"
+                          + (f", {weight:.2f} × that + {1 - weight:.2f} × the model's (spread {spread:.3g} between "
+                             f"training runs)" if spread is not None else "") + gain_note)
             elif off_spec in ("first", "shrunk"):
                 if k == 0:
                     raise BmrError(f"offset={off_spec!r} needs calibration >= 1 leading samples")
@@ -453,24 +491,13 @@ def predict(
                               f"model's (spread {prior['spread']:.3g} between training runs, leading-sample "
                               f"error {prior['first_sample_error']:.3g})")
             else:
-                raise BmrError(f"offset must be 'model', 'first', 'shrunk', a number or {{run: number}}, "
+                raise BmrError(f"offset must be 'model', 'run', 'first', 'shrunk', a number or {{run: number}}, "
                                f"got {off_spec!r}")
         else:
             shift = shift_b = float(off_spec) - y_lo
             source = "given"
         p = p + shift
         base = base + shift_b
-        dropped: dict[str, int] = {}
-        first = k
-        if k:
-            dropped[CALIBRATION] = k
-        top = bool(np.any(u >= hi - tol))
-        bottom = bool(np.any(u <= lo + tol))
-        if evaluate == "known" and top and bottom:
-            s = evaluation_start(u, lo, hi, tol)
-            if s > first:
-                dropped[BEFORE_KNOWN_STATE] = s - first
-                first = s
         # The state is determined once the input has been to both ends, or from the start when it starts at one;
         # otherwise it is the stated (or estimated) assumption, and the run is flagged.
         known = (top and bottom) or bool(u[0] <= lo + tol or u[0] >= hi - tol) or estimated
@@ -486,7 +513,8 @@ def predict(
             offset_source=source, gain=g, initial=state, state_known=known, out_of_range=count, max_excess=excess,
             dropped=dropped, time=r.time, input=u, measured=measured, predicted=p + friction,
             baseline=base + friction, sigma=sigma, scored=scored))
-    return Prediction(out, model.quantities, span, out_of_range, model_source, bundle_source)
+    return Prediction(out, model.quantities, span, out_of_range, model_source, bundle_source,
+                      ran=parts(model) if extended else ["core tables"])
 
 
 def run_cli(args: Any) -> int:
@@ -507,13 +535,14 @@ def run_cli(args: Any) -> int:
         if not runs:
             raise BmrError(f"{args.bundle}: the bundle has no evaluation runs (hold runs out with `bmr import "
                            "--holdout`, or name the runs to predict with --runs)")
-    calibration = args.calibration if args.calibration is not None else (0 if args.offset == "model" else 1)
+    calibration = args.calibration if args.calibration is not None else (1 if args.offset in ("first", "shrunk")
+                                                                         else 0)
     p = predict(model, runs, offset=args.offset, calibration=calibration, initial=args.initial,
                 evaluate=args.evaluate, out_of_range=args.out_of_range)
     p.model_source, p.bundle_source = str(args.model), str(args.bundle)
     q = p.quantities
     print(f"bmr predict: {args.model} ({q.describe()}) on {args.bundle}: {len(p.runs)} run(s); output span "
-          f"{q.output.format(p.span)}; baseline: {p.baseline}")
+          f"{q.output.format(p.span)}; ran: {', '.join(p.ran)}; baseline: {p.baseline}")
     for line in p.table().splitlines():
         print(f"  {line}")
     if args.json_out:

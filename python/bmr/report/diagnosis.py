@@ -35,7 +35,7 @@ def figures(d: Any) -> dict[str, str]:
 
 def _figures(d: Any) -> dict[str, str]:
     out: dict[str, str] = {}
-    s = d._signals
+    s = d.signals
     runs = s["runs"]
     q = d.quantities
     yu = q.output.unit
@@ -44,8 +44,8 @@ def _figures(d: Any) -> dict[str, str]:
         step = max(1, t.size // 4000)
         ax.plot(t[::step], rn[::step], lw=0.5, color=COLORS["nominal"], label="nominal")
         ax.plot(t[::step], re[::step], lw=0.5, color=COLORS["extended"], label="extended")
-        ax.axhline(d.noise_floor_nmm, color="k", lw=0.5, ls=":")
-        ax.axhline(-d.noise_floor_nmm, color="k", lw=0.5, ls=":")
+        ax.axhline(d.noise_floor, color="k", lw=0.5, ls=":")
+        ax.axhline(-d.noise_floor, color="k", lw=0.5, ls=":")
         ax.set_ylabel(f"{name}\n{yu}")
     axes[0, 0].legend(loc="upper right")
     axes[-1, 0].set_xlabel("time in the bundle (s)")
@@ -74,13 +74,13 @@ def _figures(d: Any) -> dict[str, str]:
     fig.suptitle("Where the simulation is wrong: residual conditional means")
     out[f"Residual against {', '.join(k if k != 'theta' else 'angle' for k, _ in panels)}"] = png_base64(fig)
 
-    steps = [("nominal", d.nominal_heldout_rms_nmm)] + [(e["name"], e["heldout_rms_after_nmm"]) for e in d.effects]
+    steps = [("nominal", d.nominal_heldout_rms)] + [(e["name"], e["heldout_rms_after_nmm"]) for e in d.effects]
     if d.learned and d.learned.get("accepted"):
         steps.append(("learned term", d.learned["heldout_rms_after"]))
     fig, ax = plot.figure("wide", height=2.9)
     ax.bar(range(len(steps)), [v for _, v in steps],
            color=[COLORS["nominal"]] + [COLORS["extended"]] * (len(steps) - 1))
-    ax.axhline(d.noise_floor_nmm, color="k", ls=":", lw=1, label="noise floor")
+    ax.axhline(d.noise_floor, color="k", ls=":", lw=1, label="noise floor")
     ax.set_xticks(range(len(steps)))
     ax.set_xticklabels(["nominal"] + ["+ " + n for n, _ in steps[1:]], rotation=20)
     ax.set_ylabel(f"held-out RMS ({yu})")
@@ -106,12 +106,12 @@ def html_section(d: Any) -> str:
     yu = html.escape(q.output.unit)
     f = q.output.format
     noise = d.noise
-    parts = [f"<section class='bmr-diagnosis'><h2>Diagnosis: {html.escape(d.actuator)}</h2>",
+    parts = [f"<section class='bmr-diagnosis'><h2>Diagnosis: {html.escape(d.device)}</h2>",
              f"<p>{html.escape(q.describe())}.</p>"]
     parts.append(f"<p><b>Named cause:</b> <code>{html.escape(d.cause)}</code>. Held-out RMS "
-                 f"{html.escape(f(d.nominal_heldout_rms_nmm, 4))} (nominal) → "
-                 f"{html.escape(f(d.residual_rms_nmm, 4))} (extended); noise floor "
-                 f"{html.escape(f(d.noise_floor_nmm, 4))} ({html.escape(noise['detail'])}); {d.folds} blocked "
+                 f"{html.escape(f(d.nominal_heldout_rms, 4))} (nominal) → "
+                 f"{html.escape(f(d.residual_rms, 4))} (extended); noise floor "
+                 f"{html.escape(f(d.noise_floor, 4))} ({html.escape(noise['detail'])}); {d.folds} blocked "
                  f"folds; {d.wall_time_s:.1f} s.</p>")
     rows = [[e["name"], "accepted", f"{e['gain'] * 100:.1f} %", f"{e['folds_positive']}/{d.folds}",
              f"{e['heldout_rms_before_nmm']:.4g} → {e['heldout_rms_after_nmm']:.4g}", _fmt_params(e["params"])]

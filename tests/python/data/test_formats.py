@@ -8,8 +8,9 @@ import pandas as pd
 import pytest
 
 import bmr
-from bmr.data.tables import read_tables
-from lab_files import write_aixacct, write_controldesk, write_slac
+from bmr.data.formats import read_tables
+from lab_files import write_aixacct, write_controldesk, write_lakeshore, write_micromag, write_slac
+from preisach_plant import PreisachPlant
 
 N = 300
 T = np.arange(N) * 1e-3
@@ -30,6 +31,31 @@ def test_controldesk_capture_channels_by_name_path_and_tail(tmp_path):
     np.testing.assert_array_equal(t.column("X_UM")[1], MICRONS)
     assert t.unit_of("Model Root/Amp/Vout") == "V" and t.unit_of("x_um") is None and t.unit_of("time") == "s"
     assert t.meta["RTProgram"] == "piezo_rig.sdf"
+
+
+def test_controldesk_quoted_paths_and_control_bytes_are_names_a_user_types(tmp_path):
+    # Real captures quote every path segment, and a block label that held a line break keeps a 0x1A byte.
+    p = write_controldesk(tmp_path / "no_lp_20.mat", "no_lp_20", [T], [
+        ('"Model Root"/"P\x1adrag"/"In1"', '"Model Root"/"P\x1adrag"', VOLTS, "V", 1),
+        ('"Model Root"/"Mling"/"Out1"', '"Model Root"/"Mling"', MICRONS, "V", 1)])
+    [t] = read_tables(p)
+    assert set(t.columns) == {"time", "Model Root/Pdrag/In1", "Model Root/Mling/Out1"}
+    for typed in ("Pdrag", "Model Root/Pdrag/In1", "pdrag", "In1"):
+        assert t.column(typed)[0] == "Model Root/Pdrag/In1", typed
+    np.testing.assert_array_equal(t.column("Mling")[1], MICRONS)
+    with pytest.raises(bmr.BundleError) as err:
+        t.column("Pdrug", "input")
+    # The names listed are the ones a user can type: no quotes, no control bytes.
+    assert "Model Root/Pdrag/In1, Model Root/Mling/Out1" in str(err.value) and "\x1a" not in str(err.value)
+    assert '"' not in str(err.value).split("columns:")[1]
+    # Input and output in the same unit (V): each quantity is named by its column.
+    result = bmr.import_logs([p], input="Pdrag:V", output="Mling:V")
+    q = result.bundle.quantities
+    assert q.input.unit == q.output.unit == "V" and q.input.column != q.output.column
+    assert "pdrag" in q.input.column.lower() and "mling" in q.output.column.lower()
+    run = result.bundle.runs[0]
+    np.testing.assert_array_equal(run.data[q.input.column], VOLTS)
+    np.testing.assert_array_equal(run.data[q.output.column], MICRONS)
 
 
 def test_controldesk_rasters_become_tables_and_bad_captures_are_named(tmp_path):
@@ -190,3 +216,102 @@ def test_delimited_logs_with_a_preamble_decimal_commas_and_blanks(tmp_path):
     (tmp_path / "blank.txt").write_text("t x_um\n" + body + "\n")
     [w] = read_tables(tmp_path / "blank.txt", "csv")
     np.testing.assert_allclose(w.columns["x_um"], MICRONS[:20], atol=1e-5)
+
+
+# ------------------------------------------------------------------------------------ magnetometers (FORCs)
+def _forcs(count: int = 6) -> tuple[list[tuple[np.ndarray, np.ndarray]], list[float]]:
+    """First-order reversal curves of a Preisach plant on -1..1 (in the file's field unit), each from positive
+    saturation down to its reversal field and up to 0.8; and the moment at the calibration field 1 before each,
+    drifting by 0.5 % of it from curve to curve."""
+    curves, cal = [], []
+    for k, hr in enumerate(np.linspace(-0.9, 0.6, count)):
+        plant = PreisachPlant(60)
+        plant.run(np.array([-1.0, 1.0, hr]))
+        h = np.linspace(hr, 0.8, 9 + k)
+        curves.append((h, 1e-3 * (plant.run(h) + 2.0)))
+        cal.append(1e-3 * 3.0 * (1.0 + 0.005 * k))
+    return curves, cal
+
+
+@pytest.mark.parametrize("system,field_unit,moment_unit", [("cgs", "Oe", "emu"), ("Hybrid SI", "T", "A·m²"),
+                                                           ("SI", "A/m", "A·m²")])
+@pytest.mark.parametrize("column_header", [False, True])
+def test_micromag_forc_export_one_run_per_curve_with_its_calibration_point(tmp_path, system, field_unit,
+                                                                           moment_unit, column_header):
+    curves, cal = _forcs()
+    p = write_micromag(tmp_path / "sample_forc", curves, h_cal=1.0, m_cal=cal, system=system,
+                       column_header=column_header)
+    tables = read_tables(p)
+    assert [t.name for t in tables] == [f"sample_forc-forc{k:03d}" for k in range(1, 7)]
+    for t, (h, m), mc in zip(tables, curves, cal):
+        assert t.unit_of("Field") == field_unit and t.unit_of("Moment") == moment_unit
+        # The calibration point leads its curve and is kept as the drift measurement.
+        np.testing.assert_allclose(t.columns["Field"], np.concatenate([[1.0], h]), rtol=1e-6)
+        np.testing.assert_allclose(t.columns["Moment"], np.concatenate([[mc], m]), rtol=1e-6)
+        assert t.meta["calibration_moment"] == pytest.approx(mc, rel=1e-6) and t.meta["calibration_points"] == 1
+    # One history: time runs on through the file.
+    assert tables[1].columns["time"][0] > tables[0].columns["time"][-1]
+    result = bmr.import_logs([p], input="Field", output="Moment", holdout=["sample_forc-forc002"])
+    assert len(result.bundle.runs) == 6 and result.bundle.quantities.output.unit == moment_unit
+
+
+def test_lakeshore_forc_export_latin1_blank_lines_and_time_stamps(tmp_path):
+    curves, cal = _forcs(4)
+    p = write_lakeshore(tmp_path / "B-9-FORC.csv", curves, h_cal=1.0, m_cal=cal)
+    tables = read_tables(p)  # detected from the content, not the .csv extension
+    assert len(tables) == 4 and tables[0].name == "B-9-FORC-forc001"
+    t = tables[2]
+    assert t.unit_of("Field") == "T" and t.unit_of("Moment") == "A·m²" and t.time_column == "Time Stamp"
+    assert t.column("Field (µ0H)")[0] == "Field"  # the header's full name is an alias
+    np.testing.assert_allclose(t.columns["Moment"], np.concatenate([[cal[2]], curves[2][1]]))
+    assert "GOOD" not in "".join(t.columns)
+    result = bmr.import_logs([p], input="Field:mT", output="Moment")
+    np.testing.assert_allclose(result.bundle.runs[0].data["field_mt"].to_numpy()[1:], 1e3 * curves[0][0])
+
+
+def test_matrix_columns_in_separate_files_become_one_run_per_loop(tmp_path):
+    from scipy.io import savemat
+
+    h = np.stack([a * np.sin(np.linspace(0, 2 * np.pi, 50)) for a in (10.0, 30.0, 90.0)], axis=1)
+    savemat(tmp_path / "H_steel.mat", {"HmeasT": h})
+    savemat(tmp_path / "B_steel.mat", {"BmeasT": np.tanh(h / 40.0)})
+    result = bmr.import_logs([tmp_path / "H_steel.mat", tmp_path / "B_steel.mat"], input="HmeasT:A/m",
+                             output="BmeasT:T", holdout=["steel-1"])
+    runs = result.bundle.runs
+    assert [r.name for r in runs] == ["steel-1", "steel-2", "steel-3"] and runs[0].role == "evaluation"
+    for k, r in enumerate(runs):
+        np.testing.assert_allclose(r.data["field_strength_a_per_m"], h[:, k])
+        np.testing.assert_allclose(r.data["field_t"], np.tanh(h[:, k] / 40.0))
+    assert any("separate files" in n for n in result.notes)
+
+
+def test_an_idle_hold_and_a_final_command_jump_are_left_out_and_named(tmp_path):
+    # A capture as a piezo rig writes it: 1 s held at the negative drive limit before the excitation, and the
+    # drive set back to 0 V... here from 80 V to 0 V on the capture's last sample while the stack lags.
+    from lab_files import Piezo, ramp
+
+    hold = np.zeros(1000)
+    drive = ramp([0.0, 100.0, 20.0, 80.0], 0.2)
+    volts = np.concatenate([hold, drive, [0.0]])
+    t = np.arange(volts.size) * 1e-3
+    microns = Piezo(noise_um=0.002).run(volts)
+    p = write_controldesk(tmp_path / "track_07.mat", "track_07", [t], [
+        ('"Model Root"/"Pdrag"/"In1"', "", volts, "V", 1), ('"Model Root"/"Mling"/"Out1"', "", microns, "um", 1)])
+    result = bmr.import_logs([p], input="Pdrag:V", output="Mling:um")
+    [run] = result.bundle.runs
+    [info] = result.runs
+    # (the drive's first sample is the hold's last: kept, it is the state the run starts from)
+    assert info.edges.hold == 1000 and info.edges.jump == 1 and info.samples == drive.size
+    np.testing.assert_array_equal(run.input, drive)
+    assert run.meta["idle_hold_samples"] == 1000 and run.meta["end_jump_samples"] == 1
+    assert info.to_dict()["idle_hold_samples"] == 1000
+    text = result.summary()
+    assert "idle hold at the start, 1000 samples (1 s at 0 V) left out" in text
+    assert "command jump at the end, the last 1 sample(s) left out" in text
+    kept = bmr.import_logs([p], input="Pdrag:V", output="Mling:um", keep_edges=True)
+    assert kept.bundle.runs[0].input.size == volts.size and not kept.runs[0].edges.any
+    # A run without such edges (a ramp from its first sample, a FORC's calibration point then its curve) is
+    # imported whole.
+    plain = write_controldesk(tmp_path / "plain.mat", "plain", [t[:drive.size]], [
+        ("In1", "", drive, "V", 1), ("Out1", "", microns[:drive.size], "um", 1)])
+    assert not bmr.import_logs([plain], input="In1:V", output="Out1:um").runs[0].edges.any

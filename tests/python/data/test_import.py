@@ -192,9 +192,12 @@ def test_bad_inputs_are_named(piezo_logs, tmp_path):
     with pytest.raises(bmr.BundleError, match=r"cut.csv: run 'cut': column 'displacement_um' has 1 non-finite "
                                            r"value\(s\), first at row 2"):
         import_logs([tmp_path / "cut.csv"], input="u:V", output="y:um", sample_rate_hz=10.0)
-    with pytest.raises(bmr.BundleError, match=r"cut.csv: no time column \(looked for t_s, time, t, zeit, timestamp; "
-                                           r"columns: u, y\); give it with --time COL\[:UNIT\] or set --sample-rate"):
-        import_logs([tmp_path / "cut.csv"], input="u:V", output="y:um")
+    # Without a time column (a quasi-static record) the samples are numbered 1 s apart, and the notes say so.
+    pd.DataFrame({"u": [0.0, 1.0, 2.0], "y": [0.0, 1.0, 0.5]}).to_csv(tmp_path / "untimed.csv", index=False)
+    untimed = import_logs([tmp_path / "untimed.csv"], input="u:V", output="y:um")
+    np.testing.assert_array_equal(untimed.bundle.runs[0].time, [0.0, 1.0, 2.0])
+    assert any("untimed.csv: no time column (looked for t_s, time, t, zeit, timestamp, tout); samples numbered 1 s "
+               "apart (give --time COL[:UNIT] or --sample-rate HZ" in n for n in untimed.notes), untimed.notes
 
 
 def test_cli_errors_are_one_line(piezo_logs, tmp_path, capsys):

@@ -75,9 +75,9 @@ def test_hidden_effect_is_named_fitted_and_removed(name: str) -> None:
     got = next(e["params"] for e in d.effects if e["name"] == name)
     _check_params(name, truth, got)
     # Held-out RMS cut by at least half of the part above the noise floor.
-    excess = d.nominal_heldout_rms_nmm - d.noise_floor_nmm
+    excess = d.nominal_heldout_rms - d.noise_floor
     assert excess > 0
-    assert d.nominal_heldout_rms_nmm - d.residual_rms_nmm >= 0.5 * excess
+    assert d.nominal_heldout_rms - d.residual_rms >= 0.5 * excess
     row = next(e for e in d.effects if e["name"] == name)
     assert row["folds_positive"] * 2 > d.folds and row["gain"] > 0
 
@@ -161,14 +161,15 @@ def test_failed_json_and_report_writes_leave_the_previous_files(lag_diagnosis: D
 def test_json_html_model_file_and_extended_simulation(lag_diagnosis: Diagnosis, tmp_path: Path) -> None:
     d = lag_diagnosis
     doc = json.loads(d.write_json(tmp_path / "d.json").read_text())
-    assert doc["format"] == "bmr-diagnosis/1"
+    assert doc["format"] == "bmr-diagnosis/2"
     assert doc["cause"] == "coil_lag"
-    for key in ("effects", "rejected", "noise_floor_nmm", "residual_rms_nmm", "unexplained"):
+    for key in ("effects", "rejected", "noise_floor", "residual_rms", "unexplained"):
         assert key in doc
     for e in doc["effects"]:
-        assert {"name", "params", "heldout_rms_before_nmm", "heldout_rms_after_nmm", "gain",
+        assert {"name", "params", "heldout_rms_before", "heldout_rms_after", "gain",
                 "folds_positive"} <= set(e)
-        assert e["heldout_rms_after_nmm"] < e["heldout_rms_before_nmm"]
+        assert e["heldout_rms_after"] < e["heldout_rms_before"]
+    assert not [k for k in json.dumps(doc["effects"] + doc["rejected"]).split('"') if k.endswith("_nmm")]
     assert all("gain" in r for r in doc["rejected"])
     html = d.html_section()
     assert "coil_lag" in html and "data:image/png;base64," in html and "<table" in html
@@ -287,7 +288,7 @@ def test_consecutive_bundles_with_the_same_run_names_do_not_share_state() -> Non
     assert half.sample_rate_hz == bundle.sample_rate_hz / 2 and len(half.runs[0].data) < len(bundle.runs[0].data)
     second = diagnose(half, folds=2, progress=False, closed_loop=False)
     assert "thermal_drift" in [e["name"] for e in first.to_dict()["effects"]]
-    assert second.to_dict()["residual_rms_nmm"] > 0
+    assert second.to_dict()["residual_rms"] > 0
 
 
 def test_the_example_control_loop_steps_the_model_files_compensator_at_1_khz(lag_diagnosis: Diagnosis,

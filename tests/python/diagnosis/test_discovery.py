@@ -135,8 +135,8 @@ def test_hidden_material_effect_is_named_fitted_and_removed(name: str) -> None:
     else:
         key, tol = TOLERANCE[name]
         assert abs(got[key] - truth[key]) <= tol * abs(truth[key]), (name, truth, got)
-    excess = d.nominal_heldout_rms_nmm - d.noise_floor_nmm
-    assert d.nominal_heldout_rms_nmm - d.residual_rms_nmm >= 0.5 * excess
+    excess = d.nominal_heldout_rms - d.noise_floor
+    assert d.nominal_heldout_rms - d.residual_rms >= 0.5 * excess
     assert d.noise["method"] == "off_state"
 
 
@@ -149,7 +149,7 @@ def test_runs_that_start_with_cold_coils_are_diagnosed_as_heating() -> None:
     d = diagnose(bundle, progress=False, closed_loop=False)
     assert d.cause == "thermal_drift", d.to_dict()["effects"]
     assert [e["name"] for e in d.effects if e["name"] in PHYSICAL] == ["thermal_drift"]
-    assert d.residual_rms_nmm < 1.15 * d.noise_floor_nmm
+    assert d.residual_rms < 1.15 * d.noise_floor
 
 
 @pytest.mark.slow
@@ -194,8 +194,8 @@ def test_piezo_without_angle_is_diagnosed_end_to_end(piezo_diagnosis, tmp_path, 
     creep = next(e["params"] for e in d.effects if e["name"] == "creep")
     key, tol = TOLERANCE["creep"]
     assert abs(creep[key] - PIEZO_TRUTH["creep"][key]) <= tol * PIEZO_TRUTH["creep"][key], creep
-    excess = d.nominal_heldout_rms_nmm - d.noise_floor_nmm
-    assert d.nominal_heldout_rms_nmm - d.residual_rms_nmm >= 0.5 * excess
+    excess = d.nominal_heldout_rms - d.noise_floor
+    assert d.nominal_heldout_rms - d.residual_rms >= 0.5 * excess
     doc = d.to_dict()
     assert doc["units"] == {"input": "V", "output": "µm"}
     assert doc["noise_floor"]["method"] in ("dwell", "residual_high_frequency")
@@ -239,9 +239,9 @@ def test_slac_quadrupole_diagnosis_reports_in_tesla(slac_data) -> None:
     d = diagnose(res.bundle, progress=False, closed_loop=False)
     doc = d.to_dict()
     assert doc["units"]["output"] == "T" and doc["noise_floor"]["method"] == "declared_sigma"
-    assert 3e-5 < d.noise_floor_nmm < 2e-4  # the declared sigmas, ~6e-5 T RMS
-    assert 1e-4 < d.nominal_heldout_rms_nmm < 1e-2
-    assert d.residual_rms_nmm <= d.nominal_heldout_rms_nmm * (1 + 1e-9)
+    assert 3e-5 < d.noise_floor < 2e-4  # the declared sigmas, ~6e-5 T RMS
+    assert 1e-4 < d.nominal_heldout_rms < 1e-2
+    assert d.residual_rms <= d.nominal_heldout_rms * (1 + 1e-9)
     if not d.effects and not (d.learned and d.learned["accepted"]):
         # What stays unexplained is named by the signal it depends on.
         assert d.unexplained and d.unexplained[0]["signal"]

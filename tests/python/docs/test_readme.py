@@ -21,8 +21,13 @@ def test_generated_sections_match_the_measurements():
 
 
 def test_generated_sections_are_closed_and_known():
-    text = (ROOT / "README.md").read_text()
-    opened = re.findall(r"<!-- generated: (\w+) -->", text)
-    closed = re.findall(r"<!-- end: (\w+) -->", text)
-    assert opened == closed
-    assert set(opened) <= set(_script().RENDER)
+    script = _script()
+    seen: list[str] = []
+    for doc in script.DOCUMENTS:
+        text = doc.read_text()
+        opened = re.findall(r"<!-- generated: (\w+) -->", text)
+        closed = re.findall(r"<!-- end: (\w+) -->", text)
+        assert opened == closed, doc
+        assert set(opened) <= set(script.RENDER), doc
+        seen += opened
+    assert len(seen) == len(set(seen)), "a generated section stands in two documents"

@@ -145,7 +145,81 @@ def test_prediction_errors(piezo_model, tmp_path):
         predict(piezo_model, act)
     b = _bundle(_run("a", np.linspace(0, 100, 50), role="identification"))
     assert [r.name for r in predict(piezo_model, b).runs] == ["a"]  # nothing held out: every run
-    with pytest.raises(bmr.BmrError, match="offset must be 'model', 'first', 'shrunk', a number"):
+    with pytest.raises(bmr.BmrError, match="offset must be 'model', 'run', 'first', 'shrunk', a number"):
         predict(piezo_model, b, offset="fit")
     with pytest.raises(bmr.BmrError, match="offset='first' needs calibration >= 1"):
         predict(piezo_model, b, offset="first")
+
+
+@pytest.mark.parametrize("offset", ["first", "shrunk"])
+def test_offset_options_with_a_model_identified_from_one_run(tmp_path, capsys, offset):
+    # One training run gives no spread of offsets: the prior is unknown (NaN, null in the model file) and
+    # "shrunk" falls back to "first" instead of failing on it.
+    volts = np.concatenate([np.linspace(0, 100, 201), np.linspace(100, 20, 161), np.linspace(20, 90, 141),
+                            np.linspace(90, 0, 181)])
+    train = _run("train", volts, role="identification")
+    held = _run("held", volts[::-1].copy())
+    shifted = held.data.assign(displacement_um=held.data["displacement_um"] + 0.5)
+    bundle = _bundle(train, bmr.Run("held", "custom", shifted, quantities=PIEZO, role="evaluation"))
+    bmr.write_bundle(bundle, tmp_path / "b")
+    model = bmr.identify(bmr.read_bundle(tmp_path / "b"), method="lstsq")
+    model.save(tmp_path / "m.json")
+    assert main(["predict", str(tmp_path / "m.json"), str(tmp_path / "b"), "--offset", offset]) == 0
+    out = capsys.readouterr().out
+    assert "from 1 leading sample" in out
+    p = predict(tmp_path / "m.json", tmp_path / "b", offset=offset, calibration=1)
+    assert p.run("held").offset - predict(model, bundle).run("held").offset == pytest.approx(0.5, abs=0.05)
+
+
+def test_a_model_with_extensions_predicts_with_them(piezo_model, tmp_path, capsys):
+    # A drive-to-output delay of 25 ms in the data: the model extended with that delay (as `bmr diagnose
+    # --model-out` writes it) runs it through the Rust forward chain and predicts the run; its core alone cannot.
+    from bmr.diagnosis.extended_model import with_extensions
+
+    volts = np.concatenate([np.linspace(0, 100, 301), np.linspace(100, 25, 226), np.linspace(25, 85, 181)])
+    run = _run("late", volts)
+    delay = 25
+    late = run.data.assign(displacement_um=np.concatenate([np.full(delay, run.output[0]), run.output[:-delay]]))
+    bundle = _bundle(bmr.Run("late", "custom", late, quantities=PIEZO, role="evaluation"))
+    extended = with_extensions(piezo_model, [{"name": "time_delay", "params": {"delay_s": delay * 1e-3}}])
+    whole = predict(extended, bundle)
+    core = predict(extended, bundle, whole_model=False)
+    assert whole.ran == ["core tables", "time_delay"] and core.ran == ["core tables"]
+    assert whole.total()["rms"] < 0.3 * core.total()["rms"], (whole.total(), core.total())
+    # The core alone is what the model without extensions predicts.
+    np.testing.assert_allclose(core.runs[0].predicted, predict(piezo_model, bundle).runs[0].predicted)
+    extended.save(tmp_path / "extended.json")
+    bmr.write_bundle(bundle, tmp_path / "b")
+    assert main(["predict", str(tmp_path / "extended.json"), str(tmp_path / "b")]) == 0
+    assert "ran: core tables, time_delay" in capsys.readouterr().out
+    # The extended chain starts from a saturation: other initial states are one clear error.
+    with pytest.raises(bmr.BmrError, match="extended model runs from a saturation"):
+        predict(extended, bundle, initial="estimate")
+
+
+def test_offset_of_the_run_itself_is_the_cli_default(piezo_model, tmp_path, capsys):
+    # A held-out recording whose sensor offset moved by 0.7 µm: its own offset, fitted on its scored samples,
+    # removes it (the model's leaves it in full); the result says how the offset was found.
+    volts = np.concatenate([np.linspace(0, 100, 201), np.linspace(100, 30, 141), np.linspace(30, 80, 101)])
+    a = _run("a", volts)
+    b = bmr.Run("b", "custom", a.data.assign(displacement_um=a.data["displacement_um"] + 0.7), quantities=PIEZO,
+                role="evaluation")
+    own = predict(piezo_model, _bundle(a, b), offset="run")
+    fixed = predict(piezo_model, _bundle(a, b))
+    assert own.run("b").offset - own.run("a").offset == pytest.approx(0.7, abs=1e-9)
+    assert own.run("b").rms == pytest.approx(own.run("a").rms, rel=1e-9)
+    assert own.run("b").rms < 0.5 * fixed.run("b").rms
+    assert own.run("b").offset_source == f"the run's own, fitted on its {own.run('b').evaluated} scored samples"
+    assert own.run("b").dropped == fixed.run("b").dropped  # nothing more left unscored
+    bmr.write_bundle(_bundle(a, b), tmp_path / "b")
+    piezo_model.save(tmp_path / "m.json")
+    assert main(["predict", str(tmp_path / "m.json"), str(tmp_path / "b")]) == 0
+    assert "(the run's own, fitted on its" in capsys.readouterr().out
+    # With a model identified by least squares from several runs, the run's own offset is shrunk towards the
+    # model's by the training runs' spread, and stated.
+    train = [_run(f"t{k}", volts, role="identification") for k in range(3)]
+    train = [bmr.Run(r.name, "custom", r.data.assign(displacement_um=r.data["displacement_um"] + 0.2 * k),
+                     quantities=PIEZO, role="identification") for k, r in enumerate(train)]
+    fitted = bmr.identify(_bundle(*train, b), method="lstsq")
+    q = predict(fitted, _bundle(b), offset="run")
+    assert "× the model's (spread" in q.run("b").offset_source, q.run("b").offset_source

@@ -4,14 +4,19 @@ ControlDesk (and its predecessor's TRACE export) saves a capture as one variable
 holding a struct::
 
     capture.X         time axis: struct (or struct array, one per raster) with Name, Data (1×N, s), Unit
-    capture.Y(k)      channels: Name (e.g. "Model Root/Plant/Out1" or "Out1"), Path, Data (1×N), Unit, XIndex
+    capture.Y(k)      channels: Name (e.g. "Model Root/Plant/Out1", ``"Model Root"/"Plant"/"Out1"`` or "Out1"),
+                      Path, Data (1×N), Unit, XIndex
     capture.Description, capture.Capture, capture.RTProgram   (kept as metadata when present)
 
-Each raster (time axis) becomes one table; a channel is found by its full name, its ``Path/Name``, or the last
-part of its name when that is unique. MATLAB v7.3 (HDF5) files are not read (save as v7).
+Each raster (time axis) becomes one table. Names are kept as a user types them: the double quotes ControlDesk
+puts around every path segment and the control bytes it leaves in a block label that held a line break (0x1A)
+are removed. A channel is found by its plain name, its ``Path/Name``, the last part of its name, or its block
+name (the part before the port, ``Pdrag`` in ``"Model Root"/"Pdrag"/"In1"``) when that is unique. MATLAB v7.3
+(HDF5) files are not read (save as v7).
 """
 from __future__ import annotations
 
+import unicodedata
 from pathlib import Path
 from typing import Any
 
@@ -42,6 +47,14 @@ def _text(value: Any) -> str:
     return str(value).strip().strip('"').strip()
 
 
+def _plain(text: str) -> str:
+    """A signal path as a user types it: ``"Model Root"/"P\x1adrag"/"In1"`` is ``Model Root/Pdrag/In1`` (quotes
+    around segments and control bytes dropped, backslashes read as slashes)."""
+    text = "".join(c for c in text if unicodedata.category(c) != "Cc")
+    segments = [seg.strip().strip('"').strip() for seg in text.replace("\\", "/").split("/")]
+    return "/".join(seg for seg in segments if seg)
+
+
 def _vector(value: Any, where: str) -> np.ndarray:
     arr = np.atleast_1d(np.asarray(value))
     if arr.dtype.kind not in "iufb" or (arr.ndim != 1 and not (arr.ndim == 2 and 1 in arr.shape)):
@@ -58,8 +71,10 @@ def looks_like(path: Path) -> bool:
     return any(_is_capture(v) for k, v in mat.items() if not k.startswith("__"))
 
 
-def _tail(name: str) -> str:
-    return name.replace("\\", "/").rsplit("/", 1)[-1].strip()
+def _short_names(name: str) -> set[str]:
+    """The last part of a plain signal path and its block name (the part before the port)."""
+    parts = name.split("/")
+    return {parts[-1]} | ({parts[-2]} if len(parts) > 1 else set())
 
 
 def read(path: str | Path) -> list[Table]:
@@ -86,9 +101,12 @@ def read(path: str | Path) -> list[Table]:
             xi = int(np.asarray(getattr(ch, "XIndex", 1)).ravel()[0]) if "XIndex" in fields else 1
             if not 1 <= xi <= len(axes):
                 raise BundleError(f"{where}: XIndex {xi} names no time axis (the capture has {len(axes)})")
-            path_text = _text(getattr(ch, "Path", "")) if "Path" in fields else ""
+            path_text = _plain(_text(getattr(ch, "Path", ""))) if "Path" in fields else ""
             unit = _text(getattr(ch, "Unit", "")) if "Unit" in fields else ""
-            groups.setdefault(xi, []).append((_text(ch.Name), path_text, _vector(ch.Data, where), unit))
+            name = _plain(_text(ch.Name))
+            if not name:
+                raise BundleError(f"{where} has an empty Name")
+            groups.setdefault(xi, []).append((name, path_text, _vector(ch.Data, where), unit))
         for xi, chans in sorted(groups.items()):
             axis = axes[xi - 1]
             where = f"{p}: {var}.X({xi})"
@@ -117,7 +135,7 @@ def read(path: str | Path) -> list[Table]:
                 columns[key] = data
                 if unit:
                     units[key] = unit
-                for alias in {_tail(name), f"{path_text}/{name}" if path_text else name}:
+                for alias in _short_names(name) | {f"{path_text}/{name}" if path_text else name}:
                     if alias and alias.lower() != key.lower():
                         aliases.setdefault(alias.lower(), []).append(key)
             name = var if len(groups) == 1 else f"{var}-x{xi}"

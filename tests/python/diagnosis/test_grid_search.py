@@ -1,0 +1,38 @@
+"""The coarse-to-fine scan of input-side effects' grids: the grid's best value with fewer evaluations."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from bmr.diagnosis.selection import coarse_to_fine
+
+
+@pytest.mark.parametrize("n", [2, 9, 22, 49])
+def test_finds_the_minimum_of_every_unimodal_criterion(n):
+    rng = np.random.default_rng(n)
+    for _ in range(50):
+        centres = rng.uniform(-3, n + 3, size=3)  # minima inside the grid or beyond either end
+        calls = []
+
+        def score(i: int) -> np.ndarray:
+            calls.append(i)
+            return (i - centres) ** 2 + 0.1 * np.abs(i - centres)
+
+        done = coarse_to_fine(n, score)
+        full = np.array([score(i) for i in range(n)])
+        for k in range(3):
+            assert min(done, key=lambda i: done[i][k]) == int(np.argmin(full[:, k]))
+        assert len(set(calls[:len(done)])) == len(calls[:len(done)])  # nothing evaluated twice
+
+
+@pytest.mark.parametrize("n", [22, 49])
+def test_one_criterion_needs_well_under_half_the_grid(n):
+    for centre in np.linspace(-2, n + 2, 25):
+        done = coarse_to_fine(n, lambda i: np.array([abs(i - centre) ** 1.5]))
+        assert min(done, key=lambda i: done[i][0]) == int(np.clip(round(centre), 0, n - 1))
+        assert len(done) <= n // 4 + 2 + 6
+
+
+def test_nan_scores_count_as_worst():
+    done = coarse_to_fine(20, lambda i: np.array([np.nan if i < 10 else (i - 14.0) ** 2]))
+    assert min(done, key=lambda i: np.nan_to_num(done[i][0], nan=np.inf)) == 14
