@@ -17,10 +17,10 @@ JSON (``bmr-diagnosis/2``, every value in the bundle's declared output unit, nam
 accepted physical effect that removed the most held-out RMS; ``table_resolution`` when only the tables were at
 fault; ``"none"``), ``effects`` (accepted in order: ``name``, ``params``, ``heldout_rms_before``,
 ``heldout_rms_after``, ``gain``, ``folds_positive``), ``rejected``, ``noise_floor``, ``residual_rms`` (held-out RMS
-of the extended model), ``unexplained`` (``signal``, ``strength`` RMS) and more detail (per-run RMS, nominal
-held-out RMS, closed loop, timing), ``alternatives`` (pairs of effects the excitation could not tell
-apart, with what would separate them), ``identification_drift`` (the leakage the nominal identification found,
-when its branches did not close). Version 1 named the same fields with an ``_nmm`` suffix whatever the unit.
+of the extended model), ``unexplained`` (``signal``, ``strength`` RMS), ``alternatives`` (pairs of effects the
+excitation could not tell apart, with what would separate them), ``identification_drift`` (the leakage the nominal
+identification fitted with its tables when their branches did not close) and more detail (per-run RMS, nominal
+held-out RMS, closed loop, timing). Version 1 named the same fields with an ``_nmm`` suffix whatever the unit.
 """
 from __future__ import annotations
 
@@ -82,8 +82,10 @@ class Diagnosis:
     ``{run: (nominal, extended)}``. ``model`` / ``extended_model``: the nominal ``bmr.Model`` and the same with the
     accepted effects in its ``extensions``. ``learned``: the sparse regression of what no effect names (or None).
     ``closed_loop``: the tracking check of the extended compensator, when the bundle records its simulator.
-    ``alternatives``: pairs of effects this excitation could not tell apart, with the excitation that would.
-    ``identification_drift``: the leakage the nominal identification found when its branches did not close.
+    ``alternatives``: pairs of effects the excitation could not tell apart (:class:`Alternative`, with what would
+    separate them). ``identification_drift``: the leakage the nominal identification fitted with its tables because
+    their branches did not close (``leakage_rate`` in output per input·s, ``closure`` the share of the span a
+    saturation output moved), or None.
     ``to_dict()`` is the ``bmr-diagnosis/2`` JSON; ``html_section()`` a self-contained HTML fragment;
     ``write_report(path)`` a whole page."""
 
@@ -523,8 +525,8 @@ def run_cli(args: Any) -> int:
         print(f"  {a.message}")
     if d.identification_drift:
         print(f"  identification: branches open by {100 * d.identification_drift['closure']:.3g} % of the span; "
-              f"leakage {d.identification_drift['leakage_rate']:.4g} {u} per {q.input.unit}·s fitted with the "
-              "tables")
+              f"leakage {d.identification_drift['leakage_rate']:.4g} {q.output.unit} per {q.input.unit}·s fitted "
+              "with the tables")
     if d.learned:
         state = "learned" if d.learned["accepted"] else "not kept"
         print(f"  {state} (no named effect): {d.learned['equation']}; gain {100 * d.learned['gain']:.1f} % "

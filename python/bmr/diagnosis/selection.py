@@ -75,7 +75,8 @@ def out_of_range(name: str, params: dict[str, float]) -> list[str]:
     0..0.9)"`` (empty: all in range; parameters the vocabulary does not document are not judged)."""
     if not _RANGES:
         for effect, spec in effect_parameters(model_entries=True).items():
-            _RANGES[effect] = {k: (float(v["min"]), float(v["max"])) for k, v in spec["params"].items()}
+            documented: dict[str, dict[str, float]] = spec["params"]  # type: ignore[index, assignment]
+            _RANGES[effect] = {k: (float(v["min"]), float(v["max"])) for k, v in documented.items()}
     ranges = _RANGES.get(name, {})
     bad = []
     for key, value in params.items():

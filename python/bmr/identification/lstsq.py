@@ -325,7 +325,7 @@ def fit_tables_lstsq(
     else:
         res = _fit(grid, pack(), n_off, smoothing, ridge, integrals)
     if integrals is not None:
-        rate = float(res.drift)
+        rate = res.drift if res.drift is not None else 0.0
 
     rounds = iterations if (initial_state == "estimate" or gains) else 0
     for _ in range(rounds):
@@ -340,7 +340,7 @@ def fit_tables_lstsq(
             run_gains = _fit_gains(model, us, own, weights, histories, offs, per_run, gain_prior)
         res = _fit(grid, pack(), n_off, smoothing, ridge, integrals)
         if integrals is not None:
-            rate = float(res.drift)
+            rate = res.drift if res.drift is not None else 0.0
 
     model = res.model
     offs = res.offsets

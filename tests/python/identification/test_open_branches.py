@@ -3,10 +3,14 @@ its conditioning, and first-order families whose branches do not close because t
 are identified jointly with that leakage (the virtual ferroelectric capacitor recorded as first-order curves)."""
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pytest
+from lab_files import write_aixacct
 
 import bmr
+from bmr.cli import main
 from bmr.identification.lstsq import OPEN_BRANCH_SHARE, fit_tables_lstsq, saturation_closure
 from bmr.identification.signals import running_integral
 from bmr.simulation.device import device_bundle
@@ -102,3 +106,40 @@ def test_the_diagnosis_of_a_leaky_capacitor_names_leakage_first(leaky_capacitor:
     assert d.identification_drift is not None
     assert d.identification_drift["leakage_rate"] == pytest.approx(1.0, rel=0.02)
     assert d.to_dict()["identification_drift"]["closure"] > OPEN_BRANCH_SHARE
+
+
+def test_a_leaky_analyzer_export_goes_through_import_identify_and_diagnose(tmp_path, capsys) -> None:
+    # The virtual ferroelectric capacitor measured as an analyzer writes it: one table per first-order curve
+    # (each a new measurement: the charge integration restarts), a repeat with random reversals held out. No
+    # step refuses; identify reports the leakage, diagnose names it with its rate.
+    fs = 1000.0
+    dev = bmr.VirtualDevice("ferroelectric", seed=2, sample_rate_hz=fs, effects={"leakage": {"rate_per_s": 1.0}})
+    step = 20.0 / fs
+
+    def ramp(a: float, b: float) -> np.ndarray:
+        return np.linspace(a, b, max(2, int(abs(b - a) / step) + 1))
+
+    def table(v: np.ndarray) -> tuple[dict[str, str], list[str], np.ndarray]:
+        dev.start_run(0.0)
+        out = dev.run(np.ascontiguousarray(v))
+        return {}, ["Time s", "Vplus V", "P1 uC_per_cm2"], np.column_stack([np.arange(v.size) / fs, out["input"],
+                                                                            out["output"]])
+
+    tables = [table(np.r_[ramp(0, 10), ramp(10, -10), ramp(-10, 10)[1:], ramp(10, r)[1:], ramp(r, 10)[1:],
+                          ramp(10, 0)[1:]]) for r in np.linspace(-10, 10, 11)[:-1]]
+    pts = np.r_[0, 10, -10, np.random.default_rng(3).uniform(-10, 10, 12), 0]
+    check = table(np.concatenate([ramp(a, b)[1:] for a, b in zip(pts[:-1], pts[1:])]))
+    forc, held = write_aixacct(tmp_path / "forc.dat", tables), write_aixacct(tmp_path / "check.dat", [check])
+    bundle, model = tmp_path / "bundle", tmp_path / "m.json"
+    assert main(["import", str(forc), str(held), "--input", "Vplus:V", "--output", "P1:uC/cm2", "--holdout",
+                 "check", "-o", str(bundle)]) == 0
+    assert main(["identify", str(bundle), "-o", str(model)]) == 0
+    out = capsys.readouterr().out
+    assert "leakage 1.00" in out and "solve converged" in out
+    assert main(["diagnose", str(bundle), "--json", str(tmp_path / "d.json")]) == 0
+    out = capsys.readouterr().out
+    assert "cause leakage" in out and "accepted leakage" in out
+    doc = json.loads((tmp_path / "d.json").read_text())
+    assert doc["effects"][0]["name"] == "leakage"
+    assert doc["effects"][0]["params"]["rate_per_s"] == pytest.approx(1.0, rel=0.02)
+    assert doc["identification_drift"]["leakage_rate"] == pytest.approx(1.0, rel=0.02)
