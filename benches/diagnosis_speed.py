@@ -78,7 +78,8 @@ def main(argv: list[str] | None = None) -> int:
     if args.record:
         from measurements import record
 
-        record("diagnosis_speed", "python benches/diagnosis_speed.py --full --record", {"rows": rows})
+        command = f"python benches/diagnosis_speed.py{' --full' if args.full else ''} --record"
+        record("diagnosis_speed", command, {"rows": rows})
     return 0
 
 

@@ -202,6 +202,10 @@ class Fitter:
     def _blocks(self, path: FieldPath, linear: Sequence[tuple[Effect, Any]], y: np.ndarray
                 ) -> tuple[list[np.ndarray], tuple[int, ...]]:
         cols, widths = [], []
+        if not np.all(np.isfinite(y)):
+            # A path without valid tables: its fit is discarded (infinite error), but the columns' shapes are
+            # still needed, and effects that run the field output through the core refuse NaN.
+            y = np.zeros_like(y)
         for eff, value in linear:
             c = np.asarray(eff.columns(self.data, value, y, self.model), dtype=float)
             c = c.reshape(c.shape[0], -1)
@@ -398,8 +402,9 @@ def _grid_fits(fitter: Fitter, config: Configuration, eff: Effect, grid: Sequenc
     fits: list[FoldFit | None] = [None] * len(grid)
 
     def score(i: int) -> np.ndarray:
-        fits[i] = fitter.solve(*_with(config, eff, grid[i], data))
-        return fits[i].sse_train[criterion]
+        ff = fitter.solve(*_with(config, eff, grid[i], data))
+        fits[i] = ff
+        return ff.sse_train[criterion]
 
     coarse_to_fine(len(grid), score)
     return fits
