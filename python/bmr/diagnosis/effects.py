@@ -6,14 +6,12 @@ Two families:
 * **field effects** change the field path (:class:`bmr.diagnosis.field.FieldPath`) through one nonlinear
   parameter found by a 1-D search over a grid (``coil_lag``: time constant, ``time_delay``: delay,
   ``non_congruent``: output-map curvature) or by a refit (``table_resolution``: least-squares tables);
-* **linear effects** add regressor columns, linear in their parameters given at most one nonlinear one
-  (``thermal_drift``: thermal time constant, ``friction_harmonics``: harmonic order; ``friction_current``,
-  ``torque_ripple``, ``sensor_drift`` have none).
+* **linear effects** add regressor columns, linear in their parameters given at most one nonlinear one (the
+  heating's thermal time constant, the extra friction harmonic's order; the others have none).
 
-The actuator's effects (seal friction, rotor ripple) need an angle (``needs_angle``); the material and
-measurement effects any device can show — ``creep``, ``rate_dependence`` (a field effect: the core input lags
-with a time constant that follows the branch's slope), ``run_gain_offset``, ``leakage``, ``accommodation`` — need
-none. They read the evaluated spans run by run (``data.runs``: each run's full input, its first evaluated sample
+The actuator's effects (seal friction, rotor ripple) need an angle (``needs_angle``, from the vocabulary); the
+material and measurement effects any device can show need none (``rate_dependence`` is a field effect: the core
+input lags with a time constant that follows the branch's slope). They read the evaluated spans run by run (``data.runs``: each run's full input, its first evaluated sample
 ``start`` and sample period ``dt_s``) and the configuration's field output over the evaluated spans.
 
 States that carry over between runs get their initial value fitted with the effect: ``thermal_drift`` splits the
