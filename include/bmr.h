@@ -43,6 +43,11 @@
 #define BMR_ERR_PARAMETER -4
 
 /*
+ Size of a controller's storage in 8-byte words.
+ */
+#define BMR_CONTROLLER_WORDS 6400
+
+/*
  Storage for one compensator (opaque; initialise it with `bmr_compensator_init`).
  */
 typedef struct {
@@ -96,6 +101,28 @@ typedef struct {
   bool saturated;
   bool fault;
 } BmrCommand;
+
+/*
+ What the controller is asked for (see `bmr::ControllerSettings`; `bmr_controller_default_settings` fills it
+ with the defaults): bandwidth in Hz (0: automatic), the sensor-noise share, the adaptation memory in s, the
+ missing measurements before a fault, the largest correction in N·mm (0: automatic), feedback and adaptation on.
+ */
+typedef struct {
+  double bandwidth_hz;
+  double noise_share;
+  double adaptation_time_s;
+  uint32_t fault_after;
+  double correction_limit_nmm;
+  bool feedback;
+  bool adaptation;
+} BmrControllerSettings;
+
+/*
+ Storage for one closed-loop controller (opaque; initialise it with `bmr_controller_init`).
+ */
+typedef struct {
+  uint64_t words[BMR_CONTROLLER_WORDS];
+} BmrController;
 
 #ifdef __cplusplus
 extern "C" {
@@ -165,6 +192,65 @@ void bmr_compensator_run(BmrCompensator *c,
                          const double *theta_rad,
                          size_t n,
                          double *current_a);
+
+/*
+ The default controller settings.
+ */
+BmrControllerSettings bmr_controller_default_settings(void);
+
+/*
+ Build the closed-loop controller around the compensator of `model` at control period `dt_s` (s) into `out`
+ (`settings` null: the defaults). Returns `BMR_OK` or a negative `BMR_ERR_*` code (then `out` is not a
+ controller).
+
+ # Safety
+ As `bmr_compensator_init`; `settings` null or readable.
+ */
+int32_t bmr_controller_init(BmrController *out,
+                            const BmrModel *model,
+                            double dt_s,
+                            const BmrControllerSettings *settings);
+
+/*
+ One control period: reference torque (N·mm) and rotor angle (rad) of this sample, the torque measured at the
+ previous sample (N·mm; NaN/inf: none) → `*out`. Never fails.
+
+ # Safety
+ `c` must have been initialised by `bmr_controller_init`; `out` must be writable.
+ */
+void bmr_controller_step(BmrController *c,
+                         double reference_nmm,
+                         double theta_rad,
+                         double measured_nmm,
+                         BmrCommand *out);
+
+/*
+ The adapted output gain and offset (N·mm) and the integral correction (N·mm), written to the non-null
+ pointers.
+
+ # Safety
+ `c` initialised; each pointer null or writable.
+ */
+void bmr_controller_estimates(BmrController *c,
+                              double *gain,
+                              double *offset_nmm,
+                              double *correction_nmm);
+
+/*
+ Hold the adapted gain and offset (`frozen` true) or let them adapt again.
+
+ # Safety
+ `c` must have been initialised by `bmr_controller_init`.
+ */
+void bmr_controller_freeze_adaptation(BmrController *c, bool frozen);
+
+/*
+ Back to the start state (compensator after negative saturation, correction 0, gain 1, offset 0).
+
+ # Safety
+ `c` must have been initialised by `bmr_controller_init`.
+ */
+void bmr_controller_reset(BmrController *c);
 
 #ifdef __cplusplus
 }  // extern "C"

@@ -1,8 +1,9 @@
-//! C ABI of the compensator (feature `ffi`, `no_std`, no allocation): `bmr_compensator_init` builds one from a
-//! model's data (as `bmr export MODEL --c OUT.h` writes it) into caller-provided storage, `bmr_compensator_step`
-//! runs one control period, `bmr_compensator_reset` returns to the start state, `bmr_compensator_run` drives a
-//! whole reference known in advance exactly as Python's `Compensator.run`. The header `include/bmr.h` is generated
-//! from this file by cbindgen.
+//! C ABI of the compensator and the closed-loop controller (feature `ffi`, `no_std`, no allocation):
+//! `bmr_compensator_init` builds a compensator from a model's data (as `bmr export MODEL --c OUT.h` writes it)
+//! into caller-provided storage, `bmr_compensator_step` runs one control period, `bmr_compensator_reset` returns
+//! to the start state, `bmr_compensator_run` drives a whole reference known in advance exactly as Python's
+//! `Compensator.run`; `bmr_controller_init` / `bmr_controller_step` do the same for the closed loop around it
+//! (`bmr::Controller`). The header `include/bmr.h` is generated from this file by cbindgen.
 //!
 //! The tables the model points to must stay valid and unchanged for as long as the compensator is used (exported
 //! tables are `static const`).
@@ -131,8 +132,25 @@ pub unsafe extern "C" fn bmr_compensator_init(
     model: *const BmrModel,
     dt_s: f64,
 ) -> i32 {
-    if out.is_null() || model.is_null() {
+    if out.is_null() {
         return BMR_ERR_NULL;
+    }
+    match unsafe { build(model, dt_s) } {
+        Ok(c) => {
+            unsafe { out.cast::<Inner>().write(c) };
+            BMR_OK
+        }
+        Err(code) => code,
+    }
+}
+
+/// The compensator of `model` at control period `dt_s`, or a `BMR_ERR_*` code.
+///
+/// # Safety
+/// As `bmr_compensator_init`.
+unsafe fn build(model: *const BmrModel, dt_s: f64) -> Result<Inner, i32> {
+    if model.is_null() {
+        return Err(BMR_ERR_NULL);
     }
     let m = unsafe { &*model };
     let (Some(asc), Some(desc), Some(fa), Some(fb)) = (unsafe {
@@ -143,12 +161,12 @@ pub unsafe extern "C" fn bmr_compensator_init(
             slice(m.friction_b, m.friction_order),
         )
     }) else {
-        return BMR_ERR_NULL;
+        return Err(BMR_ERR_NULL);
     };
     let effects: &[EffectValues] = if m.effects_len == 0 {
         &[]
     } else if m.effects.is_null() {
-        return BMR_ERR_NULL;
+        return Err(BMR_ERR_NULL);
     } else {
         // BmrEffect and EffectValues have the same repr(C) layout.
         unsafe { core::slice::from_raw_parts(m.effects.cast::<EffectValues>(), m.effects_len) }
@@ -170,13 +188,7 @@ pub unsafe extern "C" fn bmr_compensator_init(
         full_torque_nmm: m.full_torque_nmm,
         effects,
     };
-    match data.compensator::<MEMORY, MAX_ORDER>(dt_s) {
-        Ok(c) => {
-            unsafe { out.cast::<Inner>().write(c) };
-            BMR_OK
-        }
-        Err(e) => code(e),
-    }
+    data.compensator::<MEMORY, MAX_ORDER>(dt_s).map_err(code)
 }
 
 const _: () = assert!(size_of::<BmrEffect>() == size_of::<EffectValues>());
@@ -259,4 +271,159 @@ pub unsafe extern "C" fn bmr_compensator_run(
         )
     };
     unsafe { inner(c) }.run_with(r, th, |i, cmd, _| out[i] = cmd.current_a);
+}
+
+type InnerController = crate::controller::Controller<&'static [f64], MEMORY, MAX_ORDER>;
+
+/// Size of a controller's storage in 8-byte words.
+pub const BMR_CONTROLLER_WORDS: usize = 6400;
+
+const _: () = assert!(size_of::<InnerController>() <= 8 * BMR_CONTROLLER_WORDS);
+const _: () = assert!(align_of::<InnerController>() <= 8);
+
+/// Storage for one closed-loop controller (opaque; initialise it with `bmr_controller_init`).
+#[repr(C)]
+pub struct BmrController {
+    words: [u64; BMR_CONTROLLER_WORDS],
+}
+
+/// What the controller is asked for (see `bmr::ControllerSettings`; `bmr_controller_default_settings` fills it
+/// with the defaults): bandwidth in Hz (0: automatic), the sensor-noise share, the adaptation memory in s, the
+/// missing measurements before a fault, the largest correction in N·mm (0: automatic), feedback and adaptation on.
+#[repr(C)]
+#[derive(Clone, Copy)]
+pub struct BmrControllerSettings {
+    pub bandwidth_hz: f64,
+    pub noise_share: f64,
+    pub adaptation_time_s: f64,
+    pub fault_after: u32,
+    pub correction_limit_nmm: f64,
+    pub feedback: bool,
+    pub adaptation: bool,
+}
+
+impl From<BmrControllerSettings> for crate::controller::ControllerSettings {
+    fn from(s: BmrControllerSettings) -> Self {
+        crate::controller::ControllerSettings {
+            bandwidth_hz: s.bandwidth_hz,
+            noise_share: s.noise_share,
+            adaptation_time_s: s.adaptation_time_s,
+            fault_after: s.fault_after,
+            correction_limit_nmm: s.correction_limit_nmm,
+            feedback: s.feedback,
+            adaptation: s.adaptation,
+        }
+    }
+}
+
+/// The default controller settings.
+#[unsafe(no_mangle)]
+pub extern "C" fn bmr_controller_default_settings() -> BmrControllerSettings {
+    let d = crate::controller::ControllerSettings::default();
+    BmrControllerSettings {
+        bandwidth_hz: d.bandwidth_hz,
+        noise_share: d.noise_share,
+        adaptation_time_s: d.adaptation_time_s,
+        fault_after: d.fault_after,
+        correction_limit_nmm: d.correction_limit_nmm,
+        feedback: d.feedback,
+        adaptation: d.adaptation,
+    }
+}
+
+/// Build the closed-loop controller around the compensator of `model` at control period `dt_s` (s) into `out`
+/// (`settings` null: the defaults). Returns `BMR_OK` or a negative `BMR_ERR_*` code (then `out` is not a
+/// controller).
+///
+/// # Safety
+/// As `bmr_compensator_init`; `settings` null or readable.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn bmr_controller_init(
+    out: *mut BmrController,
+    model: *const BmrModel,
+    dt_s: f64,
+    settings: *const BmrControllerSettings,
+) -> i32 {
+    if out.is_null() {
+        return BMR_ERR_NULL;
+    }
+    let settings = if settings.is_null() {
+        crate::controller::ControllerSettings::default()
+    } else {
+        unsafe { *settings }.into()
+    };
+    let c = match unsafe { build(model, dt_s) } {
+        Ok(c) => c,
+        Err(code) => return code,
+    };
+    match crate::controller::Controller::new(c, dt_s, settings) {
+        Ok(ctl) => {
+            unsafe { out.cast::<InnerController>().write(ctl) };
+            BMR_OK
+        }
+        Err(_) => BMR_ERR_PARAMETER,
+    }
+}
+
+unsafe fn controller<'a>(c: *mut BmrController) -> &'a mut InnerController {
+    unsafe { &mut *c.cast::<InnerController>() }
+}
+
+/// One control period: reference torque (N·mm) and rotor angle (rad) of this sample, the torque measured at the
+/// previous sample (N·mm; NaN/inf: none) → `*out`. Never fails.
+///
+/// # Safety
+/// `c` must have been initialised by `bmr_controller_init`; `out` must be writable.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn bmr_controller_step(
+    c: *mut BmrController,
+    reference_nmm: f64,
+    theta_rad: f64,
+    measured_nmm: f64,
+    out: *mut BmrCommand,
+) {
+    let cmd = unsafe { controller(c) }.step(reference_nmm, theta_rad, measured_nmm);
+    unsafe { out.write(cmd.into()) };
+}
+
+/// The adapted output gain and offset (N·mm) and the integral correction (N·mm), written to the non-null
+/// pointers.
+///
+/// # Safety
+/// `c` initialised; each pointer null or writable.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn bmr_controller_estimates(
+    c: *mut BmrController,
+    gain: *mut f64,
+    offset_nmm: *mut f64,
+    correction_nmm: *mut f64,
+) {
+    let ctl = unsafe { controller(c) };
+    for (p, v) in [
+        (gain, ctl.gain()),
+        (offset_nmm, ctl.offset_nmm()),
+        (correction_nmm, ctl.correction_nmm()),
+    ] {
+        if !p.is_null() {
+            unsafe { p.write(v) };
+        }
+    }
+}
+
+/// Hold the adapted gain and offset (`frozen` true) or let them adapt again.
+///
+/// # Safety
+/// `c` must have been initialised by `bmr_controller_init`.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn bmr_controller_freeze_adaptation(c: *mut BmrController, frozen: bool) {
+    unsafe { controller(c) }.freeze_adaptation(frozen);
+}
+
+/// Back to the start state (compensator after negative saturation, correction 0, gain 1, offset 0).
+///
+/// # Safety
+/// `c` must have been initialised by `bmr_controller_init`.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn bmr_controller_reset(c: *mut BmrController) {
+    unsafe { controller(c) }.reset(crate::cbh::Initial::Negative);
 }

@@ -765,7 +765,7 @@ class Controller:
 def _rebuild_controller(
     compensator: Compensator,
     dt_s: float,
-    settings: tuple[float, float, float, int, float, bool, bool],
+    settings: object,
     state: bytes,
 ) -> Controller: ...
 def _simulate_closed_loop(

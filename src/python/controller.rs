@@ -322,9 +322,15 @@ fn _rebuild_controller(
     py: Python<'_>,
     compensator: &Bound<'_, PyCompensator>,
     dt_s: f64,
-    settings: (f64, f64, f64, u32, f64, bool, bool),
+    settings: &Bound<'_, PyAny>,
     state: &[u8],
 ) -> PyResult<PyController> {
+    let settings: (f64, f64, f64, u32, f64, bool, bool) = settings.extract().map_err(|_| {
+        BmrError::new_err(
+            "Controller settings: expected (bandwidth_hz, noise_share, adaptation_time_s, fault_after, \
+             correction_limit_nmm, feedback, adaptation)",
+        )
+    })?;
     let (
         bandwidth_hz,
         noise_share,

@@ -110,3 +110,29 @@ def test_c_program_matches_python_run_bit_for_bit(tmp_path):
     # Every stage did something: the extended commands differ from the nominal model's.
     nominal = bmr.Model.load(MODEL).compensator(stages=[]).run(ref, theta)["current_a"]
     assert np.max(np.abs(c - nominal)) > 0.05
+
+
+@pytest.mark.slow
+def test_c_controller_matches_python_bit_for_bit(tmp_path):
+    cc, cargo = _tool("cc"), _tool("cargo")
+    env = dict(os.environ, CARGO_TERM_COLOR="never")
+    subprocess.run([cargo, "build", "--release", "--quiet", "--manifest-path", "nostd-check/Cargo.toml"],
+                   cwd=REPO, check=True, env=env)
+    lib = REPO / "nostd-check" / "target" / "release" / "libbmr_nostd_check.a"
+    assert main(["export", str(MODEL), "--c", str(tmp_path / "model.h")]) == 0
+    exe = tmp_path / "run_controller"
+    subprocess.run([cc, "-std=c99", "-O2", "-Wall", "-Wextra", "-Werror", "-I", str(REPO / "include"), "-I",
+                    str(tmp_path), str(REPO / "tests" / "c" / "run_controller.c"), str(lib), "-Wl,--gc-sections",
+                    "-o", str(exe)], check=True)
+    ref, theta = reference()
+    # A measurement 10 % weak with an offset and a ripple, and dropouts: the loop and the adaptation both act.
+    measured = 0.9 * ref + 3.0 + 2.0 * np.sin(0.05 * np.arange(ref.size))
+    measured[::97] = np.nan
+    ctl = bmr.Controller.from_model(MODEL, dt_s=DT_S)
+    python = np.array([ctl.step(float(r), float(t), float(y)).current_a for r, t, y in zip(ref, theta, measured)])
+    text = f"{ref.size}\n" + "".join(f"{r.hex()} {a.hex()} {y.hex()}\n" for r, a, y in zip(ref, theta, measured))
+    out = subprocess.run([str(exe), repr(DT_S)], input=text, capture_output=True, text=True, check=True)
+    c = np.array([float.fromhex(v) for v in out.stdout.split()])
+    assert c.size == ref.size
+    assert np.array_equal(c.view(np.uint64), python.view(np.uint64)), np.flatnonzero(c != python)[:5]
+    assert float.fromhex(out.stderr.split()[-1]) == ctl.gain != 1.0

@@ -102,6 +102,9 @@ def _targets() -> list[tuple[str, object, dict[str, object]]]:
                           "dt_s", "full_torque_nmm", "state"), _reduce_args(paper)))
     (comp_state,) = _reduce_args(paper.snapshot())
     command = _reduce_args(comp.step(50.0, 0.3))
+    ctl = core.Controller(comp, dt_s=1e-3)
+    ctl.step(50.0, 0.3, 48.0)
+    ctl_args = dict(zip(("compensator", "dt_s", "settings", "state"), _reduce_args(ctl)))
     targets: list[tuple[str, object, dict[str, object]]] = [
         ("Hysteresis.from_curves", core.Hysteresis.from_curves, {}),
         ("Hysteresis.step", _hysteresis().step, {"u": 0.3}),
@@ -166,6 +169,18 @@ def _targets() -> list[tuple[str, object, dict[str, object]]]:
         ("_rebuild_compensator_state", core._rebuild_compensator_state, {"state": comp_state}),
         ("Command", core.Command,
          dict(zip(("current_a", "coil1_a", "coil2_a", "volt1_v", "volt2_v", "saturated", "fault"), command))),
+        ("Controller", core.Controller,
+         {"compensator": comp, "dt_s": 1e-3, "bandwidth_hz": 0.0, "noise_share": 0.02, "adaptation_time_s": 5.0,
+          "fault_after": 50, "correction_limit_nmm": 0.0, "feedback": True, "adaptation": True}),
+        ("Controller.from_model", core.Controller.from_model, {"model": _model(), "dt_s": 1e-3}),
+        ("Controller.step", ctl.step, {"reference_nmm": 50.0, "theta_rad": 0.3, "measured_nmm": 48.0}),
+        ("Controller.freeze_adaptation", ctl.freeze_adaptation, {"frozen": True}),
+        ("Controller.reset", ctl.reset, {}),
+        ("Controller.restore", ctl.restore, {"state": ctl.snapshot()}),
+        ("_rebuild_controller", core._rebuild_controller, ctl_args),
+        ("_simulate_closed_loop", core._simulate_closed_loop,
+         {"controller": core.Controller(comp, dt_s=1e-3), "plant": core.VirtualActuator(), "reference_nmm": 50 * U,
+          "theta_rad": None}),
         ("_rebuild_virtual_actuator", core._rebuild_virtual_actuator,
          dict(zip(("preset", "seed", "sample_rate_hz", "effects", "overrides", "state"), vargs))),
     ]
