@@ -44,6 +44,7 @@ class DataSet:
     noise_floor: bool = False  # compare with the output's noise floor (FORC files)
     reference: str = ""  # a published or quoted reference figure
     reference_value: float | None = None
+    forc_figure: str = ""  # docs/ file for the FORC diagram of the identified model (written with --record)
 
     def paths(self) -> list[Path]:
         return [DATA / self.folder / f for f in self.files]
@@ -70,7 +71,8 @@ DATASETS = (
             tuple(f"ensaio.A.{k}.mat" for k in range(1, 5)), ("--input", "dist:mm", "--output", "forc:N"),
             _named("ensaio.A.4"), diagnose=True),
     DataSet("feco_forc", "forc-feco-nanowires", "FeCo nanowires, MicroMag FORCs (cgs), every other curve held out",
-            ("hchb_forc",), ("--input", "Field", "--output", "Moment"), _every_other, noise_floor=True),
+            ("hchb_forc",), ("--input", "Field", "--output", "Moment"), _every_other, noise_floor=True,
+            forc_figure="fig_feco_forc_diagram.png"),
     DataSet("sediment_forc", "forc-marine-sediment", "Marine sediment, MicroMag FORCs (Hybrid SI), every other "
             "curve held out", ("MSM33-55-1_d330.forc",), ("--input", "Field", "--output", "Moment"), _every_other,
             noise_floor=True),
@@ -155,8 +157,8 @@ def _play_lstsq(train: list[tuple[np.ndarray, np.ndarray]], test: tuple[np.ndarr
     return float(np.sqrt(np.mean(e * e)))
 
 
-def run_chain(ds: DataSet, workdir: Path) -> ChainResult:
-    """The chain on one data set in ``workdir``."""
+def run_chain(ds: DataSet, workdir: Path, figures: bool = False) -> ChainResult:
+    """The chain on one data set in ``workdir`` (``figures``: also draw the data set's FORC diagram into docs/)."""
     import bmr
     from bmr.data.signals import sample_noise
 
@@ -171,9 +173,12 @@ def run_chain(ds: DataSet, workdir: Path) -> ChainResult:
                          str(bundle)]),
              ("identify", ["identify", str(bundle), "-o", str(model)]),
              ("predict", ["predict", str(model), str(bundle), "--json", str(pred)])]
+    extended = workdir / "extended.json"
     if ds.diagnose:
         steps.append(("diagnose", ["diagnose", str(bundle), "--json", str(workdir / "diagnosis.json"),
-                                   "--model-out", str(workdir / "extended.json")]))
+                                   "--model-out", str(extended)]))
+        steps.append(("predict extended", ["predict", str(extended), str(bundle), "--json",
+                                           str(workdir / "extended_prediction.json")]))
     for step, args in steps:
         rc, _, err = _cli(args)
         res.status[step] = rc
@@ -183,6 +188,11 @@ def run_chain(ds: DataSet, workdir: Path) -> ChainResult:
     res.seconds = time.perf_counter() - t0
     if not pred.is_file():
         return res
+    if figures and ds.forc_figure:
+        from bmr.report.forc_diagram import forc_diagram
+
+        forc_diagram(bmr.Model.load(model), ROOT / "docs" / ds.forc_figure,
+                     title=f"{ds.label.split(',')[0]}: identified density")
     p = json.loads(pred.read_text())
     total = p["total"]
     res.unit = p["output_unit"]
@@ -195,6 +205,9 @@ def run_chain(ds: DataSet, workdir: Path) -> ChainResult:
         train = [(r.input, r.output) for r in b.identification_runs()]
         [test] = [(r.input, r.output) for r in b.evaluation_runs()]
         res.hand_lstsq_rms = _play_lstsq(train, test)
+    ext_pred = workdir / "extended_prediction.json"
+    if ext_pred.is_file():
+        res.extended_rms = json.loads(ext_pred.read_text())["total"]["rms"]
     diag = workdir / "diagnosis.json"
     if diag.is_file():
         d = json.loads(diag.read_text())
@@ -202,21 +215,21 @@ def run_chain(ds: DataSet, workdir: Path) -> ChainResult:
     return res
 
 
-def run_all(datasets: tuple[DataSet, ...] = DATASETS) -> list[ChainResult]:
+def run_all(datasets: tuple[DataSet, ...] = DATASETS, figures: bool = False) -> list[ChainResult]:
     out = []
     for ds in datasets:
         if not ds.present():
             print(f"{ds.key}: skipped, {DATA / ds.folder} is absent", file=sys.stderr)
             continue
         with tempfile.TemporaryDirectory() as tmp:
-            out.append(run_chain(ds, Path(tmp)))
+            out.append(run_chain(ds, Path(tmp), figures))
     return out
 
 
 def render(values: dict[str, Any]) -> str:
     """The docs/results.md table."""
-    rows = ["| data set (held out) | chain | held-out RMS | % of span | single-valued baseline | reference |",
-            "|---|---|---|---|---|---|"]
+    rows = ["| data set (held out) | chain | held-out RMS | % of span | single-valued baseline | extended model "
+            "(`diagnose --model-out`) | reference |", "|---|---|---|---|---|---|---|"]
     for r in values["results"]:
         u = r["unit"]
         chain = "ok" if all(s == 0 for s in r["status"].values()) else "; ".join(
@@ -233,15 +246,16 @@ def render(values: dict[str, Any]) -> str:
         fmt = (lambda x: "—" if x is None else f"{x:.3g} {u}")
         rows.append(f"| {r['label']} ({r['held_out']} of {r['runs']} runs) | {chain} | {fmt(r['rms'])} | "
                     f"{'—' if r['rms_pct_span'] is None else format(r['rms_pct_span'], '.3g')} | "
-                    f"{fmt(r['baseline_rms'])} | {'; '.join(refs) or '—'} |")
+                    f"{fmt(r['baseline_rms'])} | {fmt(r.get('extended_rms'))} | {'; '.join(refs) or '—'} |")
     return "\n".join(rows)
 
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--record", action="store_true", help="record the figures as docs/results.md's real_data section")
+    ap.add_argument("--record", action="store_true", help="record the figures as docs/results.md's real_data section "
+                    "and draw the FORC diagrams into docs/")
     args = ap.parse_args(argv)
-    results = run_all()
+    results = run_all(figures=args.record)
     values = {"results": [r.to_dict() for r in results]}
     print(render(values))
     if args.record:

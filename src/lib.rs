@@ -12,6 +12,7 @@ pub mod accommodation;
 pub mod cbh;
 pub mod compensator;
 pub mod congruency;
+pub mod controller;
 pub mod creep;
 #[cfg(feature = "alloc")]
 pub mod curve_fit;
@@ -51,6 +52,9 @@ pub mod vocabulary;
 pub use cbh::{Hysteresis, Initial, State};
 pub use compensator::{Command, Compensator, CompensatorError, CompensatorState, InverseKind};
 pub use congruency::{Congruency, congruency};
+pub use controller::{
+    Controller, ControllerDesign, ControllerError, ControllerSettings, ControllerState,
+};
 pub use error::{FamilyKind, TableError};
 pub use everett::{Family, Strip};
 pub use friction::{Friction, FrictionError};

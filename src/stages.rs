@@ -52,6 +52,10 @@ impl CoilLag {
             lag: Lag::new(tau_s, dt_s, 0.0),
         }
     }
+    /// `exp(−dt/τ)` of the lag.
+    pub fn pole(&self) -> f64 {
+        self.lag.pole()
+    }
     /// Field current reached at the last sample (A).
     pub fn field_a(&self) -> f64 {
         self.lag.output()

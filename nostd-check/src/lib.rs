@@ -1,10 +1,14 @@
 //! Links the bmr real-time core into a `#![no_std]` static library with no global allocator: a CBH operator on
 //! static tables, stepped, a compensator (exact inverse + friction) on it, the extended compensator of an exported
-//! model (`model.rs`, written by `bmr export`) and the C ABI (`bmr_compensator_*`, header `include/bmr.h`). If
-//! anything in that path needed `std` or `alloc`, this would not build.
+//! model (`model.rs`, written by `bmr export`), the closed-loop controller around it and the C ABI
+//! (`bmr_compensator_*`, header `include/bmr.h`). If anything in that path needed `std` or `alloc`, this would
+//! not build.
 #![no_std]
 
-use bmr::{Compensator, Family, FamilyKind, Friction, Hysteresis, Initial, InverseKind};
+use bmr::{
+    Compensator, Controller, ControllerSettings, Family, FamilyKind, Friction, Hysteresis, Initial,
+    InverseKind,
+};
 use core::panic::PanicInfo;
 
 // The C ABI, linked into the static library.
@@ -59,4 +63,26 @@ pub extern "C" fn bmr_nostd_model_demo(torque_ref_nmm: f64, theta_rad: f64) -> f
         Ok(mut c) => c.step(torque_ref_nmm, theta_rad).current_a,
         Err(_) => f64::NAN,
     }
+}
+
+/// Closed loop around the exported model's compensator at a 2 ms control period: `n` steps towards
+/// `torque_ref_nmm`, each measuring `gain` times the torque the model predicted; the last commanded current (NaN
+/// if the model or the controller does not build).
+#[unsafe(no_mangle)]
+pub extern "C" fn bmr_nostd_controller_demo(torque_ref_nmm: f64, gain: f64, n: usize) -> f64 {
+    let Ok(c) = model::compensator(0.002) else {
+        return f64::NAN;
+    };
+    let Ok(mut ctl) = Controller::new(c, 0.002, ControllerSettings::default()) else {
+        return f64::NAN;
+    };
+    let mut measured = f64::NAN;
+    let mut current = 0.0;
+    for i in 0..n {
+        current = ctl
+            .step(torque_ref_nmm, 0.001 * i as f64, measured)
+            .current_a;
+        measured = gain * ctl.compensator().model_torque_nmm();
+    }
+    current
 }

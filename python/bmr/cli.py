@@ -72,6 +72,8 @@ def _parser() -> argparse.ArgumentParser:
     m.add_argument("--sample-rate", type=float, metavar="HZ", help="time from the sample index for files without one")
     m.add_argument("--deadband", type=float, metavar="X", help="reversal dead-band in input units "
                    "(default: 1 %% of the input span or 10x its sample noise)")
+    m.add_argument("--keep-edges", action="store_true", help="keep an idle hold at a run's start and a command "
+                   "jump at its end (default: left out of the bundle and named in the summary)")
     m.add_argument("--file-format", choices=("csv", "parquet"), default="csv", help="bundle run files (default csv)")
     m.add_argument("-o", "--out", required=True, help="bundle folder to write (new or empty)")
 
@@ -116,10 +118,11 @@ def _parser() -> argparse.ArgumentParser:
     r.add_argument("bundle", help=BUNDLE_HELP)
     r.add_argument("--runs", action="append", default=[], metavar="RUN[,RUN...]",
                    help="runs to predict (default: the bundle's evaluation runs)")
-    r.add_argument("--offset", choices=("model", "first", "shrunk"), default="model",
-                   help="each run's output offset: the model's, from the run's leading --calibration samples "
-                        "(first; they are then not scored), or that shrunk towards the model's by how much the "
-                        "training runs' offsets spread (shrunk) (default: model)")
+    r.add_argument("--offset", choices=("run", "model", "first", "shrunk"), default="run",
+                   help="each run's output offset: its own, fitted on its scored samples and shrunk towards the "
+                        "model's by how much the training runs' offsets spread, with a gain where their gains spread "
+                        "(run, the default); the model's (model); from the run's leading --calibration samples "
+                        "(first; they are then not scored); or that shrunk towards the model's (shrunk)")
     r.add_argument("--calibration", type=int, metavar="N",
                    help="leading samples of each run used to calibrate it, not scored (default: 1 with --offset "
                         "first, else 0)")
@@ -150,7 +153,7 @@ def _parser() -> argparse.ArgumentParser:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Run a subcommand. Problems with the user's data, arguments or files end with exit status 2 and one line
-    naming the file and the problem, never a traceback."""
+    naming the file and the problem; a bug in bmr with status 1 and one line saying so; never a traceback."""
     args = _parser().parse_args(argv)
     try:
         if args.command == "demo":
@@ -186,6 +189,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     except KeyboardInterrupt:
         print(f"bmr {args.command}: interrupted", file=sys.stderr)
         return 130
+    except Exception as exc:  # noqa: BLE001 - a bug still ends in one line, not a traceback
+        print(f"bmr {args.command}: internal error (a bug in bmr; please report it with the command line): "
+              f"{type(exc).__name__}: {exc}", file=sys.stderr)
+        return 1
 
 
 if __name__ == "__main__":

@@ -142,6 +142,31 @@ fn extended_compensator_step_does_not_allocate() {
     exact.run_with(&scaled, &thetas, |_, c, _| acc += c.current_a);
     let after = ALLOCS.load(Ordering::SeqCst);
     WATCHED.with(|w| w.set(false));
+    // The closed loop around it: measurements, dropouts (to a fault), saturation, snapshot/restore.
+    let settings = bmr::ControllerSettings {
+        fault_after: 5,
+        ..Default::default()
+    };
+    let mut ctl = bmr::Controller::new(exact, 0.002, settings).unwrap();
+    WATCHED.with(|w| w.set(true));
+    let before_loop = ALLOCS.load(Ordering::SeqCst);
+    let mut y = f64::NAN;
+    for (i, &r) in scaled.iter().enumerate() {
+        let measured = if i % 50 < 8 { f64::NAN } else { y };
+        let c = ctl.step(if i % 300 < 20 { 5000.0 } else { r }, thetas[i], measured);
+        y = 0.9 * ctl.compensator().model_torque_nmm() + 2.0;
+        acc += c.current_a;
+    }
+    let snap = ctl.snapshot();
+    ctl.restore(&snap).unwrap();
+    let after_loop = ALLOCS.load(Ordering::SeqCst);
+    WATCHED.with(|w| w.set(false));
+    assert_eq!(
+        after_loop - before_loop,
+        0,
+        "Controller::step allocated {} times",
+        after_loop - before_loop
+    );
     assert!(acc.is_finite());
     assert_eq!(
         after - before,

@@ -31,7 +31,7 @@ import math
 import numbers
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable, Iterable, Iterator
+from typing import Any, Callable, Iterable, Iterator, Sequence
 
 import numpy as np
 import pandas as pd
@@ -77,6 +77,10 @@ class Run:
     meta: dict[str, Any] = field(default_factory=dict)
     quantities: Quantities = ACTUATOR
     role: str | None = None
+    # The run's columns as read-only float arrays, each built once from ``data`` (identification, prediction and
+    # diagnosis all read them); rebuilt when ``data`` is replaced.
+    _arrays: dict[str, np.ndarray] = field(default_factory=dict, init=False, repr=False, compare=False)
+    _arrays_of: int = field(default=0, init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         if self.kind not in RUN_KINDS:
@@ -97,9 +101,26 @@ class Run:
                 f"columns: {', '.join(self.data.columns)})")
 
     def column(self, name: str) -> np.ndarray:
+        """Column ``name`` as a read-only float array (built once per column)."""
+        if self._arrays_of != id(self.data):
+            self._arrays, self._arrays_of = {}, id(self.data)
+        cached = self._arrays.get(name)
+        if cached is not None:
+            return cached
         if name not in self.data.columns:
             raise BundleError(f"run {self.name!r} has no column {name!r} (columns: {', '.join(self.data.columns)})")
-        return self.data[name].to_numpy(dtype=float)
+        values = np.array(self.data[name].to_numpy(dtype=float), dtype=float)
+        values.flags.writeable = False
+        self._arrays[name] = values
+        return values
+
+    def __getstate__(self) -> dict[str, Any]:
+        # The arrays are a cache of ``data``: not sent to another process twice.
+        return {k: v for k, v in self.__dict__.items() if k not in ("_arrays", "_arrays_of")}
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        self.__dict__.update(state)
+        self._arrays, self._arrays_of = {}, 0
 
     @property
     def time(self) -> np.ndarray:
@@ -241,11 +262,53 @@ class Bundle:
         """Every other run: held out to measure prediction."""
         return [r for r in self.runs if not r.is_identification]
 
+    def roles(self, train_kinds: Sequence[str] | None = None) -> "RunRoles":
+        """What every run is for: the one policy identification, prediction and diagnosis follow (see
+        :class:`RunRoles`). ``train_kinds``: train the hysteresis on runs of these kinds (not held out) instead."""
+        identification = self.identification_runs()
+        off_state = [r for r in identification if r.kind == "off_state"]
+        protocol = [r for r in identification if r.kind in PROTOCOL_KINDS]
+        active = [r for r in self.runs if r.kind != "off_state"]
+        if train_kinds is not None:
+            train = [r for r in self.by_kind(*train_kinds) if r.role != "evaluation"]
+        else:
+            # Without protocol runs, every run not explicitly held out (role "evaluation") is trained on.
+            train = protocol or [r for r in active if r.role != "evaluation"]
+        trained = {r.name for r in train}
+        evaluation = [r for r in self.evaluation_runs() if r.name not in trained]
+        held = self.evaluation_runs()
+        scored = [r for r in (held or self.runs) if r.kind != "off_state"]
+        return RunRoles(off_state=off_state, protocol=protocol, active=active, train=train,
+                        evaluation=evaluation, scored=scored)
 
-def runs_of(runs: "Bundle | Run | Iterable[Run]") -> list[Run]:
-    """The runs of a bundle, a single run or any iterable of runs, as a list."""
+
+# Run kinds whose runs are first-order reversal curves (the paper's identification protocol).
+PROTOCOL_KINDS = ("first_order_ascending", "first_order_descending")
+
+
+@dataclass(frozen=True)
+class RunRoles:
+    """What each run of a bundle is for (:meth:`Bundle.roles`), decided once.
+
+    ``off_state``: identification runs at zero input (seal friction). ``protocol``: identification runs that are
+    first-order reversal curves. ``active``: every run that drives the device (not off-state). ``train``: the runs
+    the hysteresis tables are identified from (the protocol runs, else every active run not held out).
+    ``evaluation``: held-out runs not trained on (model selection, diagnosis folds). ``scored``: what a prediction
+    of the bundle scores by default (the held-out runs, or every active run when none is held out)."""
+
+    off_state: list[Run]
+    protocol: list[Run]
+    active: list[Run]
+    train: list[Run]
+    evaluation: list[Run]
+    scored: list[Run]
+
+
+def runs_of(runs: "Bundle | Run | Iterable[Run]", *, scored: bool = False) -> list[Run]:
+    """The runs of a bundle (``scored``: those a prediction scores, :attr:`RunRoles.scored`), a single run or any
+    iterable of runs, as a list."""
     if isinstance(runs, Bundle):
-        return list(runs.runs)
+        return runs.roles().scored if scored else list(runs.runs)
     if isinstance(runs, Run):
         return [runs]
     return list(runs)

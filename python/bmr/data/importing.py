@@ -28,7 +28,7 @@ from bmr._core import BmrError, BundleError
 from bmr.data.bundle import Bundle, Run, write_bundle
 from bmr.data.formats import read_tables
 from bmr.data.quantities import ANGLE, Quantities, Quantity
-from bmr.data.signals import SampleRate, default_deadband, sample_rate
+from bmr.data.signals import CaptureEdges, SampleRate, capture_edges, default_deadband, sample_rate
 from bmr.data.tables import Table
 from bmr.data.units import format_number, unit
 
@@ -80,11 +80,13 @@ class ImportedRun:
     curves: int | None
     input_range: tuple[float, float]
     duration_s: float
+    edges: CaptureEdges = field(default_factory=CaptureEdges)
 
     def to_dict(self) -> dict[str, Any]:
         return {"name": self.name, "source": self.source, "kind": self.kind, "role": self.role,
                 "samples": self.samples, "reversals": self.reversals, "first_order_curves": self.curves,
-                "input_range": list(self.input_range), "duration_s": self.duration_s}
+                "input_range": list(self.input_range), "duration_s": self.duration_s,
+                "idle_hold_samples": self.edges.hold, "end_jump_samples": self.edges.jump}
 
 
 @dataclass
@@ -312,6 +314,7 @@ def import_logs(
     device: str = "",
     sample_rate_hz: float | None = None,
     deadband: float | None = None,
+    keep_edges: bool = False,
 ) -> ImportResult:
     """Read raw logs into a bundle (``ImportResult.bundle``) with the declared quantities.
 
@@ -321,7 +324,8 @@ def import_logs(
     (default: from the unit's dimension, e.g. V → voltage). ``protocol``: one of ``PROTOCOLS``; ``holdout``: run
     or file names labelled for evaluation. ``format`` forces a reader (see :data:`bmr.data.formats.FORMATS`).
     ``sample_rate_hz`` builds time from the sample index for files without a time column. ``deadband``: the
-    reversal dead-band in input units.
+    reversal dead-band in input units. An idle hold at a run's start and a command jump at its end
+    (:func:`bmr.data.signals.capture_edges`) are left out and named in the notes unless ``keep_edges``.
     """
     if protocol not in PROTOCOLS:
         raise BundleError(f"unknown protocol {protocol!r}; use one of {', '.join(PROTOCOLS)}")
@@ -409,6 +413,27 @@ def import_logs(
         raise BundleError(f"holdout {', '.join(map(repr, unknown))} names no imported run or file (runs: "
                           f"{', '.join(n for _, _, n, _ in built)})")
 
+    # A capture's idle hold before the excitation and a command jump as it ends are not the experiment: left out
+    # of the bundle (so of identification and scoring), counted per run and named in the notes.
+    edges: dict[str, CaptureEdges] = {}
+    if not keep_edges:
+        trimmed = []
+        for path, t, name, df in built:
+            e = capture_edges(df[q_in.column].to_numpy())
+            if e.any:
+                edges[name] = e
+                tt = df["t_s"].to_numpy()
+                if e.hold:
+                    notes.append(f"{t.source} (run {name!r}): idle hold at the start, {e.hold} samples "
+                                 f"({format_number(tt[e.hold] - tt[0], 4)} s at {q_in.format(e.hold_level, 4)}) "
+                                 "left out (its last sample kept as the run's start)")
+                if e.jump:
+                    notes.append(f"{t.source} (run {name!r}): command jump at the end, the last {e.jump} sample(s) "
+                                 "left out")
+                df = df.iloc[e.hold:len(df) - e.jump].reset_index(drop=True)
+            trimmed.append((path, t, name, df))
+        built = trimmed
+
     inputs = [df[q_in.column].to_numpy() for *_, df in built]
     for (path, t, name, df), u in zip(built, inputs):
         if not np.all(np.isfinite(u)):
@@ -440,7 +465,9 @@ def import_logs(
                 if role == "identification":
                     off_protocol.append(exc)
                     notes.append(f"{exc}; kept as a custom run (not used as first-order curves)")
+        e = edges.get(name, CaptureEdges())
         meta = {"source": t.source, "reversals": int(rev.size),
+                **({"idle_hold_samples": e.hold, "end_jump_samples": e.jump} if e.any else {}),
                 **({"first_order_curves": curves} if curves is not None else {}),
                 **_jsonable_meta(t.meta)}
         try:
@@ -449,7 +476,7 @@ def import_logs(
             raise BundleError(f"{t.source}: {exc}") from None
         tt = df["t_s"].to_numpy()
         report.append(ImportedRun(name, t.source, kind, role, len(df), int(rev.size), curves,
-                                  (float(u.min()), float(u.max())), float(tt[-1] - tt[0])))
+                                  (float(u.min()), float(u.max())), float(tt[-1] - tt[0]), e))
     if off_protocol and not any(r.role == "identification" and r.kind != "custom" for r in runs):
         raise off_protocol[0]
     rate = sample_rate([r.time for r in runs])
@@ -467,7 +494,7 @@ def run_cli(args: Any) -> int:
     result = import_logs(args.files, input=args.input, output=args.output, angle=args.angle, time=args.time,
                          output_sigma=args.output_sigma, input_name=args.input_name, output_name=args.output_name,
                          protocol=args.protocol, holdout=holdout, format=args.format, device=args.device or "",
-                         sample_rate_hz=args.sample_rate, deadband=args.deadband)
+                         sample_rate_hz=args.sample_rate, deadband=args.deadband, keep_edges=args.keep_edges)
     write_bundle(result.bundle, out, fmt=args.file_format)
     print(f"bmr import: {len(args.files)} file(s) -> {out}")
     for line in result.summary().splitlines():

@@ -1,4 +1,5 @@
-"""What a sampled signal says about itself: its white-noise level and its sample rate."""
+"""What a sampled signal says about itself: its white-noise level, its sample rate, and the edges of a capture
+that are not the experiment (an idle hold before it starts, a command jump as it ends)."""
 from __future__ import annotations
 
 import math
@@ -9,7 +10,13 @@ import numpy as np
 
 from bmr._core import BmrError
 
-__all__ = ["SampleRate", "default_deadband", "nominal_sample_rate", "sample_noise", "sample_rate"]
+__all__ = ["CaptureEdges", "SampleRate", "capture_edges", "default_deadband", "nominal_sample_rate", "sample_noise",
+           "sample_rate"]
+
+# An idle hold is at least this many samples of a constant input; a command jump ends the run within this many
+# steps of its end.
+MIN_HOLD_SAMPLES = 10
+END_JUMP_STEPS = 3
 
 
 def sample_noise(u: np.ndarray | Sequence[np.ndarray]) -> float:
@@ -87,3 +94,45 @@ def sample_rate(times: Sequence[np.ndarray]) -> SampleRate:
     lo, hi = (float(v) for v in np.quantile(steps, [0.05, 0.95]))
     dt = float(np.median(steps))
     return SampleRate(hz, dt, float(steps.min()), float(steps.max()), (hi - lo) > 0.01 * dt)
+
+
+@dataclass(frozen=True)
+class CaptureEdges:
+    """Samples at a capture's edges that are not the experiment: ``hold`` leading samples of an idle hold (the
+    input constant before the excitation starts; the hold's last sample stays, it is the state the run starts
+    from) and ``jump`` trailing samples from a command jump at the very end (the drive set back while the device
+    lags: a transient no quasi-static model describes). ``hold_level`` is the held input."""
+
+    hold: int = 0
+    jump: int = 0
+    hold_level: float = math.nan
+
+    @property
+    def any(self) -> bool:
+        return bool(self.hold or self.jump)
+
+
+def capture_edges(u: np.ndarray) -> CaptureEdges:
+    """The idle hold at the start of input ``u`` (at least ``MIN_HOLD_SAMPLES`` samples within 4× the input's
+    sample noise of its first value) and a command jump within its last ``END_JUMP_STEPS`` steps (a step above
+    10 % of the input span and 10× the 99th percentile of the run's other steps). A run that is all hold, or too
+    short to tell, has no edges."""
+    u = np.asarray(u, dtype=float)
+    n = u.size
+    if n < 2 * MIN_HOLD_SAMPLES or not np.all(np.isfinite(u)):
+        return CaptureEdges()
+    span = float(np.ptp(u))
+    if span <= 0.0:
+        return CaptureEdges()
+    tol = max(4.0 * sample_noise(u), 1e-9 * span)
+    moved = np.abs(u - u[0]) > tol
+    first_move = int(np.argmax(moved))
+    hold = first_move - 1 if first_move >= MIN_HOLD_SAMPLES else 0
+    steps = np.abs(np.diff(u))
+    tail = steps[-END_JUMP_STEPS:]
+    k = int(np.argmax(tail))
+    rest = steps[hold:-END_JUMP_STEPS]
+    jump = 0
+    if rest.size and tail[k] > max(0.1 * span, 10.0 * float(np.percentile(rest, 99))):
+        jump = END_JUMP_STEPS - k  # the samples after the jump's step
+    return CaptureEdges(hold, jump, float(u[0]) + 0.0 if hold else math.nan)  # + 0.0: no "-0"

@@ -188,7 +188,7 @@ def nominal_model(bundle: Bundle) -> Any:
     """The paper's model of a bundle: friction (3 harmonics) from the off-state run, CBH tables from the measured
     first-order curves alone (no curves added between them; least-squares tables when the bundle has no
     first-order runs)."""
-    method = "forc" if bundle.by_kind("first_order_ascending", "first_order_descending") else "lstsq"
+    method = "forc" if bundle.roles().protocol else "lstsq"
     return identify(bundle, method=method, max_order=NOMINAL_FRICTION_ORDER, subdivisions=1)
 
 
@@ -213,8 +213,7 @@ def diagnose(bundle: Bundle | str | Path, model: Any = None, *, folds: int = 5, 
         model = Model.load(model)
     lo, hi = model.hysteresis.input_range
     data = prepare(bundle, (lo, hi), folds, friction=model.friction)
-    protocol = [(r, data.run_start_s[r.name]) for r in
-                bundle.by_kind("first_order_ascending", "first_order_descending")]
+    protocol = [(r, data.run_start_s[r.name]) for r in bundle.roles().protocol]
     fitter = Fitter(data, model, protocol)
     if data.noise is None:
         # No off-state run, dwell, repeated run or declared uncertainty: the high-frequency part of the nominal

@@ -26,7 +26,7 @@ from typing import Any, Iterable, Mapping, Sequence
 import numpy as np
 
 from bmr._core import BmrError
-from bmr.data.bundle import Bundle, Run, read_bundle
+from bmr.data.bundle import Bundle, Run, read_bundle, runs_of
 from bmr.data.files import jsonable, write_json
 from bmr.data.quantities import Quantities
 from bmr.data.units import format_number
@@ -240,14 +240,6 @@ class Prediction:
 
 
 
-def _runs_of(runs: Bundle | Run | Iterable[Run]) -> list[Run]:
-    """A bundle's evaluation runs (its non-off-state runs when none is held out), one run, or the runs given."""
-    if isinstance(runs, Bundle):
-        held = runs.evaluation_runs()
-        return [r for r in (held or runs.runs) if r.kind != "off_state"]
-    if isinstance(runs, Run):
-        return [runs]
-    return list(runs)
 
 
 def _per_run(value: Any, name: str, default: Any) -> Any:
@@ -279,6 +271,26 @@ def _offset_prior(model: Any) -> dict[str, float] | None:
     if not all(isinstance(v, (int, float)) and math.isfinite(v) for v in values.values()):
         return None
     return {k: float(v) for k, v in values.items()}
+
+
+def _run_gain(model: Any, y: np.ndarray, p: np.ndarray, y_lo: float) -> tuple[float, str]:
+    """A run's gain on the model output about ``y_lo`` (with a free offset) when the training runs' fitted gains
+    spread, shrunk towards 1 by that spread; ``(1, "")`` otherwise."""
+    ident = getattr(model, "meta", {}).get("identification") or {}
+    runs = (ident.get("lstsq_fit") or {}).get("runs") or []
+    gains = np.array([r.get("gain") for r in runs if isinstance(r.get("gain"), (int, float))], dtype=float)
+    tau = float(np.std(gains, ddof=1)) if gains.size > 1 else 0.0
+    x = p - y_lo
+    if not (tau > 0 and math.isfinite(tau)) or y.size < 3 or float(np.var(x)) <= 0:
+        return 1.0, ""
+    xc, yc = x - x.mean(), y - y.mean()
+    g_ls = float(xc @ yc / (xc @ xc))
+    var = float(np.var(yc - g_ls * xc)) / float(xc @ xc)
+    weight = tau ** 2 / (tau ** 2 + var)
+    g = 1.0 + weight * (g_ls - 1.0)
+    if not (math.isfinite(g) and g > 0):
+        return 1.0, ""
+    return g, f"; gain {g:.4g} fitted on them (shrunk towards 1 by the training runs' gain spread {tau:.3g})"
 
 
 def _candidates(model: Any, u0: float) -> list[list[float]]:
@@ -346,7 +358,9 @@ def predict(
     """Predict ``runs`` (a bundle's evaluation runs, or all its non-off-state runs when none is held out; one run;
     a list; or a bundle folder) with ``model`` (or a model file) and score them.
 
-    ``offset``: ``"model"`` (the model's own output level), ``"first"`` (shift so the ``calibration`` leading
+    ``offset``: ``"model"`` (the model's own output level), ``"run"`` (the run's own, fitted on its scored
+    samples and shrunk towards the model's by how much the training runs' offsets spread; with a gain fitted
+    alike when the training runs' gains spread), ``"first"`` (shift so the ``calibration`` leading
     samples are matched on average; needs ``calibration >= 1``), ``"shrunk"`` (that shift shrunk towards the
     model's common offset, weighted by how much the training runs' offsets spread and how far one leading sample
     fell from a training run's fitted offset; ``"first"`` when the model has no such record), a number, or
@@ -369,7 +383,7 @@ def predict(
         model = Model.load(model)
     if isinstance(runs, (str, Path)):
         runs = read_bundle(runs)
-    rs = _runs_of(runs)
+    rs = runs_of(runs, scored=True)
     if not rs:
         raise BmrError("predict needs at least one run")
     if evaluate not in ("known", "all"):
@@ -431,11 +445,36 @@ def predict(
             p = model.simulate(u, initial=start, history=history, out_of_range=out_of_range)
         p = y_lo + g * (p - y_lo)
         base = y_lo + g * (single_valued_baseline(model, u) - y_lo)
+        dropped: dict[str, int] = {}
+        first = k
+        if k:
+            dropped[CALIBRATION] = k
+        top = bool(np.any(u >= hi - tol))
+        bottom = bool(np.any(u <= lo + tol))
+        if evaluate == "known" and top and bottom:
+            s = evaluation_start(u, lo, hi, tol)
+            if s > first:
+                dropped[BEFORE_KNOWN_STATE] = s - first
+                first = s
         off_spec = _per_run(offset, r.name, "model")
         if isinstance(off_spec, str):
             if off_spec == "model":
                 shift = shift_b = 0.0
                 source = "the model's"
+            elif off_spec == "run":
+                g, gain_note = _run_gain(model, y[first:], p[first:], y_lo) if g == 1.0 else (g, "")
+                p = y_lo + g * (p - y_lo)
+                base = y_lo + g * (base - y_lo)
+                res = y[first:] - p[first:]
+                spread = (_offset_prior(model) or {}).get("spread")
+                # The run's own offset, shrunk towards the model's by how much training runs' offsets spread.
+                s2 = float(np.var(res)) / max(res.size, 1)
+                weight = spread ** 2 / (spread ** 2 + s2) if spread is not None and spread ** 2 + s2 > 0 else 1.0
+                shift = weight * (float(np.mean(res)) if res.size else 0.0)
+                shift_b = weight * (float(np.mean(y[first:] - base[first:])) if res.size else 0.0)
+                source = (f"the run's own, fitted on its {res.size} scored samples"
+                          + (f", {weight:.2f} × that + {1 - weight:.2f} × the model's (spread {spread:.3g} between "
+                             f"training runs)" if spread is not None else "") + gain_note)
             elif off_spec in ("first", "shrunk"):
                 if k == 0:
                     raise BmrError(f"offset={off_spec!r} needs calibration >= 1 leading samples")
@@ -452,24 +491,13 @@ def predict(
                               f"model's (spread {prior['spread']:.3g} between training runs, leading-sample "
                               f"error {prior['first_sample_error']:.3g})")
             else:
-                raise BmrError(f"offset must be 'model', 'first', 'shrunk', a number or {{run: number}}, "
+                raise BmrError(f"offset must be 'model', 'run', 'first', 'shrunk', a number or {{run: number}}, "
                                f"got {off_spec!r}")
         else:
             shift = shift_b = float(off_spec) - y_lo
             source = "given"
         p = p + shift
         base = base + shift_b
-        dropped: dict[str, int] = {}
-        first = k
-        if k:
-            dropped[CALIBRATION] = k
-        top = bool(np.any(u >= hi - tol))
-        bottom = bool(np.any(u <= lo + tol))
-        if evaluate == "known" and top and bottom:
-            s = evaluation_start(u, lo, hi, tol)
-            if s > first:
-                dropped[BEFORE_KNOWN_STATE] = s - first
-                first = s
         # The state is determined once the input has been to both ends, or from the start when it starts at one;
         # otherwise it is the stated (or estimated) assumption, and the run is flagged.
         known = (top and bottom) or bool(u[0] <= lo + tol or u[0] >= hi - tol) or estimated
@@ -507,7 +535,8 @@ def run_cli(args: Any) -> int:
         if not runs:
             raise BmrError(f"{args.bundle}: the bundle has no evaluation runs (hold runs out with `bmr import "
                            "--holdout`, or name the runs to predict with --runs)")
-    calibration = args.calibration if args.calibration is not None else (0 if args.offset == "model" else 1)
+    calibration = args.calibration if args.calibration is not None else (1 if args.offset in ("first", "shrunk")
+                                                                         else 0)
     p = predict(model, runs, offset=args.offset, calibration=calibration, initial=args.initial,
                 evaluate=args.evaluate, out_of_range=args.out_of_range)
     p.model_source, p.bundle_source = str(args.model), str(args.bundle)

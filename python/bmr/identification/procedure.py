@@ -36,7 +36,6 @@ from bmr.identification.spans import input_range_of
 __all__ = ["IdentificationReport", "identify", "run_cli", "METHODS"]
 
 METHODS = ("auto", "forc", "lstsq", "both")
-PROTOCOL_KINDS = ("first_order_ascending", "first_order_descending")
 FRICTION_ONLY = "off-state run (friction fit only)"
 EVALUATION = "evaluation run (held out, scored)"
 NOT_TRAINED = "not a training run of this method"
@@ -246,24 +245,16 @@ def identify(
         deadband = deadband_a
     t0 = time.perf_counter()
     q = bundle.quantities
-    identification = bundle.identification_runs()
-    off_state = [r for r in identification if r.kind == "off_state"]
+    roles = bundle.roles(train_kinds)
+    off_state, protocol, active = roles.off_state, roles.protocol, roles.active
     # Seal friction depends on the rotor angle: devices without one have none.
     friction = fit_friction(off_state, max_order=max_order) if off_state and q.angle is not None else None
     times: dict[str, float] = {"friction": time.perf_counter() - t0}
-    protocol = [r for r in identification if r.kind in PROTOCOL_KINDS]
-    active = [r for r in bundle.runs if r.kind != "off_state"]
     if not active:
         raise BmrError("the bundle has no run besides off-state runs; nothing to identify the hysteresis from")
     lo, hi = input_range_of([run_input(r) for r in active])
     limits = {q.input.column: [lo, hi]}
-    if train_kinds is not None:
-        train = [r for r in bundle.by_kind(*train_kinds) if r.role != "evaluation"]
-    else:
-        # Without protocol runs, every run not explicitly held out (role "evaluation") is trained on.
-        train = protocol or [r for r in active if r.role != "evaluation"]
-    train_names = {r.name for r in train}
-    evaluation = [r for r in bundle.evaluation_runs() if r.name not in train_names]
+    train, evaluation = roles.train, roles.evaluation
 
     candidates: dict[str, Model] = {}
     accounts: dict[str, SampleAccount] = {}

@@ -111,3 +111,16 @@ def test_a_hostile_model_file_is_one_line_from_bmr_diagnose(tmp_path, capsys, pr
     path.write_text(json.dumps(content))
     assert main(["diagnose", str(bundle), "--model", str(path)]) == 2
     _one_line_error(capsys, "bmr diagnose: error:", str(path))
+
+
+def test_a_bug_ends_in_one_line_too(monkeypatch, tmp_path, capsys):
+    import bmr.identification.prediction as prediction
+
+    def broken(args):
+        raise TypeError("must be real number, not NoneType")
+
+    monkeypatch.setattr(prediction, "run_cli", broken)
+    assert main(["predict", str(tmp_path / "m.json"), str(tmp_path / "b")]) == 1
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "Traceback" not in err
+    assert "bmr predict: internal error (a bug in bmr" in err and "TypeError: must be real number" in err

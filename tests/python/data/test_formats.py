@@ -283,3 +283,35 @@ def test_matrix_columns_in_separate_files_become_one_run_per_loop(tmp_path):
         np.testing.assert_allclose(r.data["field_strength_a_per_m"], h[:, k])
         np.testing.assert_allclose(r.data["field_t"], np.tanh(h[:, k] / 40.0))
     assert any("separate files" in n for n in result.notes)
+
+
+def test_an_idle_hold_and_a_final_command_jump_are_left_out_and_named(tmp_path):
+    # A capture as a piezo rig writes it: 1 s held at the negative drive limit before the excitation, and the
+    # drive set back to 0 V... here from 80 V to 0 V on the capture's last sample while the stack lags.
+    from lab_files import Piezo, ramp
+
+    hold = np.zeros(1000)
+    drive = ramp([0.0, 100.0, 20.0, 80.0], 0.2)
+    volts = np.concatenate([hold, drive, [0.0]])
+    t = np.arange(volts.size) * 1e-3
+    microns = Piezo(noise_um=0.002).run(volts)
+    p = write_controldesk(tmp_path / "track_07.mat", "track_07", [t], [
+        ('"Model Root"/"Pdrag"/"In1"', "", volts, "V", 1), ('"Model Root"/"Mling"/"Out1"', "", microns, "um", 1)])
+    result = bmr.import_logs([p], input="Pdrag:V", output="Mling:um")
+    [run] = result.bundle.runs
+    [info] = result.runs
+    # (the drive's first sample is the hold's last: kept, it is the state the run starts from)
+    assert info.edges.hold == 1000 and info.edges.jump == 1 and info.samples == drive.size
+    np.testing.assert_array_equal(run.input, drive)
+    assert run.meta["idle_hold_samples"] == 1000 and run.meta["end_jump_samples"] == 1
+    assert info.to_dict()["idle_hold_samples"] == 1000
+    text = result.summary()
+    assert "idle hold at the start, 1000 samples (1 s at 0 V) left out" in text
+    assert "command jump at the end, the last 1 sample(s) left out" in text
+    kept = bmr.import_logs([p], input="Pdrag:V", output="Mling:um", keep_edges=True)
+    assert kept.bundle.runs[0].input.size == volts.size and not kept.runs[0].edges.any
+    # A run without such edges (a ramp from its first sample, a FORC's calibration point then its curve) is
+    # imported whole.
+    plain = write_controldesk(tmp_path / "plain.mat", "plain", [t[:drive.size]], [
+        ("In1", "", drive, "V", 1), ("Out1", "", microns[:drive.size], "um", 1)])
+    assert not bmr.import_logs([plain], input="In1:V", output="Out1:um").runs[0].edges.any

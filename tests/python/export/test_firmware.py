@@ -34,7 +34,17 @@ def test_test_model_is_the_one_its_script_makes():
         from make_extended_model import build
     finally:
         sys.path.pop(0)
-    assert build().to_dict() == bmr.Model.load(MODEL).to_dict()
+    made, stored = build().to_dict(), bmr.Model.load(MODEL).to_dict()
+    # The plant's curves are numpy sums: their last bits depend on the processor's vector units, so the tables
+    # agree to round-off of the output span and everything else exactly.
+    for family in ("ascending", "descending"):
+        a, b = made["hysteresis"].pop(family), stored["hysteresis"].pop(family)
+        assert len(a) == len(b)
+        for (ua, ya), (ub, yb) in zip(a, b):
+            assert ua == ub
+            np.testing.assert_allclose(ya, yb, rtol=0, atol=1e-12 * 600.0)
+    made.pop("sha256", None), stored.pop("sha256", None)
+    assert made == stored
 
 
 def test_nostd_check_builds_the_current_export_of_the_extended_model(tmp_path, capsys):

@@ -145,7 +145,7 @@ def test_prediction_errors(piezo_model, tmp_path):
         predict(piezo_model, act)
     b = _bundle(_run("a", np.linspace(0, 100, 50), role="identification"))
     assert [r.name for r in predict(piezo_model, b).runs] == ["a"]  # nothing held out: every run
-    with pytest.raises(bmr.BmrError, match="offset must be 'model', 'first', 'shrunk', a number"):
+    with pytest.raises(bmr.BmrError, match="offset must be 'model', 'run', 'first', 'shrunk', a number"):
         predict(piezo_model, b, offset="fit")
     with pytest.raises(bmr.BmrError, match="offset='first' needs calibration >= 1"):
         predict(piezo_model, b, offset="first")
@@ -195,3 +195,31 @@ def test_a_model_with_extensions_predicts_with_them(piezo_model, tmp_path, capsy
     # The extended chain starts from a saturation: other initial states are one clear error.
     with pytest.raises(bmr.BmrError, match="extended model runs from a saturation"):
         predict(extended, bundle, initial="estimate")
+
+
+def test_offset_of_the_run_itself_is_the_cli_default(piezo_model, tmp_path, capsys):
+    # A held-out recording whose sensor offset moved by 0.7 µm: its own offset, fitted on its scored samples,
+    # removes it (the model's leaves it in full); the result says how the offset was found.
+    volts = np.concatenate([np.linspace(0, 100, 201), np.linspace(100, 30, 141), np.linspace(30, 80, 101)])
+    a = _run("a", volts)
+    b = bmr.Run("b", "custom", a.data.assign(displacement_um=a.data["displacement_um"] + 0.7), quantities=PIEZO,
+                role="evaluation")
+    own = predict(piezo_model, _bundle(a, b), offset="run")
+    fixed = predict(piezo_model, _bundle(a, b))
+    assert own.run("b").offset - own.run("a").offset == pytest.approx(0.7, abs=1e-9)
+    assert own.run("b").rms == pytest.approx(own.run("a").rms, rel=1e-9)
+    assert own.run("b").rms < 0.5 * fixed.run("b").rms
+    assert own.run("b").offset_source == f"the run's own, fitted on its {own.run('b').evaluated} scored samples"
+    assert own.run("b").dropped == fixed.run("b").dropped  # nothing more left unscored
+    bmr.write_bundle(_bundle(a, b), tmp_path / "b")
+    piezo_model.save(tmp_path / "m.json")
+    assert main(["predict", str(tmp_path / "m.json"), str(tmp_path / "b")]) == 0
+    assert "(the run's own, fitted on its" in capsys.readouterr().out
+    # With a model identified by least squares from several runs, the run's own offset is shrunk towards the
+    # model's by the training runs' spread, and stated.
+    train = [_run(f"t{k}", volts, role="identification") for k in range(3)]
+    train = [bmr.Run(r.name, "custom", r.data.assign(displacement_um=r.data["displacement_um"] + 0.2 * k),
+                     quantities=PIEZO, role="identification") for k, r in enumerate(train)]
+    fitted = bmr.identify(_bundle(*train, b), method="lstsq")
+    q = predict(fitted, _bundle(b), offset="run")
+    assert "× the model's (spread" in q.run("b").offset_source, q.run("b").offset_source

@@ -44,16 +44,19 @@ def _chain(key: str, tmp_path: Path):
 def test_chain_on_real_recordings(key, tmp_path):
     r = _chain(key, tmp_path)
     if key == "slac":
-        assert r.rms < 1.5e-3 and r.rms < 0.15 * r.baseline_rms, r  # today 1.20e-3 T, baseline 1.43e-2 T
+        assert r.rms < 1.5e-3 and r.rms < 0.15 * r.baseline_rms, r  # today 1.14e-3 T, baseline 1.41e-2 T
     elif key == "mr_damper":
-        # Today the defaults are 3.3x worse than the single-valued baseline (2770 N against 845 N): the bound
-        # only keeps that from getting worse. The hand-built play-operator reference is ~300 N.
-        assert r.rms < 3500.0, r
+        # The nominal model is a poor description of a damper whose force follows velocity: 646 N today (it was
+        # 2770 N before the tables stayed out of the 0.1-2 s idle holds at the runs' starts); the bound keeps it
+        # from getting worse. The hand-built play-operator reference is ~300 N.
+        assert r.rms < 1000.0, r
         assert r.hand_lstsq_rms is not None and r.hand_lstsq_rms < 0.5 * r.baseline_rms
         assert "diagnose" in r.status
+        # The extended model (stages and learned term) predicts through the whole chain: today 115 N.
+        assert r.extended_rms is not None and r.extended_rms < 200.0, r
     elif key in ("feco_forc", "sediment_forc", "sediment_lakeshore"):
         assert r.noise_floor is not None and r.noise_floor > 0
-        bound = {"feco_forc": 13.0, "sediment_forc": 8.5, "sediment_lakeshore": 60.0}[key]  # today 8.9, 5.5, 40
+        bound = {"feco_forc": 13.0, "sediment_forc": 2.0, "sediment_lakeshore": 5.0}[key]  # today 8.6, 1.2, 3.2
         assert r.rms < bound * r.noise_floor, (r.rms / r.noise_floor, r)
         assert r.rms < 0.2 * r.baseline_rms, r
     elif key == "steel_bh":
@@ -68,4 +71,4 @@ def test_results_section_renders_every_recorded_data_set():
     values = {"results": [BENCH.ChainResult("x", "a data set", unit="N", status={"import": 2},
                                             errors={"import": "bmr import: error: no column"}).to_dict()]}
     text = BENCH.render(values)
-    assert "| a data set (0 of 0 runs) | import: bmr import: error: no column |" in text
+    assert "| a data set (0 of 0 runs) | import: bmr import: error: no column | — | — | — | — | — |" in text

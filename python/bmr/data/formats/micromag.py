@@ -95,7 +95,9 @@ def read(path: str | Path) -> list[Table]:
             break  # "... Data File ends"
         row = _numbers(text)
         if row is None:
-            raise BundleError(f"{p}: line {n} is not a row of numbers: {text[:60]!r}")
+            last = n == len(lines)
+            raise BundleError(f"{p}: line {n} is not a row of numbers: {text[:60]!r}"
+                              + (" (truncated file?)" if last else ""))
         segments[-1].append(row)
     width = min(len(r) for s in segments for r in s)
     avg = meta.get("Averaging time")
