@@ -335,7 +335,15 @@ impl<S: AsRef<[f64]>, const N: usize> Hysteresis<S, N> {
         } else {
             u
         };
-        self.advance(u, inv.turn.as_ref());
+        // An answer from the shortcut moves along the newest branch its way, so it cannot turn; strictly before the
+        // branch's closure target it wipes nothing out either, and the memory update is a no-op.
+        let on_branch = matches!(fast, Shortcut::Kept)
+            && self
+                .fast
+                .is_some_and(|f| if f.up { u < f.end_u } else { u > f.end_u });
+        if !on_branch {
+            self.advance(u, inv.turn.as_ref());
+        }
         // Keep the search hint on the input's cell: the next inverse starts there (the inverse usually knows it).
         let st = &mut self.state;
         let hint = if st.history.rising() {

@@ -783,7 +783,7 @@ impl VirtualActuator {
             + self.run_offset_nmm;
         let torque_nmm = self.config.sensor.measure(sensed, drift, &mut self.rng);
 
-        self.drive.advance();
+        self.drive.advance_at(speed_rad_s);
         self.index += 1;
         Sample {
             t_s,
