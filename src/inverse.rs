@@ -324,7 +324,7 @@ impl<S: AsRef<[f64]>, const N: usize> Hysteresis<S, N> {
     /// Apply input `u` whose output `y` is already known (from the exact inverse): the memory update of `step`
     /// without evaluating the branch again.
     /// `inv`: the inverse's answer it comes from (its cell, shortcut and turn).
-    #[inline]
+    #[inline(always)]
     pub(crate) fn commit(&mut self, u: f64, y: f64, inv: &InverseInput) {
         let (cell, fast) = (inv.cell, inv.fast);
         // Inside the range already (the inverse's answers are); NaN never reaches here.

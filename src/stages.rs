@@ -312,7 +312,7 @@ impl OutputMap {
     }
 
     /// Cell `k` (nodes `k`, `k+1`) holding `v` in `xs`: the last node `≤ v`, within `0..len−1` (ends extend).
-    #[inline]
+    #[inline(always)]
     fn cell(xs: &[f64], v: f64, hint: usize) -> usize {
         let last = xs.len() - 2;
         let h = hint.min(last);
@@ -907,7 +907,7 @@ impl Stages {
     /// Advance the stages after the hysteretic core (rate dependence observes the core, then creep, the output
     /// map and accommodation) for the core output `core_nmm` reached at core input `core_a`; the field torque
     /// before the gains. One chain for the compensator's forward model and the extended simulation.
-    #[inline]
+    #[inline(always)]
     pub fn after_core(&mut self, core_nmm: f64, core_a: f64) -> f64 {
         if let Some(r) = &mut self.rate {
             r.observe(core_nmm);
