@@ -47,7 +47,7 @@ from bmr.simulation.experiments import (
 
 PAPER_FIG25_ERROR_NMM = 60.0
 """Peak tracking error the paper reports for both compensations on its random multi-peak reference (fig 25)."""
-HEATING = {"thermal_drift": {"gain_loss": 0.1, "tau_s": 60.0}}
+HEATING: dict[str, dict[str, float] | None] = {"thermal_drift": {"gain_loss": 0.1, "tau_s": 60.0}}
 """The closed-loop experiment's coil heating: the field gain falls by up to 10 % with coil temperature, 60 s
 thermal time constant (``thermal_drift`` of the virtual actuator; the identification bundle has none)."""
 
