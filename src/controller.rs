@@ -16,8 +16,11 @@
 //! gain, the coil-lag stage leads the lag — and `(g, b)` divides out what is left of a slow gain and offset, so
 //! the loop the integrator closes is a unit gain behind the loop delay `T = (d + 1.5)·dt` (`d` whole samples of
 //! `time_delay`, one sample until the measurement arrives, half a sample of hold). The integral gain is then the
-//! crossover `ωc = ki` along the whole loop, with phase margin `90° − ωc·T`. The proportional part is left out on
-//! purpose: on top of the coil-lag lead it feeds sensor noise straight to the coils and fights the lead.
+//! crossover `ωc = ki` along the whole loop, with phase margin `90° − ωc·T`. The gain is scheduled on the local
+//! slope of the hysteresis by where the correction enters: in torque, ahead of the exact inverse, which divides
+//! it by the slope of the present branch at every sample (flat after a reversal, steep mid-branch); a `ki/slope`
+//! schedule on top would count the slope twice. The proportional part is left out on purpose: on top of the
+//! coil-lag lead it feeds sensor noise straight to the coils and fights the lead.
 //!
 //! Safety: the compensator's invariants hold (never both coils, `|I| ≤ limit`, zero current with `fault` on a
 //! non-finite reference or angle). A non-finite `measured` means no new value: the correction and the adapted

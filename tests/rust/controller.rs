@@ -477,3 +477,71 @@ fn non_finite_reference_or_angle_is_a_fault_with_zero_current() {
     let cmd = c.step(10.0, 0.0, 1.0);
     assert!(!cmd.fault && cmd.current_a.is_finite());
 }
+
+/// Response of the loop to an output offset stepping by `STEP_NMM` while the reference holds at 0 N·mm, reached
+/// from `peak_nmm` (positive: from above, along a descending branch; negative: from below, along an ascending
+/// one). Plant = model, no noise, adaptation off: the integrator alone removes the offset. Returns the time (s)
+/// the error takes to fall to 1/e of the step, and the model's local slope (N·mm/A) in the direction the
+/// correction moves (down) at the hold.
+fn offset_step_response(peak_nmm: f64) -> (f64, f64, f64) {
+    const STEP_NMM: f64 = 15.0;
+    let mut ctl = controller(ControllerSettings {
+        adaptation: false,
+        ..Default::default()
+    });
+    let ramp = |a: f64, b: f64, n: usize| (0..n).map(move |i| a + (b - a) * i as f64 / n as f64);
+    let refs: Vec<f64> = ramp(0.0, peak_nmm, 500)
+        .chain(ramp(peak_nmm, 0.0, 500))
+        .chain(std::iter::repeat_n(0.0, 1500))
+        .collect();
+    let t0 = 1500;
+    let effects = model_effects(0.02, 2.0);
+    let core = forward();
+    let scales = Scales::of_core(&core, 1.25, 300.0);
+    let mut sim: Simulation<Vec<f64>, Vec<f64>, 16, 24> =
+        Simulation::new(core, friction(), &effects, DT, scales, |n| vec![0.0; n]).unwrap();
+    sim.step(ctl.compensator().forward().state().input(), 0.0);
+    let (mut measured, mut slope, mut tau) = (f64::NAN, f64::NAN, f64::NAN);
+    for (i, &r) in refs.iter().enumerate() {
+        // The rotor at rest: no friction ripple moving the hysteresis back and forth at the hold.
+        let theta = 0.0;
+        if i == t0 {
+            // The slope the correction meets: the forward model stepped down by 0.1 A from the present state
+            // (about the current the offset takes on a steep branch).
+            let mut h = ctl.compensator().forward().clone();
+            let (u, y) = (h.state().input(), h.output());
+            slope = (y - h.step(u - 0.1)) / 0.1;
+        }
+        let c = ctl.step(r, theta, measured);
+        let offset = if i >= t0 { STEP_NMM } else { 0.0 };
+        measured = sim.step(c.current_a, theta).torque_nmm + offset;
+        if i > t0 && tau.is_nan() && (measured - r).abs() < STEP_NMM * (-1.0f64).exp() {
+            tau = (i - t0) as f64 * DT;
+        }
+    }
+    (tau, slope, ctl.design().ki_per_s)
+}
+
+#[test]
+fn the_loop_bandwidth_is_the_same_where_the_hysteresis_is_flat_and_where_it_is_steep() {
+    // Held at the same torque, reached from below the correction meets the flat start of a descending branch
+    // (a reversal), reached from above the steep middle of one. The exact inverse divides every torque change
+    // by that local slope, so the integrator sees a unit gain at both and its time constant is 1/ki.
+    let (tau_flat, slope_flat, ki) = offset_step_response(-250.0);
+    let (tau_steep, slope_steep, _) = offset_step_response(250.0);
+    assert!(
+        slope_steep > 3.0 * slope_flat,
+        "slopes {slope_flat} and {slope_steep} N·mm/A"
+    );
+    for tau in [tau_flat, tau_steep] {
+        assert!(
+            (tau * ki - 1.0).abs() < 0.25,
+            "time constant {tau} s against 1/ki = {} s (flat {tau_flat}, steep {tau_steep})",
+            1.0 / ki
+        );
+    }
+    assert!(
+        (tau_flat / tau_steep - 1.0).abs() < 0.1,
+        "{tau_flat} vs {tau_steep}"
+    );
+}
