@@ -616,10 +616,49 @@ class Accommodation(Effect):
         return True
 
 
+def input_rate(u: np.ndarray, dt_s: float) -> np.ndarray:
+    """``du/dt`` by the backward difference over each sample (input units/s; 0 at the first sample): the rate the
+    ``viscous`` stage of the core (:class:`bmr.ExtendedSimulation`, the compensator) sees."""
+    u = np.asarray(u, dtype=float)
+    out = np.zeros_like(u)
+    out[1:] = np.diff(u) / dt_s
+    return out
+
+
+class Viscous(Effect):
+    """A loss proportional to the input's rate adds to the output: ``c · du/dt`` (``c ≥ 0``, output units per
+    input unit per second), the same on steep and saturated branches. Linear in ``c``: one column, the input's
+    backward-difference rate over the evaluated spans. The loss also bent the protocol runs the tables come from, so
+    they are identified again with it removed. What tells it from a time shift (``time_delay``, ``coil_lag``) is a
+    second drive speed: the loss widens the loop in proportion to the rate and leaves the loop tips (where the rate
+    passes through zero) in place, a shift moves the tips too."""
+
+    name = "viscous"
+    excitation = ("the same loop at a second drive speed (a rate-proportional loss widens the loop and leaves its "
+                  "tips in place; a time shift moves the tips)")
+    doc = "a loss proportional to the input's rate adds to the output: c·du/dt"
+    needs_reidentify = True
+
+    def columns(self, data, value, y_field, model):
+        def make() -> np.ndarray:
+            return np.concatenate([input_rate(_run_input(r), r.dt_s)[r.start:] for r in data.runs])[:, None]
+
+        return data.cache.get("viscous_rate", make)
+
+    def update_path(self, path, value, own_beta, data):
+        return path.with_correction(self, value, own_beta)
+
+    @staticmethod
+    def remove(y, value, beta, run):
+        return y - beta[0] * input_rate(run.current, run.dt)
+
+    def params(self, value, beta, path):
+        return {"c": float(beta[0])}
+
 
 LIBRARY: tuple[Effect, ...] = (CoilLag(), ThermalDrift(), FrictionCurrent(), FrictionHarmonics(), TorqueRipple(),
                                SensorDrift(), TimeDelay(), NonCongruent(), Creep(), RateDependence(),
-                               RunGainOffset(), Leakage(), Accommodation(), TableResolution())
+                               RunGainOffset(), Leakage(), Accommodation(), Viscous(), TableResolution())
 # The candidates that are physical effects of the vocabulary (the others are notes on the tables).
 PHYSICAL = tuple(e.name for e in LIBRARY if e.name in _core.EFFECTS)
 ANGLE_EFFECTS: tuple[str, ...] = _core.ANGLE_EFFECTS
