@@ -101,6 +101,11 @@ class Effect(ABC):
         """Whether the nonlinear parameter is continuous (refined by a golden-section search)."""
         return False
 
+    def signature_missing(self, fitter: Any, before: Any) -> str:
+        """Why the residual of the configuration ``before`` (without this effect) does not show the effect's own
+        mechanism signature ("" when it does, or when the effect checks none beyond its held-out gain and range)."""
+        return ""
+
 
 # ------------------------------------------------------------------------------------------------ field effects
 class CoilLag(Effect):
@@ -654,6 +659,29 @@ class Viscous(Effect):
 
     def params(self, value, beta, path):
         return {"c": float(beta[0])}
+
+    def signature_missing(self, fitter: Any, before: Any) -> str:
+        """A loss in every run that moves: each run whose input rate (RMS) is at least a tenth of the fastest run's,
+        its residual under ``before`` fitted alone on the rate (with a constant), must give ``c > 0`` — the
+        residual grows with the rate, in the direction of the motion, in runs of every speed."""
+        data = fitter.data
+        residual, _ = fitter.fit(before.path, before.linear)
+        rate = self.columns(data, None, residual, fitter.model)[:, 0]
+        parts = list(zip(_split(data, residual), _split(data, rate), data.runs))
+        speeds = [float(np.sqrt(np.mean(q * q))) if q.size else 0.0 for _, q, _ in parts]
+        fastest = max(speeds, default=0.0)
+        if not fastest > 0:
+            return "the input never moves"
+        against = []
+        for (r, q, run), speed in zip(parts, speeds):
+            ok = np.isfinite(r)
+            if speed < 0.1 * fastest or np.count_nonzero(ok) < 3:
+                continue
+            x = np.column_stack([np.ones(np.count_nonzero(ok)), q[ok]])
+            coef = np.linalg.lstsq(x, r[ok], rcond=None)[0]
+            if not coef[1] > 0:
+                against.append(f"{run.name}: c = {coef[1]:.3g}")
+        return ("the residual opposes the motion in " + ", ".join(against)) if against else ""
 
 
 LIBRARY: tuple[Effect, ...] = (CoilLag(), ThermalDrift(), FrictionCurrent(), FrictionHarmonics(), TorqueRipple(),
