@@ -163,3 +163,15 @@ def test_virtual_device_bundle_declares_its_quantities_and_has_no_angle():
         bmr.VirtualDevice("piezo", effects={"torque_ripple": {"eps": 0.1}})
     with pytest.raises(bmr.BmrError, match="unknown virtual device preset"):
         bmr.VirtualDevice("nope")
+
+
+def test_virtual_device_viscous_loss_is_c_times_the_input_rate():
+    # Piezo stack (V → µm): c = 0.01 µm per V/s; a ramp at 50 and 200 V/s adds 0.5 and 2 µm wherever it is.
+    for rate in (50.0, 200.0):
+        dev = bmr.VirtualDevice("piezo", effects={"viscous": {"c": 0.01}})
+        ref = bmr.VirtualDevice("piezo")
+        fs = dev.sample_rate_hz
+        u = np.concatenate([np.full(50, -90.0), np.arange(-90.0, 90.0, rate / fs)])
+        d = dev.run(u)["output_true"] - ref.run(u)["output_true"]
+        np.testing.assert_allclose(d[60:], 0.01 * rate, rtol=1e-9)
+        assert np.all(d[1:50] == 0.0)
