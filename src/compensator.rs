@@ -356,6 +356,12 @@ impl<S: AsRef<[f64]>, const N: usize, const K: usize> Compensator<S, N, K> {
             Some(c) => c.input_for(crept),
             None => crept,
         };
+        // The core output that, with the viscous loss of the input reaching it, gives the target (solved
+        // implicitly: no differenced command).
+        let target = match &self.stages.viscous {
+            Some(v) => v.core_output_for(&self.forward, target),
+            None => target,
+        };
         if !target.is_finite() {
             return self.fault();
         }
