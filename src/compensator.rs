@@ -533,7 +533,8 @@ fn limit(x: f64, limit: f64) -> f64 {
 }
 
 /// First word of a serialised [`CompensatorState`] (format tag and version).
-const STATE_TAG: u64 = 0x626d_725f_636f_0002;
+// Version 3: the stage mask gained `viscous` (between rate dependence and creep), so older words are refused.
+const STATE_TAG: u64 = 0x626d_725f_636f_0003;
 
 #[cfg(feature = "alloc")]
 impl<const N: usize> CompensatorState<N> {
