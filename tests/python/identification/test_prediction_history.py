@@ -1,0 +1,113 @@
+"""One measurement history: runs recorded one after the other on one device. The bundle says so (readers that know
+the recording order, the simulators, the manifest's ``histories``), and ``initial="continue"`` predicts each run from
+the state the model holds after every earlier run's input."""
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+import bmr
+from bmr.cli import main
+from bmr.data.bundle import read_bundle, write_bundle
+from bmr.identification.prediction import predict
+from bmr.identification.signals import run_input
+from bmr.simulation.device import device_bundle
+
+
+@pytest.fixture(scope="module")
+def piezo():
+    bundle = device_bundle("piezo", seed=2, reversals=5, sweep_rates=(1.0,), dwell_s=0.5)
+    return bundle, bmr.identify(bundle)
+
+
+def test_simulated_runs_are_one_history_in_recording_order(piezo):
+    bundle, _ = piezo
+    assert bundle.histories == [[r.name for r in bundle.runs]]
+    last = bundle.runs[-1].name
+    assert [r.name for r in bundle.history_of(last)] == [r.name for r in bundle.runs]
+
+
+def test_continue_is_one_long_simulation_cut_into_runs_bit_for_bit(piezo):
+    bundle, model = piezo
+    runs = bundle.runs
+    p = predict(model, runs, initial="continue", offset="model", evaluate="all", bundle=bundle)
+    whole = model.simulate(np.concatenate([run_input(r) for r in runs]))
+    y_lo = model.hysteresis.output_range[0]
+    start = 0
+    for r in runs:
+        n = len(r.time)
+        cut = whole[start:start + n]
+        start += n
+        got = p.run(r.name)
+        # Gain 1 and the model's offset: the prediction is the cut, through the same arithmetic.
+        assert np.array_equal(got.predicted, y_lo + 1.0 * (cut - y_lo)), r.name
+        assert got.evaluated == n and "continuing the history" in got.initial
+    # A run that starts away from a saturation starts elsewhere than the default assumes: continuing differs.
+    reset = predict(model, runs, initial="negative", offset="model", evaluate="all")
+    moved = [r.name for r in runs if not np.array_equal(reset.run(r.name).predicted, p.run(r.name).predicted)]
+    assert moved, "no run's start state depends on the runs before it"
+
+
+def test_continue_scores_from_where_the_history_state_is_known(piezo):
+    bundle, model = piezo
+    p = predict(model, bundle, initial="continue")
+    first = p.runs[0]
+    # Held-out runs come after the identification runs, which went to both ends: every sample is scored.
+    assert all(r.evaluated == r.samples for r in p.runs), [(r.name, r.dropped) for r in p.runs]
+    assert first.state_known
+
+
+def test_continue_without_a_history_is_one_clear_error(piezo, tmp_path, capsys):
+    bundle, model = piezo
+    bundle.histories = []
+    try:
+        with pytest.raises(bmr.BmrError, match="records no measurement history.*'negative', 'positive' or "
+                                               "'estimate'"):
+            predict(model, bundle, initial="continue")
+        with pytest.raises(bmr.BmrError, match="needs the bundle"):
+            predict(model, bundle.runs[-1], initial="continue")
+        write_bundle(bundle, tmp_path / "b")
+        model.save(tmp_path / "m.json")
+        assert main(["predict", str(tmp_path / "m.json"), str(tmp_path / "b"), "--initial", "continue"]) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and "no measurement history" in err[0] and "Traceback" not in err[0]
+    finally:
+        bundle.histories = [[r.name for r in bundle.runs]]
+
+
+def test_manifest_histories_round_trip_and_old_manifests_read_as_before(piezo, tmp_path):
+    bundle, _ = piezo
+    write_bundle(bundle, tmp_path / "b")
+    manifest = json.loads((tmp_path / "b" / "manifest.json").read_text())
+    assert manifest["histories"] == bundle.histories
+    assert read_bundle(tmp_path / "b").histories == bundle.histories
+    del manifest["histories"]
+    (tmp_path / "b" / "manifest.json").write_text(json.dumps(manifest))
+    old = read_bundle(tmp_path / "b")
+    assert old.histories == [] and old.history_of(bundle.runs[0].name) == []
+    assert "histories" not in old.meta
+    for bad, why in (([["nope"]], "does not hold"), ([[bundle.runs[0].name], [bundle.runs[0].name]], "twice"),
+                     ("run1", "list of non-empty lists")):
+        manifest["histories"] = bad
+        (tmp_path / "b" / "manifest.json").write_text(json.dumps(manifest))
+        with pytest.raises(bmr.BundleError, match=why):
+            read_bundle(tmp_path / "b")
+
+
+def test_slac_runs_are_one_history_and_predict_continues_it(slac_data, tmp_path, capsys):
+    files = [str(slac_data / f"strplt.ru{k}") for k in (5, 3, 4, 6, 8, 7)]  # any order on the command line
+    assert main(["import", *files, "--input", "MAIN:A", "--output", "BL:T", "--output-name", "integrated gradient",
+                 "--output-sigma", "sigBL", "--holdout", "run7,run8", "-o", str(tmp_path / "b")]) == 0
+    bundle = read_bundle(tmp_path / "b")
+    assert bundle.histories == [[f"run{k}" for k in range(3, 9)]]
+    assert "one measurement history of 6 runs" in capsys.readouterr().out
+    assert main(["identify", str(tmp_path / "b"), "-o", str(tmp_path / "m.json")]) == 0
+    capsys.readouterr()
+    assert main(["predict", str(tmp_path / "m.json"), str(tmp_path / "b"), "--initial", "continue", "--json",
+                 str(tmp_path / "p.json")]) == 0
+    out = capsys.readouterr()
+    assert "Traceback" not in out.err and "continuing the history from run3" in out.out
+    result = json.loads((tmp_path / "p.json").read_text())
+    assert set(result["runs"]) == {"run7", "run8"} and result["total"]["rms"] < 2e-3
