@@ -111,3 +111,26 @@ def test_slac_runs_are_one_history_and_predict_continues_it(slac_data, tmp_path,
     assert "Traceback" not in out.err and "continuing the history from run3" in out.out
     result = json.loads((tmp_path / "p.json").read_text())
     assert set(result["runs"]) == {"run7", "run8"} and result["total"]["rms"] < 2e-3
+
+
+def test_continue_runs_the_extended_model_over_the_history_once(piezo):
+    # A model with a stage that holds state (a drive-to-output delay): continuing carries the delay line and the
+    # core's memory from one run into the next, as one run of the whole chain over the concatenated inputs.
+    from bmr.diagnosis.extended_model import with_extensions
+    from bmr.identification.extended import simulate_extended
+
+    bundle, model = piezo
+    extended = with_extensions(model, [{"name": "time_delay", "params": {"delay_s": 0.02}}])
+    runs = bundle.runs
+    p = predict(extended, runs, initial="continue", offset="model", evaluate="all", bundle=bundle)
+    assert p.ran == ["core tables", "time_delay"]
+    u = np.concatenate([run_input(r) for r in runs])
+    dt = float(np.median(np.diff(runs[0].time)))
+    whole = simulate_extended(extended, u, np.zeros(u.size), dt_s=dt, t0_s=float(runs[0].time[0]))
+    y_lo = extended.hysteresis.output_range[0]
+    bounds = np.cumsum([0] + [len(r.time) for r in runs])
+    for r, a, b in zip(runs, bounds[:-1], bounds[1:]):
+        assert np.array_equal(p.run(r.name).predicted, y_lo + 1.0 * (whole[a:b] - y_lo)), r.name
+    # Each run alone starts its delay line empty: the first samples after a run boundary differ.
+    alone = predict(extended, runs, initial="negative", offset="model", evaluate="all")
+    assert not np.array_equal(alone.runs[-1].predicted, p.runs[-1].predicted)
