@@ -40,6 +40,8 @@ START_SAMPLES = 50
 # A repeated sweep is one whose extremes match an earlier sweep's within this share of the input span (or two
 # reversal dead-bands, whichever is larger).
 EXTREME_TOL_SHARE = 0.01
+# A repeat is looked for among this many sweeps after each one (bounds the work on long, densely reversing runs).
+LOOKAHEAD_SWEEPS = 256
 # A change is a finding when it exceeds this many noise sigmas (and four standard errors of the estimate): smaller
 # ones are within what the nominal tables' own error at two different memory states gives on clean data.
 SIGNIFICANT_SIGMAS = 2.0
@@ -206,7 +208,7 @@ def history_findings(model: Any, bundle: Bundle, sigma: float) -> list[HistoryFi
         used: set[int] = set()
         for j, a in enumerate(sweeps):
             up = u[a[1]] > u[a[0]]
-            for m in range(j + 1, len(sweeps)):
+            for m in range(j + 1, min(j + 1 + LOOKAHEAD_SWEEPS, len(sweeps))):
                 b = sweeps[m]
                 if m in used or (u[b[1]] > u[b[0]]) != up:
                     continue
