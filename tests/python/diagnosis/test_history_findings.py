@@ -67,6 +67,7 @@ def test_diagnosis_reports_the_history_findings_and_names_accommodation(tmp_path
     assert doc["named"] == h.named and doc["loops_not_retracing"] == len(h.loops_not_retracing)
     assert set(EXPLAINED_BY["loop_within_run"]) <= set(doc["candidates"])
     json.dumps(d.to_dict())
+    assert "Across the measurement history" in d.html_section()
 
 
 def test_slac_history_remanence_changes_and_the_major_loop_does_not_retrace(slac_data, tmp_path, capsys):
@@ -82,4 +83,13 @@ def test_slac_history_remanence_changes_and_the_major_loop_does_not_retrace(slac
     # Run 3's second major ascent lies above its first: about 3.3e-4 T at 0 A to 8.8e-4 T at 165 A.
     [ascent] = [lp for lp in h.loops if lp.first == lp.second == "run3" and lp.direction == "ascending"]
     assert ascent.significant and 2e-4 < ascent.shift_at_start < 5e-4 and 6e-4 < ascent.shift_at_end < 1.1e-3
+    # The diagnosis reports them (never refuses), in its JSON, its text and its HTML report.
     capsys.readouterr()
+    assert main(["diagnose", str(tmp_path / "b"), "--json", str(tmp_path / "d.json"), "--report",
+                 str(tmp_path / "d.html")]) == 0
+    out = capsys.readouterr().out
+    assert "history run3..run8 (6 runs): level at each run's start" in out and "do not retrace" in out
+    doc = json.loads((tmp_path / "d.json").read_text())["history"][0]
+    assert doc["start_level_changes"] and doc["loops_not_retracing"] >= 1
+    assert set(doc["candidates"]) >= {"accommodation", "run_gain_offset"}
+    assert "Across the measurement history" in (tmp_path / "d.html").read_text()
