@@ -350,7 +350,8 @@ CONTINUE_ALTERNATIVES = "use initial 'negative', 'positive' or 'estimate'"
 class _Continued:
     """A measurement history run through the model in one piece: each run's model output (core units, before gain
     and offset), where the run starts in the concatenation, and the history's sample from which the state is
-    known (None: the history never reaches both ends, so its start is the assumed negative saturation)."""
+    known (0 when it starts at an end of the range; None when it neither starts at one nor reaches both, so its
+    start is the assumed negative saturation)."""
 
     outputs: dict[str, np.ndarray]
     starts: dict[str, int]
@@ -379,10 +380,12 @@ def _continued(model: Model, history: list[Run], extended: bool, out_of_range: s
     else:
         whole = model.simulate(u, out_of_range=out_of_range)
     bounds = np.cumsum([0] + [x.size for x in inputs])
+    # Known from the start when the history starts at an end of the range (as a single run is), else from where
+    # it has been to both ends.
     reached = bool(np.any(u >= hi - tol)) and bool(np.any(u <= lo + tol))
+    known_from = 0 if (u[0] <= lo + tol or u[0] >= hi - tol) else evaluation_start(u, lo, hi, tol) if reached else None
     return _Continued({r.name: whole[a:b] for r, a, b in zip(history, bounds[:-1], bounds[1:])},
-                      {r.name: int(a) for r, a in zip(history, bounds[:-1])},
-                      evaluation_start(u, lo, hi, tol) if reached else None)
+                      {r.name: int(a) for r, a in zip(history, bounds[:-1])}, known_from)
 
 
 def predict(
@@ -545,7 +548,7 @@ def predict(
                 res = y[first:] - p[first:]
                 spread = (_offset_prior(model) or {}).get("spread")
                 # The run's own offset, shrunk towards the model's by how much training runs' offsets spread.
-                s2 = float(np.var(res)) / max(res.size, 1)
+                s2 = float(np.var(res)) / res.size if res.size else 0.0
                 weight = spread ** 2 / (spread ** 2 + s2) if spread is not None and spread ** 2 + s2 > 0 else 1.0
                 shift = weight * (float(np.mean(res)) if res.size else 0.0)
                 shift_b = weight * (float(np.mean(y[first:] - base[first:])) if res.size else 0.0)

@@ -6,6 +6,7 @@ from __future__ import annotations
 import json
 
 import numpy as np
+import pandas as pd
 import pytest
 
 import bmr
@@ -134,3 +135,19 @@ def test_continue_runs_the_extended_model_over_the_history_once(piezo):
     # Each run alone starts its delay line empty: the first samples after a run boundary differ.
     alone = predict(extended, runs, initial="negative", offset="model", evaluate="all")
     assert not np.array_equal(alone.runs[-1].predicted, p.runs[-1].predicted)
+
+
+def test_a_history_that_starts_at_an_end_is_known_from_its_first_sample(piezo):
+    # First-order curves as a magnetometer records them: each from the top down to its reversal and back, the
+    # lowest reversal in the last curve only. The state is known from the first sample on, as for one run.
+    bundle, model = piezo
+    lo, hi = model.hysteresis.input_range
+    q = bundle.quantities
+    runs = []
+    for k, rev in enumerate(np.linspace(lo + 0.6 * (hi - lo), lo, 4)):
+        u = np.concatenate([np.linspace(hi, rev, 40), np.linspace(rev, hi, 40)[1:]])
+        data = {"t_s": 100.0 * k + 0.01 * np.arange(u.size), q.input.column: u, q.output.column: np.zeros(u.size)}
+        runs.append(bmr.Run(f"forc{k + 1}", "custom", pd.DataFrame(data), quantities=q, role="evaluation"))
+    history = bmr.Bundle("magnetometer", 100.0, runs, quantities=q, histories=[[r.name for r in runs]])
+    p = predict(model, history, initial="continue")
+    assert all(r.evaluated == r.samples and r.state_known for r in p.runs), [(r.name, r.dropped) for r in p.runs]
