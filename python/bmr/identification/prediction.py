@@ -5,7 +5,8 @@ measurement sigmas, next to the single-valued baseline; and ``bmr predict MODEL 
 
 A run's own offset (sensor offset, remanence left by the previous run), gain and initial state are parameters of
 the prediction, not hidden fits: they are given, taken from the model (its common offset), or estimated from a
-stated number of leading ``calibration`` samples, which are then not scored. Samples are scored from the point
+stated number of leading ``calibration`` samples, which are then not scored; the initial state may also be carried
+through the measurement history the run was recorded in (``initial="continue"``). Samples are scored from the point
 where the run's state is known (``evaluate="known"``: after it has been to both saturation ends, when it gets
 there) or all of them; every sample not scored is counted with its reason, a run whose state the input never
 determines is flagged, and inputs beyond the table's range are counted with their largest excess (clamped, or
