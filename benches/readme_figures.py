@@ -165,10 +165,12 @@ def render_demo(rec: dict[str, Any]) -> str:
     m = v["full"]["metrics"]
     fs = m["full_scale_nmm"]
     rows = ["| case | paper fig | RMS (N·mm) | max (N·mm) | RMS (% FS) | max (% FS) |", "|---|---|---|---|---|---|"]
-    # The paper's order: triangle experiments (figs 18-22), then the multi-peak reference (24-25) and the baselines.
+    # The paper's order: triangle experiments (figs 18-22), then the multi-peak reference (24-25) and the baselines,
+    # then the closed loop on the heating actuator.
     order = ["triangle_current_without_friction_compensation", "triangle_current_with_friction_compensation",
              "triangle_hysteresis_compensation", "multipeak_uncompensated", "multipeak_hysteresis_compensation",
-             "multipeak_both_compensations", "multipeak_both_paper_inverse"]
+             "multipeak_both_compensations", "multipeak_both_paper_inverse", "multipeak_heating_open_loop",
+             "multipeak_heating_controller"]
     cases = sorted(m["cases"].items(), key=lambda kv: (order.index(kv[0]) if kv[0] in order else len(order), kv[0]))
     for _, c in cases:
         fig = c["paper_figure"] if c["paper_figure"][:1].isdigit() else "—"
