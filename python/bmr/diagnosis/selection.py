@@ -430,7 +430,9 @@ def _scan(eff: Effect, data: EvalData, n: int, score: Callable[[int], np.ndarray
     coarse to fine, a product grid (``Effect.grid_shape``) one axis at a time."""
     shape = eff.grid_shape(data)
     if shape is not None and shape[0] * shape[1] == n and shape[0] > 2 and shape[1] > 2:
-        return coordinate_scan(shape, score)
+        # Searched for the best total over the criteria (the folds' training fits): every fold then picks its own
+        # best among the values evaluated around it.
+        return coordinate_scan(shape, lambda i: np.array([np.sum(score(i))]))
     if _input_side(eff) and n > 2 * COARSE_STRIDE:
         return coarse_to_fine(n, score)
     return None
