@@ -81,7 +81,7 @@ def measure_performance(repeat: int) -> None:
     values["latency_ns"] = {k: {q: _spread([r[q] for r in v]) for q in ("median", "p99", "p999")}
                             for k, v in latency.items()}
     values["instructions"] = {}
-    for what in ("compensator", "extended", "hysteresis"):
+    for what in ("compensator", "extended", "controller", "closed_loop", "hysteresis"):
         _, _, out = _timed(["bash", "benches/callgrind.sh", what])
         m = re.search(r"(\d+) instructions per step", out)
         values["instructions"][what] = int(m.group(1)) if m else None
@@ -204,6 +204,8 @@ def render_performance(rec: dict[str, Any]) -> str:
                     "`cargo bench -p bmr-bench --bench latency` |")
     for what, n in ins.items():
         name = {"compensator": "`Compensator::step`", "extended": "`Compensator::step` with every extension stage",
+                "controller": "`Controller::step` around every extension stage",
+                "closed_loop": "`Controller::step` + `VirtualActuator::step` (closed loop, one sample)",
                 "hysteresis": "`Hysteresis::step`"}[what]
         rows.append(f"| {name} instructions | {n} per step | `benches/callgrind.sh {what}` |")
     cmd = "`python benches/python_peers.py`"
