@@ -85,59 +85,48 @@ pub fn nnls_gram_warm(
         return Err(IdentificationError::NotPositiveDefinite);
     }
     // Passive (free to move) set F; every other variable sits at its bound 0 (or the warm start's guess).
-    let mut passive: Vec<bool> = match warm_start {
-        Some(w) => constrained.iter().zip(w).map(|(&c, &p)| !c || p).collect(),
-        None => constrained.iter().map(|&c| !c).collect(),
-    };
+    let cold: Vec<bool> = constrained.iter().map(|&c| !c).collect();
+    let mut iterations = 0;
     let mut x = alloc::vec![0.0; n];
     let mut grad = alloc::vec![0.0; n];
-    let mut best_infeasible = usize::MAX;
-    let mut backup_left = 3usize;
-    let tol = 1e-12 * (0..n).map(|i| q[i * n + i]).fold(0.0, f64::max);
-    let mut iterations = 0;
-    for _ in 0..max_iter {
-        iterations += 1;
-        let Some(condition) = solve_passive(q, c, &passive, &mut x) else {
-            break;
-        };
-        gradient(q, c, &x, &mut grad);
-        let infeasible: Vec<usize> = (0..n)
-            .filter(|&i| {
-                constrained[i] && ((passive[i] && x[i] < 0.0) || (!passive[i] && grad[i] < -tol))
-            })
-            .collect();
-        if infeasible.is_empty() {
-            for (xi, &ci) in x.iter_mut().zip(constrained) {
-                if ci && *xi < 0.0 {
-                    *xi = 0.0;
-                }
+    let mut passive = match warm_start {
+        Some(w) => constrained.iter().zip(w).map(|(&c, &p)| !c || p).collect(),
+        None => cold.clone(),
+    };
+    // A start from a distant problem can leave pivoting cycling where the cold start does not: the warm start
+    // gets a tenth of the budget, then pivoting starts again cold before the (much slower) descent.
+    let first_budget = if warm_start.is_some() {
+        max_iter.div_ceil(10)
+    } else {
+        max_iter
+    };
+    match pivot(
+        q,
+        c,
+        constrained,
+        first_budget,
+        &mut passive,
+        &mut x,
+        &mut grad,
+        &mut iterations,
+    ) {
+        Some(solution) => return Ok(solution),
+        None if warm_start.is_some() => {
+            passive = cold;
+            if let Some(solution) = pivot(
+                q,
+                c,
+                constrained,
+                max_iter,
+                &mut passive,
+                &mut x,
+                &mut grad,
+                &mut iterations,
+            ) {
+                return Ok(solution);
             }
-            let kkt_violation = kkt_violation(q, c, constrained, &x, &grad);
-            return Ok(NnlsSolution {
-                x,
-                iterations,
-                passive,
-                converged: true,
-                kkt_violation,
-                condition,
-                descent: false,
-            });
         }
-        if infeasible.len() < best_infeasible {
-            best_infeasible = infeasible.len();
-            backup_left = 3;
-            for &i in &infeasible {
-                passive[i] = !passive[i];
-            }
-        } else if backup_left > 0 {
-            backup_left -= 1;
-            for &i in &infeasible {
-                passive[i] = !passive[i];
-            }
-        } else {
-            let i = *infeasible.last().unwrap_or(&0);
-            passive[i] = !passive[i];
-        }
+        None => {}
     }
     // Pivoting gave up: projected coordinate descent from its last (feasible-clipped) iterate.
     for (xi, &ci) in x.iter_mut().zip(constrained) {
@@ -182,6 +171,69 @@ pub fn nnls_gram_warm(
 }
 
 /// `grad = Q x − c`: on a variable at its bound, its Lagrange multiplier (must be ≥ 0).
+/// Block principal pivoting from the passive set `passive` for at most `max_iter` iterations (counted into
+/// `iterations`): the solution when the optimality conditions hold, None when it gave up (`x` then holds the
+/// last iterate, `passive` the last set).
+#[allow(clippy::too_many_arguments)]
+fn pivot(
+    q: &[f64],
+    c: &[f64],
+    constrained: &[bool],
+    max_iter: usize,
+    passive: &mut [bool],
+    x: &mut [f64],
+    grad: &mut [f64],
+    iterations: &mut usize,
+) -> Option<NnlsSolution> {
+    let n = c.len();
+    let mut best_infeasible = usize::MAX;
+    let mut backup_left = 3usize;
+    let tol = 1e-12 * (0..n).map(|i| q[i * n + i]).fold(0.0, f64::max);
+    for _ in 0..max_iter {
+        *iterations += 1;
+        let condition = solve_passive(q, c, passive, x)?;
+        gradient(q, c, x, grad);
+        let infeasible: Vec<usize> = (0..n)
+            .filter(|&i| {
+                constrained[i] && ((passive[i] && x[i] < 0.0) || (!passive[i] && grad[i] < -tol))
+            })
+            .collect();
+        if infeasible.is_empty() {
+            for (xi, &ci) in x.iter_mut().zip(constrained) {
+                if ci && *xi < 0.0 {
+                    *xi = 0.0;
+                }
+            }
+            let kkt_violation = kkt_violation(q, c, constrained, x, grad);
+            return Some(NnlsSolution {
+                x: x.to_vec(),
+                iterations: *iterations,
+                passive: passive.to_vec(),
+                converged: true,
+                kkt_violation,
+                condition,
+                descent: false,
+            });
+        }
+        if infeasible.len() < best_infeasible {
+            best_infeasible = infeasible.len();
+            backup_left = 3;
+            for &i in &infeasible {
+                passive[i] = !passive[i];
+            }
+        } else if backup_left > 0 {
+            backup_left -= 1;
+            for &i in &infeasible {
+                passive[i] = !passive[i];
+            }
+        } else {
+            let i = *infeasible.last().unwrap_or(&0);
+            passive[i] = !passive[i];
+        }
+    }
+    None
+}
+
 fn gradient(q: &[f64], c: &[f64], x: &[f64], grad: &mut [f64]) {
     let n = c.len();
     for i in 0..n {
@@ -343,6 +395,39 @@ mod tests {
                 .zip(&constrained)
                 .all(|(&v, &ci)| !ci || v >= 0.0)
         );
+    }
+
+    #[test]
+    fn a_warm_start_far_from_the_answer_still_ends_by_pivoting() {
+        // The ill-conditioned problem above, started from the complement of its solution's passive set with a
+        // budget the cold start needs: the warm start's share of it runs out, pivoting starts again cold and
+        // finds the same minimiser without the descent.
+        let n = 24;
+        let mut q = alloc::vec![0.0; n * n];
+        for i in 0..n {
+            for j in 0..n {
+                q[i * n + j] = 1.0 / (1.0 + i as f64 + j as f64);
+            }
+            q[i * n + i] += 1e-6;
+        }
+        let c: Vec<f64> = (0..n)
+            .map(|i| {
+                if i % 3 == 0 {
+                    -0.5
+                } else {
+                    1.0 / (1.0 + i as f64)
+                }
+            })
+            .collect();
+        let constrained: Vec<bool> = (0..n).map(|i| i + 1 < n).collect();
+        let cold = nnls_gram(&q, &c, &constrained, 500).unwrap();
+        let far: Vec<bool> = cold.passive.iter().map(|&p| !p).collect();
+        let budget = 10 * cold.iterations;
+        let warm = nnls_gram_warm(&q, &c, &constrained, budget, Some(&far)).unwrap();
+        assert!(warm.converged && !warm.descent, "{warm:?}");
+        for (a, b) in warm.x.iter().zip(&cold.x) {
+            assert!((a - b).abs() <= 1e-9 * b.abs().max(1.0), "{a} vs {b}");
+        }
     }
 
     #[test]

@@ -73,6 +73,11 @@ class Effect(ABC):
     def grid(self, data: EvalData) -> list[Any]:
         return [None]
 
+    def grid_shape(self, data: EvalData) -> tuple[int, int] | None:
+        """``(outer, inner)`` when ``grid(data)`` is the product of two axes listed outer-major (searched one axis
+        at a time); None for a plain list."""
+        return None
+
     # Field effects (``field = True``) change the field path and implement ``apply``; linear effects add
     # regression columns and implement ``columns``. Asking one kind for the other's method is a dispatch error.
     def apply(self, path: FieldPath, value: Any, data: EvalData, train: np.ndarray | None) -> FieldPath:
@@ -443,13 +448,19 @@ class Creep(Effect):
         return [t for t in CREEP_TAUS_S if 3.0 * dt <= t <= 3.0 * longest]
 
     def grid(self, data: Any) -> list[Any]:
+        return [(a, b, f) for a, b in self._spectra(data) for f in self.FRACTIONS]
+
+    def _spectra(self, data: Any) -> list[tuple[float, float]]:
         taus = self._taus(data)
         decades = taus[::3] if len(taus) > 3 else taus
         # Creep starts fast: the spectrum's shortest time constant is at most a second (or the shortest the
         # sample period allows).
         first = max(1.0, decades[0]) if decades else 1.0
-        spectra = [(a, b) for i, a in enumerate(decades) for b in decades[i:] if a <= first * (1 + 1e-9)]
-        return [(a, b, f) for a, b in spectra for f in self.FRACTIONS]
+        return [(a, b) for i, a in enumerate(decades) for b in decades[i:] if a <= first * (1 + 1e-9)]
+
+    def grid_shape(self, data: Any) -> tuple[int, int] | None:
+        # Spectra × fractions removed from the protocol runs: every value is a re-identification of the tables.
+        return len(self._spectra(data)), len(self.FRACTIONS)
 
     def adjust_path(self, path, value):
         return path.with_correction(self, value, (value[2],))

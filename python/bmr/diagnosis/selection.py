@@ -52,7 +52,7 @@ from bmr.diagnosis.field import FieldPath, Reidentifier
 from bmr.diagnosis.residuals import BoundedCache, EvalData
 
 __all__ = ["Configuration", "Fitter", "FoldFit", "Candidate", "Alternative", "forward_selection", "out_of_range",
-           "MIN_GAIN", "NOISE_MARGIN"]
+           "coarse_to_fine", "coordinate_scan", "MIN_GAIN", "NOISE_MARGIN"]
 
 MIN_GAIN = 0.02
 MIN_EXCESS = 0.25
@@ -396,13 +396,57 @@ def coarse_to_fine(n: int, score: Callable[[int], np.ndarray], stride: int = COA
             return done
 
 
+def coordinate_scan(shape: tuple[int, int], score: Callable[[int], np.ndarray]) -> dict[int, np.ndarray]:
+    """Scores (one per criterion, lower is better) of a grid that is the product of two axes (``shape`` = (outer,
+    inner), index ``outer·n_inner + inner``), evaluated one axis at a time: the outer axis at the middle of the
+    inner one, then the inner axis at each criterion's best outer value, then the outer axis at each criterion's
+    best inner value, and so on until a pass evaluates nothing new (every criterion's best is then the best along
+    both of its axes). Returns the evaluated indices' scores."""
+    n_outer, n_inner = shape
+    done: dict[int, np.ndarray] = {}
+
+    def ev(i: int) -> None:
+        if i not in done:
+            done[i] = np.asarray(score(i), dtype=float).reshape(-1)
+
+    def best() -> set[int]:
+        keys = sorted(done)
+        table = np.array([done[i] for i in keys])
+        table = np.where(np.isnan(table), np.inf, table)
+        return {keys[int(j)] for j in np.argmin(table, axis=0)}
+
+    inner = {n_inner // 2}
+    while True:
+        size = len(done)
+        for j in sorted(inner):
+            for o in range(n_outer):
+                ev(o * n_inner + j)
+        for o in sorted({b // n_inner for b in best()}):
+            for j in range(n_inner):
+                ev(o * n_inner + j)
+        inner = {b % n_inner for b in best()}
+        if len(done) == size:
+            return done
+
+
+def _scan(eff: Effect, data: EvalData, n: int, score: Callable[[int], np.ndarray]) -> dict[int, np.ndarray] | None:
+    """The scores of the grid values a search needs (None: every value is scored): an input-side effect's grid
+    coarse to fine, a product grid (``Effect.grid_shape``) one axis at a time."""
+    shape = eff.grid_shape(data)
+    if shape is not None and shape[0] * shape[1] == n and shape[0] > 2 and shape[1] > 2:
+        # Searched for the best total over the criteria (the folds' training fits): every fold then picks its own
+        # best among the values evaluated around it.
+        return coordinate_scan(shape, lambda i: np.array([np.sum(score(i))]))
+    if _input_side(eff) and n > 2 * COARSE_STRIDE:
+        return coarse_to_fine(n, score)
+    return None
+
+
 def _grid_fits(fitter: Fitter, config: Configuration, eff: Effect, grid: Sequence[Any], criterion: slice
                ) -> list[FoldFit | None]:
-    """The fits of ``config`` plus ``eff`` at each grid value (None: not evaluated): every value, or, for an
-    input-side effect, those :func:`coarse_to_fine` needs to find the best by ``sse_train[criterion]``."""
+    """The fits of ``config`` plus ``eff`` at each grid value (None: not evaluated): every value, or those the
+    effect's search (:func:`_scan`) needs to find the best by ``sse_train[criterion]``."""
     data = fitter.data
-    if not (_input_side(eff) and len(grid) > 2 * COARSE_STRIDE):
-        return [fitter.solve(*_with(config, eff, v, data)) for v in grid]
     fits: list[FoldFit | None] = [None] * len(grid)
 
     def score(i: int) -> np.ndarray:
@@ -410,7 +454,9 @@ def _grid_fits(fitter: Fitter, config: Configuration, eff: Effect, grid: Sequenc
         fits[i] = ff
         return ff.sse_train[criterion]
 
-    coarse_to_fine(len(grid), score)
+    if _scan(eff, data, len(grid), score) is None:
+        for i in range(len(grid)):
+            score(i)
     return fits
 
 
@@ -492,8 +538,8 @@ def refit(fitter: Fitter, config: Configuration, eff: Effect) -> tuple[Configura
         n = max(float(np.sum(ff.n_test)), 2.0)
         return float(n * math.log(max(float(ff.sse_train[data.folds]), 1e-300) / n) + sum(ff.widths) * math.log(n))
 
-    if _input_side(eff) and len(grid) > 2 * COARSE_STRIDE:
-        scanned = coarse_to_fine(len(grid), lambda j: np.array([sse(grid[j])]))
+    scanned = _scan(eff, data, len(grid), lambda j: np.array([sse(grid[j])]))
+    if scanned is not None:
         scores = [float(scanned[j][0]) if j in scanned else math.inf for j in range(len(grid))]
     else:
         scores = [sse(v) for v in grid]

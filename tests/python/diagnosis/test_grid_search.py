@@ -36,3 +36,24 @@ def test_one_criterion_needs_well_under_half_the_grid(n):
 def test_nan_scores_count_as_worst():
     done = coarse_to_fine(20, lambda i: np.array([np.nan if i < 10 else (i - 14.0) ** 2]))
     assert min(done, key=lambda i: np.nan_to_num(done[i][0], nan=np.inf)) == 14
+
+
+def test_product_grid_is_searched_one_axis_at_a_time():
+    # Separable bowls on a 12 × 6 product grid (index outer·6 + inner), three criteria with their own minima.
+    from bmr.diagnosis.selection import coordinate_scan
+
+    rng = np.random.default_rng(7)
+    for _ in range(50):
+        centres = rng.uniform(-1, [12, 6], size=(3, 2))
+        calls = []
+
+        def score(i: int) -> np.ndarray:
+            calls.append(i)
+            o, j = divmod(i, 6)
+            return (o - centres[:, 0]) ** 2 + 2.0 * (j - centres[:, 1]) ** 2
+
+        done = coordinate_scan((12, 6), score)
+        full = np.array([score(i) for i in range(72)])
+        for k in range(3):
+            assert min(done, key=lambda i: done[i][k]) == int(np.argmin(full[:, k]))
+        assert len(done) < 72 and len(set(calls[:len(done)])) == len(done)
