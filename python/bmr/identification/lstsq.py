@@ -158,6 +158,18 @@ class LstsqTables:
                 "spread": float(np.std(offs, ddof=1)) if offs.size > 1 else math.nan,
                 "first_sample_error": float(np.sqrt(np.mean(first ** 2))) if first.size else math.nan}
 
+    def run_prediction(self, k: int, u: np.ndarray, integral: np.ndarray | None = None) -> np.ndarray:
+        """Training run ``k``'s output as fitted, along its input ``u``: its offset plus its gain times the table's
+        output from its initial state, plus the leakage along the input's running ``integral`` when one was
+        fitted (``integral`` needed then)."""
+        r = self.runs[k]
+        part = r.gain * self.everett.simulate(np.ascontiguousarray(u, dtype=float), 0.0, list(r.history))
+        if self.leakage_rate is not None:
+            if integral is None:
+                raise BmrError("run_prediction: the fit has a leakage term; pass the input's running integral")
+            part = part + self.leakage_rate * integral
+        return r.offset + part
+
     def calibration(self, name: str) -> RunCalibration:
         for r in self.runs:
             if r.name == name:
