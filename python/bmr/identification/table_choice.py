@@ -32,6 +32,8 @@ RESOLUTIONS = (24, 32, 48, 64, 80)
 SMOOTHINGS = (1e-6, 1e-5, 1e-4, 1e-3, 1e-2, 1e-1)
 FOLDS = 3
 BLOCKS_PER_FOLD = 8
+# Samples a run keeps in the fit in every fold (its offset is fitted on them).
+MIN_KEPT = 2
 # Scores within this share of the best count as equal (the noise of a cross-validated RMS on a few folds).
 TIE_SHARE = 0.01
 # Initial-state estimation rounds in the cross-validation fits (the final fit uses the full count).
@@ -100,7 +102,8 @@ class TableChoice:
 def block_folds(lengths: Sequence[int], folds: int = FOLDS,
                 blocks_per_fold: int = BLOCKS_PER_FOLD) -> list[list[np.ndarray]]:
     """Held-out masks, ``[fold][run]``: each run of ``lengths[k]`` samples cut into ``folds · blocks_per_fold``
-    contiguous blocks, fold ``f`` holding out the blocks with index ``f`` modulo ``folds``."""
+    contiguous blocks, fold ``f`` holding out the blocks with index ``f`` modulo ``folds`` (a run left with fewer
+    than :data:`MIN_KEPT` samples is not held out in that fold)."""
     if folds < 2:
         raise BmrError(f"cross-validation needs at least 2 folds, got {folds}")
     nb = folds * blocks_per_fold
@@ -108,7 +111,9 @@ def block_folds(lengths: Sequence[int], folds: int = FOLDS,
     for n in lengths:
         block = (np.arange(n) * nb) // max(n, 1)
         for f in range(folds):
-            out[f].append(block % folds == f)
+            held = block % folds == f
+            # A run too short to keep samples for its own offset in this fold is not held out in it.
+            out[f].append(held if n - int(held.sum()) >= MIN_KEPT else np.zeros(n, dtype=bool))
     return out
 
 
@@ -155,8 +160,8 @@ def choose_table_settings(runs: Sequence[Run], friction: Any = None, *, input_ra
     def best(cands: list[tuple[int, float]]) -> tuple[int, float]:
         vals = [score(n, s) for n, s in cands]
         top = min(vals)
-        if not math.isfinite(top):
-            return cands[0]
+        if not math.isfinite(top):  # no fold could be fitted: keep the default (or the given) setting
+            return (n0, s0)
         # Within the tie band: the smoothest, then the coarsest (stable to small moves of the range's ends).
         near = [c for c, v in zip(cands, vals) if v <= top * (1.0 + TIE_SHARE)]
         return max(near, key=lambda c: (c[1], -c[0]))

@@ -55,6 +55,8 @@ def test_folds_hold_out_every_sample_once_in_contiguous_blocks():
         np.testing.assert_array_equal(held.sum(axis=0), np.ones(n))
     # Run 0: six blocks of 16-17 samples, fold 0 holds the first and the fourth.
     assert np.flatnonzero(np.diff(masks[0][0].astype(int))).tolist() == [16, 49, 66]
+    # A run too short to keep samples for its own offset is never held out (a FORC file's first curve).
+    assert not any(fold[0].any() for fold in block_folds([2, 50]))
     with pytest.raises(bmr.BmrError):
         block_folds([10], folds=1)
 
