@@ -1,6 +1,6 @@
 """The route a bundle takes through bmr's Python modules in ``identify`` and ``diagnose``: which modules are
 visited, how often the flow comes back to a module it already left, and how often a run's arrays are built from
-its table (``Run.column`` building a numpy array from a pandas column, per run and signal).
+its table (``Run.column`` copying a pandas column into a new numpy array, per run and signal, instead of returning a view).
 
     python benches/call_route.py [--bundle DIR] [--what identify,diagnose]
 
@@ -29,17 +29,15 @@ class Route:
         self.columns: Counter[tuple[str, str]] = Counter()
 
     def __call__(self, frame: Any, event: str, arg: Any) -> None:
-        if event != "call":
-            return
         module = frame.f_globals.get("__name__", "")
-        if not module.startswith("bmr"):
+        if event == "return" and frame.f_code.co_name == "column" and module == "bmr.data.bundle":
+            # An array that owns its samples was built (copied) from the table; a view was not.
+            if getattr(arg, "base", 0) is None:
+                run = frame.f_locals.get("self")
+                self.columns[(getattr(run, "name", "?"), str(frame.f_locals.get("name")))] += 1
             return
-        if frame.f_code.co_name == "column" and module == "bmr.data.bundle":
-            run = frame.f_locals.get("self")
-            name = str(frame.f_locals.get("name"))
-            cached = getattr(run, "_arrays", {})
-            if not (name in cached and getattr(run, "_arrays_of", None) == id(run.data)):
-                self.columns[(getattr(run, "name", "?"), name)] += 1  # built from the table, not kept
+        if event != "call" or not module.startswith("bmr"):
+            return
         if module != self.current:
             if module in self.visited:
                 self.returns += 1

@@ -14,7 +14,10 @@ the same opening excursion (beyond reach both ways, so plant and model start fro
 its own bundle; every row steps it sample by sample from Python (``Controller.step``), as a user's loop would.
 
     python benches/closed_loop_controller.py [--plant virtual|independent] [--seed 0] [--duration 120]
-                                             [--json out.json]
+                                             [--json out.json] [--record]
+
+``--record`` stores the rows of that plant in ``docs/measurements.json`` (section ``closed_loop_controller``, one
+entry per plant), from which ``benches/readme_figures.py render`` writes the table of docs/results.md.
 """
 from __future__ import annotations
 
@@ -114,6 +117,7 @@ def main() -> int:
     ap.add_argument("--duration", type=float, default=120.0, help="multi-peak reference length (s)")
     ap.add_argument("--json", type=Path, help="write the rows here")
     ap.add_argument("--plant", choices=("virtual", "independent"), default="virtual")
+    ap.add_argument("--record", action="store_true", help="record the rows in docs/measurements.json")
     args = ap.parse_args()
     if args.plant == "independent":
         named, rows, ctl = independent_rows(args.seed, args.duration)
@@ -124,6 +128,8 @@ def main() -> int:
         print("|---|---|")
         for name, rms, _ in rows:
             print(f"| {name} | {rms:.2f} |")
+        if args.record:
+            _record(args, named, ctl, rows)
         return 0
 
     bundle = diagnosis_bundle(PRESET, effects=LAG, seed=args.seed)
@@ -168,7 +174,24 @@ def main() -> int:
         out = {"named": named, "design": repr(ctl.design),
                "rows": [{"controller": n, "rms_nmm": r, "samples_per_cpu_s": s} for n, r, s in rows]}
         args.json.write_text(json.dumps(out, indent=1))
+    if args.record:
+        _record(args, named, ctl, rows)
     return 0
+
+
+def _record(args: argparse.Namespace, named: list[str], ctl: object, rows: list[tuple[str, float, float]]) -> None:
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
+    from measurements import load, record
+
+    values = dict((load().get("closed_loop_controller") or {}).get("values", {}))
+    design = ctl.design  # type: ignore[attr-defined]
+    values[args.plant] = {"named": named, "duration_s": args.duration, "seed": args.seed,
+                          "design": {"bandwidth_hz": design.bandwidth_hz, "ki_per_s": design.ki_per_s,
+                                     "phase_margin_deg": design.phase_margin_deg,
+                                     "loop_delay_s": design.loop_delay_s},
+                          "rows": [{"controller": n, "rms_nmm": r, "samples_per_cpu_s": s} for n, r, s in rows]}
+    record("closed_loop_controller", "python benches/closed_loop_controller.py --plant virtual --record && "
+           "python benches/closed_loop_controller.py --plant independent --record", values)
 
 
 if __name__ == "__main__":

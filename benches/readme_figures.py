@@ -380,7 +380,35 @@ def render_real_data(rec: dict[str, Any]) -> str:
     return render(rec["values"])
 
 
-RENDER: dict[str, Callable[[dict[str, Any]], str]] = {"demo": render_demo, "performance": render_performance,
+def render_closed_loop_controller(rec: dict[str, Any]) -> str:
+    v = rec["values"]
+    plants = [k for k in ("virtual", "independent") if k in v]
+    titles = {"virtual": "virtual actuator (`rig_preisach` + coil lag + heating), run in Rust",
+              "independent": "independently written rig (eddy-current coil circuit, resistive heating), stepped "
+                             "from Python"}
+    names = [r["controller"] for r in v[plants[0]]["rows"]]
+    head = "| controller | " + " | ".join(f"{titles[p]}: RMS (N·mm)" for p in plants) + " |"
+    lines = [head, "|---|" + "---|" * len(plants)]
+    for n in names:
+        cells = []
+        for p in plants:
+            row = next((r for r in v[p]["rows"] if r["controller"] == n), None)
+            cells.append(f"{row['rms_nmm']:.2f}" if row else "—")
+        lines.append(f"| {n} | " + " | ".join(cells) + " |")
+    notes = []
+    for p in plants:
+        d = v[p]["design"]
+        rates = [r["samples_per_cpu_s"] for r in v[p]["rows"] if r.get("samples_per_cpu_s")]
+        rate = f"; batch closed loop {min(rates) / 1e6:.2g}-{max(rates) / 1e6:.2g} M samples per CPU-second" if rates else ""
+        notes.append(f"{titles[p].split(' (')[0]}: diagnosis named {', '.join(v[p]['named']) or 'nothing'}; "
+                     f"{v[p]['duration_s']:g} s multi-peak reference, seed {v[p]['seed']}; design: integral gain "
+                     f"{d['ki_per_s']:.3g}/s, bandwidth {d['bandwidth_hz']:.3g} Hz, phase margin "
+                     f"{d['phase_margin_deg']:.3g}° over a loop delay of {1e3 * d['loop_delay_s']:.3g} ms{rate}.")
+    return "\n".join(lines) + "\n\n" + "\n\n".join(notes)
+
+
+RENDER: dict[str, Callable[[dict[str, Any]], str]] = {"closed_loop_controller": render_closed_loop_controller,
+                                                       "demo": render_demo, "performance": render_performance,
                                                        "closed_loop": render_closed_loop,
                                                        "identification": render_identification,
                                                        "calibration": render_calibration,

@@ -23,8 +23,9 @@
 //! stage offers `forward` (simulation: advance with what happened this sample) and, for the compensator, an
 //! inverse that reads the state *before* this sample plus a commit that advances the state with what was
 //! actually commanded (after limiting or a fault), so the compensator's states always follow the real command.
-//! A new stage (creep, rate dependence, ...) is a struct with those three operations, a field in [`Stages`] and
-//! one line in each walk.
+//! A new stage is a struct with those three operations, its [`Stage`] impl (what a snapshot keeps, how it rests,
+//! its state words) and one line in the stage list (`stage_list!`, in the vocabulary's loop order): every walk
+//! over the stages (snapshot, restore, words, reset, the names of those that are on) is generated from that list.
 use crate::accommodation::Accommodation;
 use crate::creep::{Creep, MAX_CREEP_TERMS};
 use crate::filters::{DelayLine, Heating, Lag};

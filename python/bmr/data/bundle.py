@@ -77,10 +77,6 @@ class Run:
     meta: dict[str, Any] = field(default_factory=dict)
     quantities: Quantities = ACTUATOR
     role: str | None = None
-    # The run's columns as read-only float arrays, each built once from ``data`` (identification, prediction and
-    # diagnosis all read them); rebuilt when ``data`` is replaced.
-    _arrays: dict[str, np.ndarray] = field(default_factory=dict, init=False, repr=False, compare=False)
-    _arrays_of: int = field(default=0, init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         if self.kind not in RUN_KINDS:
@@ -91,6 +87,11 @@ class Run:
             raise TypeError(f"run {self.name!r}: quantities must be a bmr.data.quantities.Quantities, "
                             f"got {type(self.quantities).__name__}")
         validate_run_data(self.name, self.data, self.quantities)
+        # Samples as float64 once, so that every later read is a view, not a copy.
+        other = [c for c in self.data.columns
+                 if self.data[c].dtype != np.float64 and getattr(self.data[c].dtype, "kind", "") in "iuf"]
+        if other:
+            self.data = self.data.astype({c: np.float64 for c in other})
 
     def __repr__(self) -> str:
         n = len(self.data)
@@ -101,26 +102,14 @@ class Run:
                 f"columns: {', '.join(self.data.columns)})")
 
     def column(self, name: str) -> np.ndarray:
-        """Column ``name`` as a read-only float array (built once per column)."""
-        if self._arrays_of != id(self.data):
-            self._arrays, self._arrays_of = {}, id(self.data)
-        cached = self._arrays.get(name)
-        if cached is not None:
-            return cached
+        """Column ``name`` as a read-only float array: a view of ``data`` (its columns are float64 from the start, so
+        identification, prediction and diagnosis read the samples without copying them, and always the current
+        ones)."""
         if name not in self.data.columns:
             raise BundleError(f"run {self.name!r} has no column {name!r} (columns: {', '.join(self.data.columns)})")
-        values = np.array(self.data[name].to_numpy(dtype=float), dtype=float)
+        values = self.data[name].to_numpy(dtype=float).view()
         values.flags.writeable = False
-        self._arrays[name] = values
         return values
-
-    def __getstate__(self) -> dict[str, Any]:
-        # The arrays are a cache of ``data``: not sent to another process twice.
-        return {k: v for k, v in self.__dict__.items() if k not in ("_arrays", "_arrays_of")}
-
-    def __setstate__(self, state: dict[str, Any]) -> None:
-        self.__dict__.update(state)
-        self._arrays, self._arrays_of = {}, 0
 
     @property
     def time(self) -> np.ndarray:

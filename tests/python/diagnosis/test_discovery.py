@@ -198,7 +198,7 @@ def test_piezo_without_angle_is_diagnosed_end_to_end(piezo_diagnosis, tmp_path, 
     assert d.nominal_heldout_rms - d.residual_rms >= 0.5 * excess
     doc = d.to_dict()
     assert doc["units"] == {"input": "V", "output": "µm"}
-    assert doc["noise_floor"]["method"] in ("dwell", "residual_high_frequency")
+    assert doc["noise"]["method"] in ("dwell", "residual_high_frequency")
     assert "µm" in repr(d) and "voltage" in d.html_section()
     from bmr.cli import main
 
@@ -238,7 +238,7 @@ def test_slac_quadrupole_diagnosis_reports_in_tesla(slac_data) -> None:
                       output_sigma="sigBL", output_name="integrated gradient", holdout=["run7", "run8"])
     d = diagnose(res.bundle, progress=False, closed_loop=False)
     doc = d.to_dict()
-    assert doc["units"]["output"] == "T" and doc["noise_floor"]["method"] == "declared_sigma"
+    assert doc["units"]["output"] == "T" and doc["noise"]["method"] == "declared_sigma"
     assert 3e-5 < d.noise_floor < 2e-4  # the declared sigmas, ~6e-5 T RMS
     assert 1e-4 < d.nominal_heldout_rms < 1e-2
     assert d.residual_rms <= d.nominal_heldout_rms * (1 + 1e-9)

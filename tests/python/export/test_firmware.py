@@ -88,18 +88,24 @@ def test_c_header_is_the_one_cbindgen_writes(tmp_path):
         "regenerate: cbindgen --config cbindgen.toml --output include/bmr.h src/ffi.rs"
 
 
-@pytest.mark.slow
-def test_c_program_matches_python_run_bit_for_bit(tmp_path):
+def _c_program(tmp_path: Path, source: str) -> Path:
+    """``tests/c/<source>.c`` compiled against the no_std static library and the exported test model."""
     cc, cargo = _tool("cc"), _tool("cargo")
     env = dict(os.environ, CARGO_TERM_COLOR="never")
     subprocess.run([cargo, "build", "--release", "--quiet", "--manifest-path", "nostd-check/Cargo.toml"],
                    cwd=REPO, check=True, env=env)
     lib = REPO / "nostd-check" / "target" / "release" / "libbmr_nostd_check.a"
     assert main(["export", str(MODEL), "--c", str(tmp_path / "model.h")]) == 0
-    exe = tmp_path / "run_model"
+    exe = tmp_path / source
     subprocess.run([cc, "-std=c99", "-O2", "-Wall", "-Wextra", "-Werror", "-I", str(REPO / "include"), "-I",
-                    str(tmp_path), str(REPO / "tests" / "c" / "run_model.c"), str(lib), "-Wl,--gc-sections",
+                    str(tmp_path), str(REPO / "tests" / "c" / f"{source}.c"), str(lib), "-Wl,--gc-sections",
                     "-o", str(exe)], check=True)
+    return exe
+
+
+@pytest.mark.slow
+def test_c_program_matches_python_run_bit_for_bit(tmp_path):
+    exe = _c_program(tmp_path, "run_model")
     ref, theta = reference()
     python = bmr.Model.load(MODEL).compensator(DT_S).run(ref, theta)["current_a"]
     text = f"{ref.size}\n" + "".join(f"{r.hex()} {a.hex()}\n" for r, a in zip(ref, theta))
@@ -114,16 +120,7 @@ def test_c_program_matches_python_run_bit_for_bit(tmp_path):
 
 @pytest.mark.slow
 def test_c_controller_matches_python_bit_for_bit(tmp_path):
-    cc, cargo = _tool("cc"), _tool("cargo")
-    env = dict(os.environ, CARGO_TERM_COLOR="never")
-    subprocess.run([cargo, "build", "--release", "--quiet", "--manifest-path", "nostd-check/Cargo.toml"],
-                   cwd=REPO, check=True, env=env)
-    lib = REPO / "nostd-check" / "target" / "release" / "libbmr_nostd_check.a"
-    assert main(["export", str(MODEL), "--c", str(tmp_path / "model.h")]) == 0
-    exe = tmp_path / "run_controller"
-    subprocess.run([cc, "-std=c99", "-O2", "-Wall", "-Wextra", "-Werror", "-I", str(REPO / "include"), "-I",
-                    str(tmp_path), str(REPO / "tests" / "c" / "run_controller.c"), str(lib), "-Wl,--gc-sections",
-                    "-o", str(exe)], check=True)
+    exe = _c_program(tmp_path, "run_controller")
     ref, theta = reference()
     # A measurement 10 % weak with an offset and a ripple, and dropouts: the loop and the adaptation both act.
     measured = 0.9 * ref + 3.0 + 2.0 * np.sin(0.05 * np.arange(ref.size))

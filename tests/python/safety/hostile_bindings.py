@@ -69,6 +69,7 @@ SANE: dict[str, object] = {
     "v": 10 * U, "taus_s": np.array([0.01, 0.1]),
 }
 SANE["subdivisions"] = 2
+SANE["drift"] = [np.cumsum(U) * 1e-3]  # one running input integral per run (the leakage column)
 # Per-callable values where the generic ones do not fit (scalars for single steps, objects for methods).
 SPECIFIC: dict[str, dict[str, object]] = {
     "VirtualActuator.step": {"current_a": 0.3},
