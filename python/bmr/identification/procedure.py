@@ -233,6 +233,7 @@ def identify(
     deadband_a: float | None = None,
     n_nodes: int | None = None,
     drift: str = "auto",
+    input_range: tuple[float, float] | None = None,
 ) -> Model:
     """Identify friction and hysteresis from ``bundle`` and return a ``bmr.Model`` whose ``identification``
     (an :class:`IdentificationReport`) says what was done.
@@ -244,6 +245,7 @@ def identify(
     an error when one of them is impossible). ``offsets``, ``gains``, ``initial_state``: the least-squares fit's
     per-run calibration (see ``fit_tables_lstsq``); ``drift``: its leakage term (default ``"auto"``: fitted with the
     table when the branches do not close and it closes them; the rate is in ``model.identification.lstsq``).
+    ``input_range``: the tables' input range (default: the range the identification runs measure).
     ``n_intervals``, ``smoothing``: the least-squares table's resolution (grid intervals over the input range) and
     the weight of its density's smoothness; each one not given is chosen by cross-validation over time blocks of
     the training runs (:func:`~bmr.identification.table_choice.choose_table_settings`; the evaluation runs are
@@ -267,7 +269,12 @@ def identify(
     times: dict[str, float] = {"friction": time.perf_counter() - t0}
     if not active:
         raise BmrError("the bundle has no run besides off-state runs; nothing to identify the hysteresis from")
-    lo, hi = input_range_of([run_input(r) for r in active])
+    if input_range is None:
+        lo, hi = input_range_of([run_input(r) for r in active])
+    else:
+        lo, hi = (float(x) for x in input_range)
+        if not (math.isfinite(lo) and math.isfinite(hi) and hi > lo):
+            raise BmrError(f"input_range must be two finite inputs, the lower first, got {input_range!r}")
     limits = {q.input.column: [lo, hi]}
     train, evaluation = roles.train, roles.evaluation
 
@@ -303,9 +310,14 @@ def identify(
                                            initial_state=initial_state, drift=drift)
             n_intervals, smoothing = choice.n_intervals, choice.smoothing
             times["table_choice"] = time.perf_counter() - t
-        tables = fit_tables_lstsq(train, friction, n_intervals=n_intervals, smoothing=smoothing,
-                                  input_range=(lo, hi), offsets=offsets, gains=gains, initial_state=initial_state,
-                                  drift=drift)
+        reference = choice.reference if choice is not None else None
+        if reference is not None and (reference.n_intervals, reference.settings["smoothing"]) == (n_intervals,
+                                                                                                   smoothing):
+            tables = reference  # the folds' reference fit is the fit at the setting chosen
+        else:
+            tables = fit_tables_lstsq(train, friction, n_intervals=n_intervals, smoothing=smoothing,
+                                      input_range=(lo, hi), offsets=offsets, gains=gains,
+                                      initial_state=initial_state, drift=drift)
         candidates["lstsq"] = _lstsq_model(tables, friction, limits, q)
         accounts["lstsq"] = tables.samples
         times["lstsq"] = time.perf_counter() - t
