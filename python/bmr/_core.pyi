@@ -450,7 +450,14 @@ class EverettFolds:
     ) -> Self: ...
     @property
     def n_unknowns(self) -> int: ...
-    def score(self, smoothing: float = 1e-4, *, ridge: float = 1e-9, max_iter: int = 500) -> list[tuple[float, float]]: ...
+    def score(
+        self,
+        smoothing: float = 1e-4,
+        *,
+        ridge: float = 1e-9,
+        max_iter: int = 500,
+        warm_start: Sequence[bool] | np.ndarray | None = None,
+    ) -> list[tuple[float, float]]: ...
 
 EFFECTS: tuple[str, ...]
 """Names of the virtual actuator's switchable effects (the diagnosis vocabulary)."""

@@ -142,12 +142,16 @@ impl EverettFolds {
     }
 
     /// Every fold's held-out error of the table fitted with `options` on the rest (a fold without held-out rows
-    /// scores 0 on weight 0). An error when a fold's training part cannot be fitted (e.g. a run whose samples
-    /// are all held out leaves its offset column empty).
+    /// scores 0 on weight 0). A fold's first solve starts from `warm_start` (e.g. the passive set of a fit of the
+    /// whole, ignored unless it has [`Self::n_unknowns`] entries), later ones from the nearest smoothing's. An
+    /// error when a fold's training part cannot be fitted (e.g. a run whose samples are all held out leaves its
+    /// offset column empty).
     pub fn score(
         &mut self,
         options: EverettFitOptions,
+        warm_start: Option<&[bool]>,
     ) -> Result<Vec<FoldScore>, IdentificationError> {
+        let given = warm_start.filter(|w| w.len() == self.n_unknowns());
         check_options(self.total.n_offsets, options)?;
         let mut out = Vec::with_capacity(self.held.len());
         for (part, warm) in self.held.iter().zip(&mut self.warm) {
@@ -178,7 +182,7 @@ impl EverettFolds {
                 &DataTerm::of(&train, &train.rhs, train.yy),
                 &q,
                 options,
-                nearest(warm, options.smoothing),
+                nearest(warm, options.smoothing).or(given),
             )?;
             // Held-out error as a quadratic form of the fold's own part: yy − 2 zᵀ r + zᵀ G z, z = [C w, offsets].
             let mut z = fit.model.node_values().to_vec();
@@ -281,7 +285,7 @@ mod tests {
                 smoothing,
                 ..EverettFitOptions::default()
             };
-            let scores = cv.score(options).unwrap();
+            let scores = cv.score(options, None).unwrap();
             for (f, s) in scores.iter().enumerate() {
                 // The same fold by hand: fit with the held-out rows weighted 0, then their squared errors.
                 let train_w: Vec<Vec<f64>> = folds
@@ -342,6 +346,6 @@ mod tests {
         assert!(EverettFolds::new(&grid, &[run], 1, 1).is_err());
         // Every sample held out in fold 0: its training part is empty.
         let mut cv = EverettFolds::new(&grid, &[run], 1, 2).unwrap();
-        assert!(cv.score(EverettFitOptions::default()).is_err());
+        assert!(cv.score(EverettFitOptions::default(), None).is_err());
     }
 }

@@ -623,14 +623,16 @@ impl PyEverettFolds {
     }
 
     /// Every fold's held-out `(sse, weight)` (output units², row weights) of the table fitted on the rest with
-    /// this `smoothing` and `ridge`; each fold's solve is warm-started from its solve at the nearest smoothing.
-    #[pyo3(signature = (smoothing=1e-4, *, ridge=1e-9, max_iter=500))]
+    /// this `smoothing` and `ridge`; each fold's solve is warm-started from its solve at the nearest smoothing,
+    /// its first one from `warm_start` (a passive set of `n_unknowns` entries, e.g. a fit of the whole).
+    #[pyo3(signature = (smoothing=1e-4, *, ridge=1e-9, max_iter=500, warm_start=None))]
     fn score(
         &mut self,
         py: Python<'_>,
         smoothing: f64,
         ridge: f64,
         max_iter: usize,
+        warm_start: Option<Vec<bool>>,
     ) -> PyResult<Vec<(f64, f64)>> {
         let options = EverettFitOptions {
             smoothing,
@@ -639,7 +641,7 @@ impl PyEverettFolds {
         };
         let inner = &mut self.inner;
         let scores = py
-            .detach(|| inner.score(options))
+            .detach(|| inner.score(options, warm_start.as_deref()))
             .map_err(|e| identification_err("Everett table cross-validation", e))?;
         Ok(scores.iter().map(|s| (s.sse, s.weight)).collect())
     }

@@ -135,6 +135,8 @@ class LstsqTables:
     leakage_rate: float | None = None
     closure: float = 0.0
     conditioning: Conditioning | None = None
+    # The final solve's passive set (unknowns off their bound): a warm start for neighbouring problems.
+    passive: np.ndarray | None = None
 
     @property
     def offsets(self) -> np.ndarray:
@@ -402,7 +404,7 @@ def fit_tables_lstsq(
                        rms=res.rms, n_rows=res.n_rows, iterations=res.iterations,
                        runs=calib, samples=account, n_intervals=int(n_intervals), settings=settings,
                        leakage_rate=rate if integrals is not None else None, closure=closure,
-                       conditioning=Conditioning.of(res))
+                       conditioning=Conditioning.of(res), passive=np.asarray(res.passive))
 
 
 def _fit_gains(model: Any, us: Sequence[np.ndarray], ys: Sequence[np.ndarray], weights: Sequence[np.ndarray],

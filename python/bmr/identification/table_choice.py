@@ -196,7 +196,8 @@ def choose_table_settings(runs: Sequence[Run], friction: Any = None, *, input_ra
                     regressions.clear()  # one resolution's normal equations at a time (they are large)
                     regressions[n] = _core.EverettFolds(np.linspace(lo, hi, n + 1), data, n_off, folds,
                                                         drift=drift)
-                parts = regressions[n].score(s)
+                start = reference.passive if n == reference.n_intervals else None
+                parts = regressions[n].score(s, warm_start=None if start is None else [bool(x) for x in start])
                 weight = sum(w for _, w in parts)
                 scores[(n, s)] = math.sqrt(sum(e for e, _ in parts) / weight) if weight > 0 else math.inf
             except BmrError:
