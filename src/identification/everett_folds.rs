@@ -8,6 +8,7 @@ use alloc::vec::Vec;
 use super::error::IdentificationError;
 use super::everett_fit::{DataTerm, EverettFitOptions, check_options, mass_space_matrix, solve};
 use super::everett_regressors::{EverettGrid, NormalEquations};
+use crate::limits::{self, MAX_CV_FOLDS};
 
 /// One run of an [`EverettFolds`]: as [`super::EverettRun`], with the fold that holds each sample out
 /// (`fold[i] < n_folds`; any larger value: never held out, always in the training part). Samples with weight 0
@@ -68,6 +69,7 @@ impl EverettFolds {
         if n_folds < 2 {
             return Err(IdentificationError::TooFewFolds { folds: n_folds });
         }
+        limits::check("cross-validation folds", n_folds, MAX_CV_FOLDS)?;
         let with_drift = runs.iter().any(|r| !r.drift.is_empty());
         let cols = n_offsets + usize::from(with_drift);
         let mut total = NormalEquations::new(grid, cols)?;

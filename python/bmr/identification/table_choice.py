@@ -50,7 +50,7 @@ ROWS_PER_CELL = 4
 # Regression rows per time block below which the blocks are too short to score (no cross-validation).
 MIN_ROWS_PER_BLOCK = 2
 # The least-squares solver's limit on unknowns (cells, offsets and a drift coefficient).
-MAX_UNKNOWNS = 4096
+MAX_UNKNOWNS = int(_core.LIMITS["everett_unknowns"])
 
 
 @dataclass(frozen=True)
