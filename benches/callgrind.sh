@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Instructions per step, counted by callgrind (stable on a noisy machine): the difference between runs of
 # N1 and N2 steps divided by N2 - N1, so set-up (table building) cancels out.
-# Usage: benches/callgrind.sh [compensator|extended|controller|hysteresis]
+# Usage: benches/callgrind.sh [compensator|extended|controller|closed_loop|hysteresis]
 set -euo pipefail
 cd "$(dirname "$0")/.."
 what="${1:-compensator}"

@@ -68,7 +68,7 @@ SCALED = {"coil_lag": ["tau_s"], "thermal_drift": ["gain_loss"], "friction_curre
           "friction_harmonics": ["amplitude_nmm"], "torque_ripple": ["eps"], "sensor_drift": ["rate_nmm_per_s"],
           "time_delay": ["delay_s"], "non_congruent": ["curvature"], "creep": ["fraction"],
           "rate_dependence": ["tau_s"], "run_gain_offset": ["gain_sd", "offset_sd"], "leakage": ["rate_per_s"],
-          "accommodation": ["kappa"]}
+          "accommodation": ["kappa"], "viscous": ["c"]}
 ACTUATOR_MEDIUM: dict[str, tuple[dict[str, float], str, list[str]]] = {
     name: (params, SCALED[name][0], SCALED[name]) for name, params in MEDIUM_EFFECTS.items()}
 PIEZO_MEDIUM: dict[str, tuple[dict[str, float], str, list[str]]] = {

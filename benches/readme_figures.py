@@ -81,7 +81,7 @@ def measure_performance(repeat: int) -> None:
     values["latency_ns"] = {k: {q: _spread([r[q] for r in v]) for q in ("median", "p99", "p999")}
                             for k, v in latency.items()}
     values["instructions"] = {}
-    for what in ("compensator", "extended", "hysteresis"):
+    for what in ("compensator", "extended", "controller", "closed_loop", "hysteresis"):
         _, _, out = _timed(["bash", "benches/callgrind.sh", what])
         m = re.search(r"(\d+) instructions per step", out)
         values["instructions"][what] = int(m.group(1)) if m else None
@@ -165,10 +165,12 @@ def render_demo(rec: dict[str, Any]) -> str:
     m = v["full"]["metrics"]
     fs = m["full_scale_nmm"]
     rows = ["| case | paper fig | RMS (N·mm) | max (N·mm) | RMS (% FS) | max (% FS) |", "|---|---|---|---|---|---|"]
-    # The paper's order: triangle experiments (figs 18-22), then the multi-peak reference (24-25) and the baselines.
+    # The paper's order: triangle experiments (figs 18-22), then the multi-peak reference (24-25) and the baselines,
+    # then the closed loop on the heating actuator.
     order = ["triangle_current_without_friction_compensation", "triangle_current_with_friction_compensation",
              "triangle_hysteresis_compensation", "multipeak_uncompensated", "multipeak_hysteresis_compensation",
-             "multipeak_both_compensations", "multipeak_both_paper_inverse"]
+             "multipeak_both_compensations", "multipeak_both_paper_inverse", "multipeak_heating_open_loop",
+             "multipeak_heating_controller"]
     cases = sorted(m["cases"].items(), key=lambda kv: (order.index(kv[0]) if kv[0] in order else len(order), kv[0]))
     for _, c in cases:
         fig = c["paper_figure"] if c["paper_figure"][:1].isdigit() else "—"
@@ -202,6 +204,8 @@ def render_performance(rec: dict[str, Any]) -> str:
                     "`cargo bench -p bmr-bench --bench latency` |")
     for what, n in ins.items():
         name = {"compensator": "`Compensator::step`", "extended": "`Compensator::step` with every extension stage",
+                "controller": "`Controller::step` around every extension stage",
+                "closed_loop": "`Controller::step` + `VirtualActuator::step` (closed loop, one sample)",
                 "hysteresis": "`Hysteresis::step`"}[what]
         rows.append(f"| {name} instructions | {n} per step | `benches/callgrind.sh {what}` |")
     cmd = "`python benches/python_peers.py`"

@@ -210,12 +210,19 @@ impl<S: AsRef<[f64]>, const N: usize> Hysteresis<S, N> {
     /// or out-of-range inputs saturate.
     #[inline]
     pub fn step(&mut self, u: f64) -> f64 {
+        self.step_made(u, None)
+    }
+
+    /// [`Self::step`] with the reversal at the current point an exact inverse already built (`made`, pushed if
+    /// this step turns there the same way).
+    #[inline]
+    pub(crate) fn step_made(&mut self, u: f64, made: Option<&Turn>) -> f64 {
         if u.is_nan() {
             return f64::NAN;
         }
         let u = u.clamp(self.lo, self.hi);
         self.fast = None;
-        self.advance(u);
+        self.advance(u, made);
         let y = self.branch_output(u);
         self.state.u = u;
         self.state.y = y;
@@ -231,22 +238,29 @@ impl<S: AsRef<[f64]>, const N: usize> Hysteresis<S, N> {
 
     /// Update the memory for the move from the current input to `u`: a reversal if the direction changes, then
     /// wiping-out of every pair whose closure target the input passes.
+    /// `made`: the reversal at the current point an exact inverse already built (used if it still fits).
     #[inline]
-    pub(crate) fn advance(&mut self, u: f64) {
+    pub(crate) fn advance(&mut self, u: f64, made: Option<&Turn>) {
         let h = &self.state.history;
         let cur = self.state.u;
         if (h.rising() && u < cur) || (!h.rising() && u > cur) {
-            self.turn();
+            self.turn(made);
         }
         self.wipe_out(u);
     }
 
     /// The direction changes at the current point: remember it, unless we never left the newest reversal.
-    pub(crate) fn turn(&mut self) {
+    pub(crate) fn turn(&mut self, made: Option<&Turn>) {
         if self.state.u == self.state.history.top().u && self.state.history.len() > 1 {
             self.state.history.pop(1);
         } else {
-            self.push_reversal();
+            push_reversal_made(
+                &self.asc,
+                &self.desc,
+                &mut self.state,
+                (self.hi, self.y_hi),
+                made,
+            );
         }
     }
 
@@ -523,11 +537,56 @@ pub(crate) fn push_reversal<S: AsRef<[f64]>, const N: usize>(
     st: &mut State<N>,
     saturation: (f64, f64),
 ) {
+    push_reversal_made(asc, desc, st, saturation, None);
+}
+
+/// A reversal at a point, as [`push_reversal`] would make it, with what it was made from: the entry below it and
+/// the direction of its branch. The exact inverse builds it to search the new branch; the commit that follows
+/// pushes it instead of building it again (the strip search and the scale are most of a reversal's cost).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct Turn {
+    pub reversal: Reversal,
+    pub below_u: f64,
+    pub below_y: f64,
+    /// The new branch rises (the reversal is a minimum).
+    pub up: bool,
+}
+
+impl Turn {
+    /// Whether this is bit for bit the reversal [`push_reversal`] makes at `(u, y)` above `below` with the
+    /// history moving `rising` until now: the same point, the same entry below, the strip of the same family and
+    /// the scale towards `below` taken the same way.
+    #[inline]
+    fn fits(&self, u: f64, y: f64, below: &Reversal, rising: bool) -> bool {
+        let r = &self.reversal;
+        self.up != rising
+            && (below.u > u) == self.up
+            && r.u.to_bits() == u.to_bits()
+            && r.y.to_bits() == y.to_bits()
+            && self.below_u.to_bits() == below.u.to_bits()
+            && self.below_y.to_bits() == below.y.to_bits()
+    }
+}
+
+/// [`push_reversal`], taking `made` instead of building the reversal when it fits (see [`Turn::fits`]).
+pub(crate) fn push_reversal_made<S: AsRef<[f64]>, const N: usize>(
+    asc: &Family<S>,
+    desc: &Family<S>,
+    st: &mut State<N>,
+    saturation: (f64, f64),
+    made: Option<&Turn>,
+) {
     if st.history.is_full() {
         merge(asc, desc, &mut st.history, saturation);
     }
     let (u, y) = (st.u, st.y);
     let below = *st.history.top();
+    if let Some(t) = made
+        && t.fits(u, y, &below, st.history.rising())
+    {
+        st.history.push(t.reversal);
+        return;
+    }
     let strip = if st.history.rising() {
         desc.strip(-u)
     } else {

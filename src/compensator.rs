@@ -317,10 +317,10 @@ impl<S: AsRef<[f64]>, const N: usize, const K: usize> Compensator<S, N, K> {
         }
         if matches!(self.inverse, InverseKind::Exact) && !saturated && limited == input {
             // The exact inverse already knows the output: commit without evaluating the branch again.
-            self.forward.commit(input, target, inv.cell, inv.fast);
+            self.forward.commit(input, target, &inv);
             return Command::from_current(input, self.gain_a_per_v, false, false);
         }
-        self.forward.step(limited);
+        self.forward.step_made(limited, inv.turn.as_ref());
         Command::from_current(
             limited,
             self.gain_a_per_v,
@@ -355,6 +355,12 @@ impl<S: AsRef<[f64]>, const N: usize, const K: usize> Compensator<S, N, K> {
         let target = match &self.stages.creep {
             Some(c) => c.input_for(crept),
             None => crept,
+        };
+        // The core output that, with the viscous loss of the input reaching it, gives the target (solved
+        // implicitly: no differenced command).
+        let target = match &self.stages.viscous {
+            Some(v) => v.core_output_for(&self.forward, target),
+            None => target,
         };
         if !target.is_finite() {
             return self.fault();
@@ -400,10 +406,10 @@ impl<S: AsRef<[f64]>, const N: usize, const K: usize> Compensator<S, N, K> {
         }
         let core_out = if exact && matches!(self.inverse, InverseKind::Exact) {
             // Exact means the core reaches `input` (= core_in): the inverse's cell applies.
-            self.forward.commit(core_in, target, inv.cell, inv.fast);
+            self.forward.commit(core_in, target, &inv);
             target
         } else {
-            self.forward.step(core_in)
+            self.forward.step_made(core_in, inv.turn.as_ref())
         };
         self.field_nmm = self.after_core(core_out, core_in);
         Command::from_current(limited, self.gain_a_per_v, !exact, false)
@@ -527,7 +533,8 @@ fn limit(x: f64, limit: f64) -> f64 {
 }
 
 /// First word of a serialised [`CompensatorState`] (format tag and version).
-const STATE_TAG: u64 = 0x626d_725f_636f_0002;
+// Version 3: the stage mask gained `viscous` (between rate dependence and creep), so older words are refused.
+const STATE_TAG: u64 = 0x626d_725f_636f_0003;
 
 #[cfg(feature = "alloc")]
 impl<const N: usize> CompensatorState<N> {

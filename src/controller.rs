@@ -16,8 +16,11 @@
 //! gain, the coil-lag stage leads the lag — and `(g, b)` divides out what is left of a slow gain and offset, so
 //! the loop the integrator closes is a unit gain behind the loop delay `T = (d + 1.5)·dt` (`d` whole samples of
 //! `time_delay`, one sample until the measurement arrives, half a sample of hold). The integral gain is then the
-//! crossover `ωc = ki` along the whole loop, with phase margin `90° − ωc·T`. The proportional part is left out on
-//! purpose: on top of the coil-lag lead it feeds sensor noise straight to the coils and fights the lead.
+//! crossover `ωc = ki` along the whole loop, with phase margin `90° − ωc·T`. The gain is scheduled on the local
+//! slope of the hysteresis by where the correction enters: in torque, ahead of the exact inverse, which divides
+//! it by the slope of the present branch at every sample (flat after a reversal, steep mid-branch); a `ki/slope`
+//! schedule on top would count the slope twice. The proportional part is left out on purpose: on top of the
+//! coil-lag lead it feeds sensor noise straight to the coils and fights the lead.
 //!
 //! Safety: the compensator's invariants hold (never both coils, `|I| ≤ limit`, zero current with `fault` on a
 //! non-finite reference or angle). A non-finite `measured` means no new value: the correction and the adapted
@@ -197,17 +200,11 @@ impl GainOffset {
         let mut p11 = (self.p11 - k1 * px1) * inv_lambda;
         let trace = p00 + p11;
         if trace > COVARIANCE_BOUND {
-            let s = COVARIANCE_BOUND / trace;
-            p00 *= s;
-            p01 *= s;
-            p11 *= s;
+            (p00, p01, p11) = bound_covariance(p00, p01, p11, trace);
         }
-        if !(gain.is_finite()
-            && beta.is_finite()
-            && p00.is_finite()
-            && p01.is_finite()
-            && p11.is_finite())
-        {
+        // One test for all five: a NaN or an infinity in any term makes the sum non-finite (a finite overflow of
+        // the sum only rejects an update the clamps below would have cut anyway).
+        if !(gain + beta + p00 + p01 + p11).is_finite() {
             return; // a degenerate update keeps the last good estimate
         }
         self.gain = gain.clamp(GAIN_RANGE.0, GAIN_RANGE.1);
@@ -216,6 +213,14 @@ impl GainOffset {
         self.p01 = p01;
         self.p11 = p11;
     }
+}
+
+/// The covariance scaled down to the trace bound (rare: only after a long stretch without excitation).
+#[cold]
+#[inline(never)]
+fn bound_covariance(p00: f64, p01: f64, p11: f64, trace: f64) -> (f64, f64, f64) {
+    let s = COVARIANCE_BOUND / trace;
+    (p00 * s, p01 * s, p11 * s)
 }
 
 impl Default for GainOffset {
@@ -268,6 +273,10 @@ pub struct Controller<S, const N: usize, const K: usize> {
     /// Reciprocals of the forgetting factor and the full torque (a multiply per step instead of a division).
     inv_forgetting: f64,
     inv_full_torque: f64,
+    /// Integral step per N·mm of error, `ki·dt` (0 with feedback off).
+    ki_dt: f64,
+    /// Ring positions back from the newest prediction to the one a measurement pairs with.
+    pair_back: usize,
 }
 
 impl<S: AsRef<[f64]>, const N: usize, const K: usize> Controller<S, N, K> {
@@ -282,6 +291,8 @@ impl<S: AsRef<[f64]>, const N: usize, const K: usize> Controller<S, N, K> {
             compensator,
             inv_forgetting: 1.0 / design.forgetting,
             inv_full_torque: 1.0 / design.full_torque_nmm,
+            ki_dt: design.ki_per_s * design.dt_s,
+            pair_back: design.delay_samples.min(PREDICTION_HISTORY - 1),
             design,
             state: LoopState {
                 adaptation_frozen: !settings.adaptation,
@@ -333,13 +344,12 @@ impl<S: AsRef<[f64]>, const N: usize, const K: usize> Controller<S, N, K> {
         let mut increment = 0.0;
         if measured_nmm.is_finite() {
             st.missing = 0;
-            if st.reference_prev.is_finite() && d.feedback {
-                increment = d.ki_per_s * d.dt_s * (st.reference_prev - measured_nmm);
+            if st.reference_prev.is_finite() {
+                increment = self.ki_dt * (st.reference_prev - measured_nmm);
             }
             if !st.adaptation_frozen {
                 // The prediction of the sample measured: made `delay_samples` steps before the last one.
-                let back = d.delay_samples.min(PREDICTION_HISTORY - 1);
-                let i = (st.head + PREDICTION_HISTORY - back) % PREDICTION_HISTORY;
+                let i = (st.head + PREDICTION_HISTORY - self.pair_back) % PREDICTION_HISTORY;
                 let predicted = st.predictions[i];
                 if predicted.is_finite() {
                     let inv_scale = self.inv_full_torque;
@@ -357,7 +367,13 @@ impl<S: AsRef<[f64]>, const N: usize, const K: usize> Controller<S, N, K> {
         }
         st.reference_prev = reference_nmm;
         let limit = d.correction_limit_nmm;
-        let correction = (st.correction + increment).clamp(-limit, limit);
+        // Two compares (a NaN passes through and is not kept below), not `clamp`'s ordering assertion.
+        let mut correction = st.correction + increment;
+        if correction > limit {
+            correction = limit;
+        } else if correction < -limit {
+            correction = -limit;
+        }
         let faulted = st.missing >= d.fault_after;
         let est = st.estimate;
         let target = if faulted {

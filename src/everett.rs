@@ -266,7 +266,8 @@ impl<S: AsRef<[f64]>> Family<S> {
         let lambda = ((m - r_j) / (r_next - r_j)).clamp(0.0, 1.0);
         // Reversals and the range end are exact grid nodes (validated).
         let k_j = g.partition_point(|&x| x < r_j);
-        let k_next = g.partition_point(|&x| x < r_next);
+        // r_next >= r_j: every node before k_j is below it too.
+        let k_next = k_j + g[k_j..].partition_point(|&x| x < r_next);
         let t_j = self.row(j)[k_next];
         let row_j = self.nodes + self.curves + j * self.nodes;
         let tri = if lambda == 0.0 {

@@ -5,7 +5,7 @@
 //! down the memory levels of that direction until one's output range holds the target (what wiping-out would
 //! do), and invert that one branch in closed form inside a table cell. `forward(inverse(T)) = T` to round-off
 //! for every reachable `T`; unreachable targets saturate at the input range and are flagged. No allocation.
-use crate::cbh::{Hysteresis, branch_scale, push_reversal};
+use crate::cbh::{Hysteresis, Turn, branch_scale, push_reversal};
 use crate::everett::{Hit, Strip};
 use crate::history::Reversal;
 
@@ -20,6 +20,8 @@ pub struct InverseInput {
     pub(crate) cell: Option<usize>,
     /// What the answer does to the shortcut (see [`FastBranch`]).
     pub(crate) fast: Shortcut,
+    /// The reversal at the current point the search built for a turning answer (the commit pushes it).
+    pub(crate) turn: Option<Turn>,
 }
 
 /// What an inverse's answer does to the operator's shortcut once committed.
@@ -88,6 +90,7 @@ impl InverseInput {
             saturated,
             cell: None,
             fast: Shortcut::None,
+            turn: None,
         }
     }
 }
@@ -135,6 +138,7 @@ impl<S: AsRef<[f64]>, const N: usize> Hysteresis<S, N> {
                 saturated: false,
                 cell: Some(f.cell),
                 fast: Shortcut::Kept,
+                turn: None,
             };
         }
         let up = target > y_c;
@@ -155,6 +159,7 @@ impl<S: AsRef<[f64]>, const N: usize> Hysteresis<S, N> {
             &st.history
         };
         let len = h.len();
+        let mut turn = None;
         let virtual_entry;
         let (mut level, mut below): (&Reversal, usize) = if up == h.rising() {
             (h.top(), len - 1)
@@ -162,7 +167,14 @@ impl<S: AsRef<[f64]>, const N: usize> Hysteresis<S, N> {
             // Never left the newest reversal: turning back just continues the branch below it.
             (h.get(len - 2), len - 2)
         } else {
-            virtual_entry = self.new_reversal_at(u_c, y_c, h.top(), up);
+            let top = h.top();
+            virtual_entry = self.new_reversal_at(u_c, y_c, top, up);
+            turn = Some(Turn {
+                reversal: virtual_entry,
+                below_u: top.u,
+                below_y: top.y,
+                up,
+            });
             (&virtual_entry, len)
         };
         // Where the answer may start: the current input on the first level, the input of the entry wiped out to
@@ -212,6 +224,7 @@ impl<S: AsRef<[f64]>, const N: usize> Hysteresis<S, N> {
                     saturated: false,
                     cell: hit.map(|h| h.0.cell),
                     fast,
+                    turn,
                 };
             }
             if below < 2 {
@@ -303,15 +316,17 @@ impl<S: AsRef<[f64]>, const N: usize> Hysteresis<S, N> {
                 self.step(inv.input);
             }
         } else {
-            self.commit(inv.input, target, inv.cell, inv.fast);
+            self.commit(inv.input, target, &inv);
         }
         inv
     }
 
     /// Apply input `u` whose output `y` is already known (from the exact inverse): the memory update of `step`
     /// without evaluating the branch again.
-    #[inline]
-    pub(crate) fn commit(&mut self, u: f64, y: f64, cell: Option<usize>, fast: Shortcut) {
+    /// `inv`: the inverse's answer it comes from (its cell, shortcut and turn).
+    #[inline(always)]
+    pub(crate) fn commit(&mut self, u: f64, y: f64, inv: &InverseInput) {
+        let (cell, fast) = (inv.cell, inv.fast);
         // Inside the range already (the inverse's answers are); NaN never reaches here.
         let u = if u < self.lo {
             self.lo
@@ -320,7 +335,15 @@ impl<S: AsRef<[f64]>, const N: usize> Hysteresis<S, N> {
         } else {
             u
         };
-        self.advance(u);
+        // An answer from the shortcut moves along the newest branch its way, so it cannot turn; strictly before the
+        // branch's closure target it wipes nothing out either, and the memory update is a no-op.
+        let on_branch = matches!(fast, Shortcut::Kept)
+            && self
+                .fast
+                .is_some_and(|f| if f.up { u < f.end_u } else { u > f.end_u });
+        if !on_branch {
+            self.advance(u, inv.turn.as_ref());
+        }
         // Keep the search hint on the input's cell: the next inverse starts there (the inverse usually knows it).
         let st = &mut self.state;
         let hint = if st.history.rising() {
@@ -345,5 +368,57 @@ impl<S: AsRef<[f64]>, const N: usize> Hysteresis<S, N> {
             Shortcut::New(f) if f.len == st.history.len() => self.fast = Some(f),
             _ => self.fast = None,
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use crate::{BuildOptions, Hysteresis, Initial};
+    use preisach_plant::{Rng, measure_first_order};
+
+    /// The reversal the inverse built and the commit or step pushes is the one `push_reversal` would build: two
+    /// operators driven alike, one given the inverse's answers whole and one with their reversal dropped, stay
+    /// equal to the bit. The targets jitter around a slow ramp (a reversal every few samples) and some steps go
+    /// to a limited input instead of the answer (the compensator's limited path), through merges of a full memory.
+    #[test]
+    fn reusing_the_inverse_s_reversal_changes_no_bit() {
+        let (asc, desc) = measure_first_order(40, 9);
+        let (a, d): (Vec<_>, Vec<_>) = (asc, desc);
+        let mut with = Hysteresis::<Vec<f64>, 8>::from_curve_data(
+            &a,
+            &d,
+            &BuildOptions::default(),
+            Initial::Negative,
+        )
+        .unwrap();
+        let mut without = with.clone();
+        let (lo, hi) = with.output_range();
+        let mut rng = Rng(7);
+        let mut turns = 0;
+        for i in 0..20_000 {
+            let slow = 0.8 * libm::sin(i as f64 * 0.003);
+            let target = lo + (hi - lo) * (0.5 + 0.5 * slow + 0.02 * (rng.uniform() - 0.5));
+            let inv = with.inverse_input(target);
+            let mut bare = inv;
+            bare.turn = None;
+            turns += usize::from(inv.turn.is_some());
+            if i % 7 == 3 || inv.saturated {
+                let u = 0.97 * inv.input;
+                with.step_made(u, inv.turn.as_ref());
+                without.step(u);
+            } else {
+                with.commit(inv.input, target, &inv);
+                without.commit(inv.input, target, &bare);
+            }
+            assert_eq!(
+                with.snapshot().to_words(),
+                without.snapshot().to_words(),
+                "sample {i}"
+            );
+        }
+        assert!(
+            turns > 2_000,
+            "only {turns} turning answers: the test does not exercise the reuse"
+        );
     }
 }

@@ -47,6 +47,7 @@ pub mod stages;
 #[cfg(feature = "alloc")]
 pub mod table_builder;
 pub mod trig;
+pub mod viscous;
 pub mod vocabulary;
 
 pub use cbh::{Hysteresis, Initial, State};

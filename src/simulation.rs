@@ -3,7 +3,7 @@
 //! diagnosis, predictions and the compensator agree on what the model is.
 //!
 //! Per sample: `coil current = delay(command)`, `field current = coil_lag(coil current)`, `core =
-//! creep(H(rate_dependence(field current)))`, `field torque = (output_map(core) + accommodation shift along the
+//! creep(H(rate_dependence(field current)) + c·d(core input)/dt)` (the `viscous` loss), `field torque = (output_map(core) + accommodation shift along the
 //! core input) ×
 //! (1 − gain_loss·x(coil current)) × (1 + eps cos(θ + φ))`, `torque = field torque + friction(θ, |field
 //! current|)`, and the measurement adds the sensor offset, drift and the leakage integral of the coil current.
@@ -136,6 +136,9 @@ impl<S: AsRef<[f64]>, D: AsRef<[f64]> + AsMut<[f64]>, const N: usize, const K: u
             }
             if let Some(c) = &mut self.stages.creep {
                 c.reset(core_out);
+            }
+            if let Some(v) = &mut self.stages.viscous {
+                v.reset(current_a);
             }
             self.last_coil = current_a;
         }

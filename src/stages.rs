@@ -3,14 +3,15 @@
 //!
 //! The forward chain (the extended simulation, [`crate::simulation`]) is
 //!
-//! `command → time_delay → coil_lag → rate_dependence → CBH core → creep → non_congruent output map
+//! `command → time_delay → coil_lag → rate_dependence → CBH core + viscous loss → creep → non_congruent output map
 //! → + accommodation shift → × thermal gain × ripple gain → + friction(θ, |field current|)`
 //! (`friction_harmonics` and `friction_current` live in the one [`crate::friction::Friction`]),
 //!
 //! and the compensator ([`crate::compensator`]) walks it backwards once per step:
 //!
 //! `reference (time_delay: taken delay ahead) − friction → ÷ (thermal gain × ripple gain) − accommodation
-//! shift → output-map inverse → creep inverse → CBH inverse → rate-dependence inverse → coil_lag lead (limited)
+//! shift → output-map inverse → creep inverse → implicit viscous solve → CBH inverse → rate-dependence inverse →
+//! coil_lag lead (limited)
 //! → command`.
 //!
 //! `creep` ([`crate::creep::Creep`]), `rate_dependence` ([`crate::rate_dependence::RateDependence`]) and
@@ -31,6 +32,7 @@ use crate::creep::{Creep, MAX_CREEP_TERMS};
 use crate::filters::{DelayLine, Heating, Lag};
 use crate::friction::{AngleTerms, FrictionError};
 use crate::rate_dependence::RateDependence;
+use crate::viscous::Viscous;
 use crate::vocabulary::{EffectKind, Params};
 use core::fmt;
 
@@ -312,7 +314,7 @@ impl OutputMap {
     }
 
     /// Cell `k` (nodes `k`, `k+1`) holding `v` in `xs`: the last node `≤ v`, within `0..len−1` (ends extend).
-    #[inline]
+    #[inline(always)]
     fn cell(xs: &[f64], v: f64, hint: usize) -> usize {
         let last = xs.len() - 2;
         let h = hint.min(last);
@@ -712,6 +714,7 @@ stage_list! {
     time_delay: Predictor,
     coil_lag: CoilLag,
     rate: RateDependence,
+    viscous: Viscous,
     creep: Creep,
     output_map: OutputMap,
     accommodation: Accommodation,
@@ -881,6 +884,13 @@ impl Stages {
                         st.rate = RateDependence::new(v[0], dy / du, dt_s, du, lo, 0.0);
                     }
                 }
+                EffectKind::Viscous => {
+                    if v[0] > 0.0 {
+                        st.viscous = Some(Viscous::new(v[0], dt_s, 0.0).ok_or(
+                            StageError::Scale("viscous loss per sample (c/dt)", v[0] / dt_s),
+                        )?);
+                    }
+                }
                 EffectKind::Accommodation => {
                     let (du, _) = scales.spans()?;
                     let (lo, hi) = scales.input_range;
@@ -904,14 +914,18 @@ impl Stages {
 }
 
 impl Stages {
-    /// Advance the stages after the hysteretic core (rate dependence observes the core, then creep, the output
-    /// map and accommodation) for the core output `core_nmm` reached at core input `core_a`; the field torque
+    /// Advance the stages after the hysteretic core (rate dependence observes the core, the viscous loss of the
+    /// core input adds to its output, then creep, the output map and accommodation) for the core output `core_nmm` reached at core input `core_a`; the field torque
     /// before the gains. One chain for the compensator's forward model and the extended simulation.
-    #[inline]
+    #[inline(always)]
     pub fn after_core(&mut self, core_nmm: f64, core_a: f64) -> f64 {
         if let Some(r) = &mut self.rate {
             r.observe(core_nmm);
         }
+        let core_nmm = match &mut self.viscous {
+            Some(v) => core_nmm + v.step(core_a),
+            None => core_nmm,
+        };
         let crept = match &mut self.creep {
             Some(c) => c.step(core_nmm),
             None => core_nmm,

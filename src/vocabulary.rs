@@ -185,25 +185,25 @@ vocabulary! {
          the current rate; loops widen with frequency.",
         [p("tau_s", "s", 0.02, 0.0, 10.0, "first-order field time constant")];
     ThermalDrift = "thermal_drift", Field,
-        stage(7, PERIOD, "coil heating state (1 = steady full current)"), NO_ANGLE,
+        stage(8, PERIOD, "coil heating state (1 = steady full current)"), NO_ANGLE,
         "Coil heating lowers the torque gain: a thermal state driven by (I/I_full)^2 with time constant tau_s \
          scales the field torque by (1 - gain_loss * state). Signature: slow multiplicative drift.",
         [p("gain_loss", "1", 0.08, -0.9, 0.9,
            "fractional torque-gain loss at steady full current (negative: the gain rises)"),
          p("tau_s", "s", 120.0, 1e-3, 1e6, "thermal time constant")];
     FrictionCurrent = "friction_current", Friction,
-        stage(10, PERIOD, "smoothed |field current| (A)"), ON_ANGLE,
+        stage(11, PERIOD, "smoothed |field current| (A)"), ON_ANGLE,
         "Seal friction grows with current (magnetic pull on the seals): the angle-dependent friction is scaled \
          by (1 + gain_per_a * |I|). Signature: angle ripple whose size grows with |current|.",
         [p("gain_per_a", "1/A", 0.6, -0.5, 100.0,
            "relative growth of the angle-dependent friction per ampere of |I|")];
-    FrictionHarmonics = "friction_harmonics", Friction, stage(9, NO_PERIOD, ""), ON_ANGLE,
+    FrictionHarmonics = "friction_harmonics", Friction, stage(10, NO_PERIOD, ""), ON_ANGLE,
         "A friction harmonic above the 3rd (gear mesh, seal lobes): amplitude_nmm * sin(order * theta + \
          phase_rad). Signature: a periodogram line at order cycles/rev.",
         [whole(p("order", "cycles/rev", 5.0, 4.0, MAX_HARMONIC as f64, "harmonic number k (a whole number)")),
          p("amplitude_nmm", "N·mm", 6.0, -1e4, 1e4, "amplitude"),
          p("phase_rad", "rad", 0.0, -1e3, 1e3, "phase")];
-    TorqueRipple = "torque_ripple", Field, stage(8, NO_PERIOD, ""), ON_ANGLE,
+    TorqueRipple = "torque_ripple", Field, stage(9, NO_PERIOD, ""), ON_ANGLE,
         "Eccentric gap: the field torque is multiplied by (1 + eps * cos(theta + phase_rad)). Signature: angle \
          ripple proportional to |torque|.",
         [p("eps", "1", 0.05, 0.0, 0.9, "relative field-torque modulation"),
@@ -217,7 +217,7 @@ vocabulary! {
         "Pure delay of delay_s (rounded to whole samples) between the commanded current and the coils. \
          Signature: residual proportional to rate, no loop widening with amplitude.",
         [p("delay_s", "s", 0.01, 0.0, 1.0, "command-to-coil delay")];
-    NonCongruent = "non_congruent", Field, stage(5, NO_PERIOD, ""), NO_ANGLE,
+    NonCongruent = "non_congruent", Field, stage(6, NO_PERIOD, ""), NO_ANGLE,
         "Extra output nonlinearity after the Preisach core: the field torque T becomes S * n (1 + curvature \
          |n|) / (1 + curvature) with n = T / S and S the full-scale torque. Signature: error only after \
          higher-order reversals (minor loops scale with the local slope).",
@@ -226,7 +226,7 @@ vocabulary! {
          zero_or_at_least(1e-3, p("scale_nmm", "N·mm", 0.0, 0.0, 1e9,
            "full-scale torque S (0: the actuator's own — the plant's full_torque_nmm per rotor, a model's \
             largest |torque|; else at least 1e-3)"))];
-    Creep = "creep", Field, stage(4, PERIOD, "the relaxations' outputs (output units)"), NO_ANGLE,
+    Creep = "creep", Field, stage(5, PERIOD, "the relaxations' outputs (output units)"), NO_ANGLE,
         "After every change of the output (a reversal, a step, a dwell) a share of the change keeps arriving: the \
          magnetic after-effect of steel, the creep of a piezo stack. The core output v is the equilibrium and \
          y = v + fraction * sum_i w_i (x_i - v) with x_i first-order lags of v, time constants spaced evenly in \
@@ -256,13 +256,23 @@ vocabulary! {
          the run. Signature: residual that follows the running integral of the input.",
         [p("rate_per_s", "N·mm/(A·s)", 1.0, -1e6, 1e6, "output added per unit of input-time (output/(input·s))")];
     Accommodation = "accommodation", Field,
-        stage(6, NO_PERIOD, "reversal memory (input, output units) and the shift (output units)"), NO_ANGLE,
+        stage(7, NO_PERIOD, "reversal memory (input, output units) and the shift (output units)"), NO_ANGLE,
         "Minor loops drift over repeated cycling between the same extremes (accommodation, reptation): once the \
          input has reversed twice since a saturation, the output carries a shift that relaxes, per loop cycle, \
          towards -kappa * (loop centre - output-range centre), settling in `cycles` cycles; a saturation wipes \
          it out. Signature: repeated minor loops that do not close, drifting towards the middle.",
         [p("kappa", "1", 0.05, -0.9, 0.9, "share of the loop centre's distance from the middle it drifts"),
          p("cycles", "1", 3.0, 0.1, 1e4, "loop cycles to settle (e-folding)")];
+    Viscous = "viscous", Field, stage(4, PERIOD, "the core input of the last sample (input units)"), NO_ANGLE,
+        "A loss proportional to the input's rate adds to the hysteretic core's output: y = H(u) + c * du/dt (the \
+         viscous shear of an MR fluid driven by a displacement, the damping of a stage), independent of the \
+         loop's local slope. The compensator solves the one-step implicit (backward Euler) equation \
+         H(u_k) + c (u_k - u_(k-1)) / dt = y_ref instead of differencing the command. A loss never feeds \
+         energy in: c >= 0. Signature: loop width that grows in proportion to the drive rate across runs of \
+         different speed, the same on steep and saturated branches; a time shift (time_delay, coil_lag) does \
+         not explain it, as it moves the loop tips too.",
+        [p("c", "N·mm·s/A", 4.0, 0.0, 1e9,
+           "output per unit of input rate (output units per input unit per second; 0 = off)")];
 }
 
 /// Entries of a model file's `extensions` list that are not physical effects.

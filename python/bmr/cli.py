@@ -127,9 +127,10 @@ def _parser() -> argparse.ArgumentParser:
     r.add_argument("--calibration", type=int, metavar="N",
                    help="leading samples of each run used to calibrate it, not scored (default: 1 with --offset "
                         "first, else 0)")
-    r.add_argument("--initial", choices=("negative", "positive", "estimate"), default="negative",
-                   help="each run's initial state: a saturation, or estimated from its calibration samples (the "
-                        "whole run without any) (default: negative)")
+    r.add_argument("--initial", choices=("negative", "positive", "estimate", "continue"), default="negative",
+                   help="each run's initial state: a saturation, estimated from its calibration samples (the "
+                        "whole run without any), or continuing the bundle's measurement history: the state the "
+                        "model holds after every earlier run's input, from the history's start (default: negative)")
     r.add_argument("--evaluate", choices=("known", "all"), default="known",
                    help="score from where the run's state is known (after both saturation ends) or all samples "
                         "(default: known)")

@@ -68,6 +68,9 @@ pub enum Effect {
         kappa: f64,
         cycles: f64,
     },
+    Viscous {
+        c: f64,
+    },
 }
 
 impl Effect {
@@ -86,6 +89,7 @@ impl Effect {
             Effect::RunGainOffset { .. } => EffectKind::RunGainOffset,
             Effect::Leakage { .. } => EffectKind::Leakage,
             Effect::Accommodation { .. } => EffectKind::Accommodation,
+            Effect::Viscous { .. } => EffectKind::Viscous,
         }
     }
 
@@ -151,6 +155,7 @@ impl Effect {
                 kappa: v[0],
                 cycles: v[1],
             },
+            EffectKind::Viscous => Effect::Viscous { c: v[0] },
         })
     }
 
@@ -181,6 +186,7 @@ impl Effect {
             Effect::RunGainOffset { gain_sd, offset_sd } => vec![gain_sd, offset_sd],
             Effect::Leakage { rate_per_s } => vec![rate_per_s],
             Effect::Accommodation { kappa, cycles } => vec![kappa, cycles],
+            Effect::Viscous { c } => vec![c],
         };
         self.kind()
             .params()

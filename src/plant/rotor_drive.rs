@@ -95,7 +95,13 @@ impl RotorDrive {
     /// Advance one sample period.
     #[inline]
     pub fn advance(&mut self) {
-        let next = self.theta_rad + self.speed_rad_s() * self.dt_s;
+        self.advance_at(self.speed_rad_s());
+    }
+
+    /// [`Self::advance`] with the speed of the present angle (`speed_rad_s()`) already computed this sample.
+    #[inline]
+    pub fn advance_at(&mut self, speed_rad_s: f64) {
+        let next = self.theta_rad + speed_rad_s * self.dt_s;
         self.theta_rad = wrap(next);
     }
 }

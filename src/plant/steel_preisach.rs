@@ -192,7 +192,8 @@ impl Everett {
     #[inline]
     fn locate(&self, v: f64) -> (usize, f64) {
         let z = ((v - self.lo) / self.h).clamp(0.0, (self.n - 1) as f64);
-        let i = (z as usize).min(self.n - 2);
+        // `z` is clamped to [0, n − 1]: the signed conversion is exact there and cheaper than the unsigned one.
+        let i = (z as i64 as usize).min(self.n - 2);
         (i, z - i as f64)
     }
 }

@@ -275,6 +275,8 @@ struct ActiveEffects {
     leak_per_s: f64,
     /// Minor-loop accommodation: (kappa, cycles).
     accommodation: Option<(f64, f64)>,
+    /// `viscous`: loss torque per unit of field-current rate (N·mm·s/A).
+    viscous_c: f64,
 }
 
 impl ActiveEffects {
@@ -295,6 +297,7 @@ impl ActiveEffects {
             run_gain_offset: None,
             leak_per_s: 0.0,
             accommodation: None,
+            viscous_c: 0.0,
         };
         for e in set.iter() {
             match *e {
@@ -332,6 +335,7 @@ impl ActiveEffects {
                 }
                 Effect::Leakage { rate_per_s } => a.leak_per_s = rate_per_s,
                 Effect::Accommodation { kappa, cycles } => a.accommodation = Some((kappa, cycles)),
+                Effect::Viscous { c } => a.viscous_c = c,
             }
         }
         a
@@ -368,6 +372,8 @@ pub struct VirtualActuator {
     /// Integral of the applied command since the run's start (`leakage`), A·s, and the last applied command.
     leak_integral: f64,
     last_applied: f64,
+    /// The nominal field current the steel saw at the last sample (A; `viscous`).
+    last_core_a: f64,
     /// This run's sensor calibration (`run_gain_offset`) and the stream it is drawn from.
     run_gain: f64,
     run_offset_nmm: f64,
@@ -433,6 +439,7 @@ impl VirtualActuator {
             accommodation,
             leak_integral: 0.0,
             last_applied: 0.0,
+            last_core_a: 0.0,
             run_gain,
             run_offset_nmm,
             calibration_rng,
@@ -505,6 +512,7 @@ impl VirtualActuator {
         self.accommodation.iter_mut().for_each(|a| a.reset());
         self.leak_integral = 0.0;
         self.last_applied = 0.0;
+        self.last_core_a = 0.0;
         self.calibration_rng = calibration_stream(self.seed);
         (self.run_gain, self.run_offset_nmm) =
             draw_run_calibration(self.fx.run_gain_offset, &mut self.calibration_rng);
@@ -549,6 +557,7 @@ impl VirtualActuator {
             };
             self.heating.set_state(cooled);
             self.last_applied = 0.0;
+            self.last_core_a = 0.0;
             // A finite rest moves the clock (drift continues); beyond 2^52 samples it counts as settled.
             if periods.is_finite() && periods < 4.5e15 {
                 self.index += libm::round(periods) as u64;
@@ -592,6 +601,9 @@ impl VirtualActuator {
         }
         if let Some(a) = &self.accommodation {
             w.extend(a.state().map(f64::to_bits));
+        }
+        if self.fx.viscous_c > 0.0 {
+            f(&mut w, self.last_core_a);
         }
         self.drive.save_state(&mut w);
         self.rng.save_state(&mut w);
@@ -658,6 +670,9 @@ impl VirtualActuator {
             if !a.set_state(&v) {
                 return Err(PlantError::BadState("accommodation state"));
             }
+        }
+        if self.fx.viscous_c > 0.0 {
+            next.last_core_a = r.float()?;
         }
         next.drive.load_state(&mut r)?;
         next.rng.load_state(&mut r)?;
@@ -757,11 +772,17 @@ impl VirtualActuator {
             .viscous_torque_nmm(fluid.viscosity_pa_s, speed_rad_s);
         // Both rotors turn at the same speed in opposite directions: their viscous drags oppose.
         let mut field = (yield2 + viscous_nmm) - (yield1 + viscous_nmm);
+        // The field the steel sees: the coils' core inputs recombined as a nominal current.
+        let core1 = self.rate1.as_ref().map_or(field1_a, |r| r.core_input());
+        let core2 = self.rate2.as_ref().map_or(field2_a, |r| r.core_input());
+        let core_a = core2 - core1;
+        // `viscous`: a loss torque of that current's rate (backward difference over the sample).
+        if self.fx.viscous_c > 0.0 {
+            field += self.fx.viscous_c * (core_a - self.last_core_a) / self.dt_s;
+        }
+        self.last_core_a = core_a;
         if let Some(a) = self.accommodation.as_mut() {
-            // Along the field the steel sees: the coils' core inputs recombined as a nominal current.
-            let core1 = self.rate1.as_ref().map_or(field1_a, |r| r.core_input());
-            let core2 = self.rate2.as_ref().map_or(field2_a, |r| r.core_input());
-            field += a.step(core2 - core1, field);
+            field += a.step(core_a, field);
         }
 
         if self.fx.thermal_loss != 0.0 {
@@ -783,7 +804,7 @@ impl VirtualActuator {
             + self.run_offset_nmm;
         let torque_nmm = self.config.sensor.measure(sensed, drift, &mut self.rng);
 
-        self.drive.advance();
+        self.drive.advance_at(speed_rad_s);
         self.index += 1;
         Sample {
             t_s,

@@ -61,8 +61,9 @@ impl From<ControllerDesign> for PyControllerDesign {
 impl PyControllerDesign {
     fn __repr__(&self) -> String {
         format!(
-            "ControllerDesign(bandwidth_hz={:.4}, ki_per_s={:.4}, phase_margin_deg={:.2}, loop_delay_s={}, \
-             coil_lag_s={}, delay_samples={}, feedback={})",
+            "ControllerDesign(asked_hz={}, bandwidth_hz={:.4}, ki_per_s={:.4}, phase_margin_deg={:.2}, \
+             loop_delay_s={}, coil_lag_s={}, delay_samples={}, feedback={})",
+            self.asked_hz,
             self.bandwidth_hz,
             self.ki_per_s,
             self.phase_margin_deg,

@@ -209,6 +209,7 @@ struct StageDraw {
     creep_fraction: f64,
     rate_tau_s: f64,
     kappa: f64,
+    viscous_c: f64,
 }
 
 fn stage_draw() -> impl Strategy<Value = StageDraw> {
@@ -216,14 +217,14 @@ fn stage_draw() -> impl Strategy<Value = StageDraw> {
         (0.0f64..0.1, 0usize..12, -0.5f64..0.9, 0.01f64..100.0),
         (0.0f64..0.9, -4.0f64..4.0, -0.45f64..5.0),
         (-0.5f64..5.0, 4u32..25, -50.0f64..50.0),
-        (0.0f64..0.2, 0.0f64..0.02, -0.3f64..0.3),
+        (0.0f64..0.2, 0.0f64..0.02, -0.3f64..0.3, 0.0f64..5.0),
     )
         .prop_map(
             |(
                 (tau_s, delay_samples, gain_loss, heat_tau_s),
                 (eps, ripple_phase, curvature),
                 (gain_per_a, order, amplitude),
-                (creep_fraction, rate_tau_s, kappa),
+                (creep_fraction, rate_tau_s, kappa, viscous_c),
             )| StageDraw {
                 tau_s,
                 delay_samples,
@@ -238,6 +239,7 @@ fn stage_draw() -> impl Strategy<Value = StageDraw> {
                 creep_fraction,
                 rate_tau_s,
                 kappa,
+                viscous_c,
             },
         )
 }
@@ -279,6 +281,7 @@ fn effects(d: &StageDraw) -> Vec<Params> {
             EffectKind::Accommodation,
             &[("kappa", d.kappa), ("cycles", 2.0)],
         ),
+        p(EffectKind::Viscous, &[("c", d.viscous_c)]),
     ]
 }
 
@@ -437,6 +440,7 @@ fn extended_compensator_inverts_the_extended_simulation() {
         creep_fraction: 0.05,
         rate_tau_s: 0.005,
         kappa: 0.1,
+        viscous_c: 2.0,
     };
     // With every stage on the error is what the estimated current of the current-dependent friction leaves
     // (smoothed over 10 ms: 0.3/A × ~37 N·mm × its lag); the plant's noise floor is ~1.5 N·mm.
@@ -454,6 +458,7 @@ fn extended_compensator_inverts_the_extended_simulation() {
         creep_fraction: 0.0,
         rate_tau_s: 0.0,
         kappa: 0.0,
+        viscous_c: 0.0,
         ..d.clone()
     };
     let alone = [
@@ -485,6 +490,10 @@ fn extended_compensator_inverts_the_extended_simulation() {
             rate_tau_s: 0.005,
             ..off.clone()
         },
+        StageDraw {
+            viscous_c: 2.0,
+            ..off.clone()
+        },
     ];
     for s in &alone {
         let e = inversion_error(s);
@@ -497,6 +506,58 @@ fn extended_compensator_inverts_the_extended_simulation() {
         ..off.clone()
     });
     assert!(acc < 0.05, "accommodation alone: {acc} N·mm");
+}
+
+#[test]
+fn the_viscous_stage_damps_reference_noise_instead_of_differencing_it() {
+    // Compensating y = H(u) + c·du/dt by differencing the command would multiply reference noise by c/dt; the
+    // implicit solve divides a reference step by (branch slope + c/dt): the command's sample-to-sample steps
+    // shrink as c grows, and the model torque still meets the reference to round-off.
+    let steps = |c_loss: f64| -> (f64, f64) {
+        let d = StageDraw {
+            tau_s: 0.0,
+            delay_samples: 0,
+            gain_loss: 0.0,
+            heat_tau_s: 5.0,
+            eps: 0.0,
+            ripple_phase: 0.0,
+            curvature: 0.0,
+            gain_per_a: 0.0,
+            order: 5,
+            amplitude: 0.0,
+            creep_fraction: 0.0,
+            rate_tau_s: 0.0,
+            kappa: 0.0,
+            viscous_c: c_loss,
+        };
+        let mut c = extended(false, 1.25, &d);
+        let mut rng = common::Rng(5);
+        let (mut last, mut sq, mut worst, mut n) = (f64::NAN, 0.0, 0.0f64, 0.0);
+        for i in 0..4000 {
+            let t = i as f64 * DT;
+            let r = 150.0 * (2.0 * t).sin() + 5.0 * (rng.uniform() - 0.5);
+            let cmd = c.step(r, 0.0);
+            if i > 500 {
+                sq += (cmd.current_a - last).powi(2);
+                n += 1.0;
+                if !cmd.saturated {
+                    worst = worst.max((c.model_torque_nmm() - r).abs());
+                }
+            }
+            last = cmd.current_a;
+        }
+        ((sq / n).sqrt(), worst)
+    };
+    let (plain, _) = steps(0.0);
+    let (damped, worst) = steps(2.0);
+    assert!(
+        damped < 0.5 * plain,
+        "command steps {damped} A with the loss, {plain} A without"
+    );
+    assert!(
+        worst < 1e-8,
+        "model torque off the reference by {worst} N·mm"
+    );
 }
 
 fn inversion_error(d: &StageDraw) -> f64 {

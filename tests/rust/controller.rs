@@ -93,6 +93,9 @@ struct Run {
     current: Vec<f64>,
     error: Vec<f64>,
     commands: Vec<bmr::Command>,
+    /// The plant's output gain at each step (sensor gain × the heating's field gain) and the adapted one.
+    true_gain: Vec<f64>,
+    adapted_gain: Vec<f64>,
 }
 
 /// Drive the plant for `refs`; `drop(i)`: the measurement of step `i` is missing.
@@ -117,6 +120,7 @@ fn run(ctl: &mut Ctl, plant: Plant, refs: &[f64], drop: impl Fn(usize) -> bool) 
     let mut rng = common::Rng(11);
     let mut measured = f64::NAN;
     let (mut current, mut error, mut commands) = (vec![], vec![], vec![]);
+    let (mut true_gain, mut adapted_gain) = (vec![], vec![]);
     let n = refs.len();
     for (i, &r) in refs.iter().enumerate() {
         let theta = 0.5 * i as f64 * DT;
@@ -124,6 +128,9 @@ fn run(ctl: &mut Ctl, plant: Plant, refs: &[f64], drop: impl Fn(usize) -> bool) 
         let c = ctl.step(r, theta, m);
         let s = sim.step(c.current_a, theta);
         let g = plant.gain + (plant.gain_end - plant.gain) * (2.0 * i as f64 / n as f64).min(1.0);
+        let heating_gain = sim.stages().thermal.map_or(1.0, |t| t.gain());
+        true_gain.push(g * heating_gain);
+        adapted_gain.push(ctl.gain());
         // Gaussian-like noise (sum of 4 uniforms, unit variance) of NOISE_NMM.
         let z: f64 = (0..4).map(|_| rng.uniform() - 0.5).sum::<f64>() * 3f64.sqrt();
         measured = g * s.torque_nmm + plant.offset_nmm + NOISE_NMM * z;
@@ -139,6 +146,8 @@ fn run(ctl: &mut Ctl, plant: Plant, refs: &[f64], drop: impl Fn(usize) -> bool) 
         current,
         error,
         commands,
+        true_gain,
+        adapted_gain,
     }
 }
 
@@ -258,6 +267,57 @@ fn the_adapted_gain_finds_a_hidden_drift() {
     assert_eq!(ctl.gain(), g);
     ctl.reset_adaptation();
     assert_eq!((ctl.gain(), ctl.offset_nmm()), (1.0, 0.0));
+}
+
+#[test]
+fn the_adapted_gain_follows_a_heating_the_model_never_saw_and_the_feedforward_uses_it() {
+    // Only the heating differs from the model: 30 % field-gain loss at full current, 4 s thermal constant, so
+    // the plant's gain falls by several percent while the reference runs.
+    let plant = Plant {
+        offset_nmm: 0.0,
+        heating: (0.5, 15.0),
+        ..NOMINAL
+    };
+    let refs = reference(20_000);
+    let feedforward = |adaptation| ControllerSettings {
+        feedback: false,
+        adaptation,
+        ..Default::default()
+    };
+    let adapted = run(&mut controller(feedforward(true)), plant, &refs, never);
+    let frozen = run(&mut controller(feedforward(false)), plant, &refs, never);
+    let fall = 1.0
+        - adapted
+            .true_gain
+            .iter()
+            .cloned()
+            .fold(f64::INFINITY, f64::min);
+    assert!(fall > 0.03, "the heating must matter: gain falls by {fall}");
+    // Found to its size: after the adaptation's first memory (5 s) the estimate lags the fall by less than
+    // a third of it, and once the heating settles it sits on the true gain.
+    let off = |from: usize, to: usize| {
+        adapted.true_gain[from..to]
+            .iter()
+            .zip(&adapted.adapted_gain[from..to])
+            .map(|(t, a)| (t - a).abs())
+    };
+    let worst = off(2500, 20_000).fold(0.0, f64::max);
+    assert!(
+        worst < 0.3 * fall,
+        "adapted gain off by {worst} for a fall of {fall}"
+    );
+    let settled = off(18_000, 20_000).sum::<f64>() / 2000.0;
+    assert!(
+        settled < 0.15 * fall,
+        "settled gain off by {settled} for a fall of {fall}"
+    );
+    // The feedforward divides it out: without feedback, adaptation removes most of the heating's error.
+    assert!(
+        adapted.err_rms < 0.6 * frozen.err_rms,
+        "feedforward with adaptation {} vs frozen {}",
+        adapted.err_rms,
+        frozen.err_rms
+    );
 }
 
 #[test]
@@ -416,4 +476,72 @@ fn non_finite_reference_or_angle_is_a_fault_with_zero_current() {
     }
     let cmd = c.step(10.0, 0.0, 1.0);
     assert!(!cmd.fault && cmd.current_a.is_finite());
+}
+
+/// Response of the loop to an output offset stepping by `STEP_NMM` while the reference holds at 0 N·mm, reached
+/// from `peak_nmm` (positive: from above, along a descending branch; negative: from below, along an ascending
+/// one). Plant = model, no noise, adaptation off: the integrator alone removes the offset. Returns the time (s)
+/// the error takes to fall to 1/e of the step, and the model's local slope (N·mm/A) in the direction the
+/// correction moves (down) at the hold.
+fn offset_step_response(peak_nmm: f64) -> (f64, f64, f64) {
+    const STEP_NMM: f64 = 15.0;
+    let mut ctl = controller(ControllerSettings {
+        adaptation: false,
+        ..Default::default()
+    });
+    let ramp = |a: f64, b: f64, n: usize| (0..n).map(move |i| a + (b - a) * i as f64 / n as f64);
+    let refs: Vec<f64> = ramp(0.0, peak_nmm, 500)
+        .chain(ramp(peak_nmm, 0.0, 500))
+        .chain(std::iter::repeat_n(0.0, 1500))
+        .collect();
+    let t0 = 1500;
+    let effects = model_effects(0.02, 2.0);
+    let core = forward();
+    let scales = Scales::of_core(&core, 1.25, 300.0);
+    let mut sim: Simulation<Vec<f64>, Vec<f64>, 16, 24> =
+        Simulation::new(core, friction(), &effects, DT, scales, |n| vec![0.0; n]).unwrap();
+    sim.step(ctl.compensator().forward().state().input(), 0.0);
+    let (mut measured, mut slope, mut tau) = (f64::NAN, f64::NAN, f64::NAN);
+    for (i, &r) in refs.iter().enumerate() {
+        // The rotor at rest: no friction ripple moving the hysteresis back and forth at the hold.
+        let theta = 0.0;
+        if i == t0 {
+            // The slope the correction meets: the forward model stepped down by 0.1 A from the present state
+            // (about the current the offset takes on a steep branch).
+            let mut h = ctl.compensator().forward().clone();
+            let (u, y) = (h.state().input(), h.output());
+            slope = (y - h.step(u - 0.1)) / 0.1;
+        }
+        let c = ctl.step(r, theta, measured);
+        let offset = if i >= t0 { STEP_NMM } else { 0.0 };
+        measured = sim.step(c.current_a, theta).torque_nmm + offset;
+        if i > t0 && tau.is_nan() && (measured - r).abs() < STEP_NMM * (-1.0f64).exp() {
+            tau = (i - t0) as f64 * DT;
+        }
+    }
+    (tau, slope, ctl.design().ki_per_s)
+}
+
+#[test]
+fn the_loop_bandwidth_is_the_same_where_the_hysteresis_is_flat_and_where_it_is_steep() {
+    // Held at the same torque, reached from below the correction meets the flat start of a descending branch
+    // (a reversal), reached from above the steep middle of one. The exact inverse divides every torque change
+    // by that local slope, so the integrator sees a unit gain at both and its time constant is 1/ki.
+    let (tau_flat, slope_flat, ki) = offset_step_response(-250.0);
+    let (tau_steep, slope_steep, _) = offset_step_response(250.0);
+    assert!(
+        slope_steep > 3.0 * slope_flat,
+        "slopes {slope_flat} and {slope_steep} N·mm/A"
+    );
+    for tau in [tau_flat, tau_steep] {
+        assert!(
+            (tau * ki - 1.0).abs() < 0.25,
+            "time constant {tau} s against 1/ki = {} s (flat {tau_flat}, steep {tau_steep})",
+            1.0 / ki
+        );
+    }
+    assert!(
+        (tau_flat / tau_steep - 1.0).abs() < 0.1,
+        "{tau_flat} vs {tau_steep}"
+    );
 }

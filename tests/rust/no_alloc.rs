@@ -113,6 +113,10 @@ fn extended_compensator_step_does_not_allocate() {
         p(EffectKind::NonCongruent, &[("curvature", 1.5)]),
         p(EffectKind::FrictionCurrent, &[("gain_per_a", 0.4)]),
         p(EffectKind::FrictionHarmonics, &[("order", 7.0)]),
+        p(EffectKind::Creep, &[("fraction", 0.05)]),
+        p(EffectKind::RateDependence, &[("tau_s", 0.005)]),
+        p(EffectKind::Accommodation, &[("kappa", 0.1)]),
+        p(EffectKind::Viscous, &[("c", 2.0)]),
     ];
     let f =
         bmr::Friction::<24>::from_coefficients(5.0, &[10.0, 3.0, 1.0], &[2.0, 1.0, 0.5]).unwrap();

@@ -1,9 +1,12 @@
 //! Runs `N` compensator steps (exact inverse) on a random multi-peak reference: a fixed workload for counting
 //! instructions per step with callgrind (`benches/callgrind.sh`). Usage: `step_count N [hysteresis|compensator|
 //! extended|controller]` (`extended`: every extension stage on; `controller`: the closed loop around it, measuring
-//! 0.95 × the model's torque plus 2 N·mm).
+//! 0.95 × the model's torque plus 2 N·mm; `closed_loop`: that controller driving the `rig_preisach` virtual
+//! actuator with a coil lag and heating, as `bmr.simulate_closed_loop` does, controller and plant per sample).
 use bmr_bench as workload;
 
+use bmr::plant::VirtualActuator;
+use bmr::plant::effects::{Effect, EffectKind};
 use bmr::{Compensator, Controller, ControllerSettings, InverseKind};
 use std::hint::black_box;
 
@@ -38,6 +41,31 @@ fn main() {
                     )
                     .current_a;
                 y = 0.95 * c.compensator().model_torque_nmm() + 2.0;
+            }
+        }
+        "closed_loop" => {
+            let c = Compensator::new(h, InverseKind::Exact, f, 0.125, 1.25)
+                .unwrap()
+                .with_extensions(&workload::every_stage(), 0.001, 300.0)
+                .unwrap();
+            let mut c = Controller::new(c, 0.001, ControllerSettings::default()).unwrap();
+            let effects = [
+                Effect::from_params(EffectKind::CoilLag, &[("tau_s", 0.02)]).unwrap(),
+                Effect::from_params(
+                    EffectKind::ThermalDrift,
+                    &[("gain_loss", 0.1), ("tau_s", 60.0)],
+                )
+                .unwrap(),
+            ];
+            let mut plant =
+                VirtualActuator::from_preset("rig_preisach", 1000.0, &effects, 1).unwrap();
+            let thetas = plant.theta_ahead(refs.len()).unwrap();
+            let mut y = f64::NAN;
+            for i in 0..n {
+                let k = i % refs.len();
+                let cmd = c.step(black_box(refs[k]), black_box(thetas[k]), y);
+                y = plant.step(cmd.current_a).torque_nmm;
+                acc += y;
             }
         }
         "compensator" | "extended" => {

@@ -23,6 +23,11 @@ decides, as in version 1)::
 
 Time is always ``t_s`` in seconds; an angle, when present, ``theta_rad`` in radians. ``output_sigma`` is
 optional. A version 1 manifest reads as the actuator's quantities (:data:`bmr.data.quantities.ACTUATOR`).
+
+Either version may say which runs are one measurement history, ``"histories": [["run3", "run4", ...], ...]``: runs
+recorded one after the other on the device, in recording order, each starting from the state the previous one left
+(``bmr predict --initial continue`` carries it). A run belongs to at most one history; a manifest without the field
+has none.
 """
 from __future__ import annotations
 
@@ -177,6 +182,7 @@ class Bundle:
     runs: list[Run]
     meta: dict[str, Any] = field(default_factory=dict)
     quantities: Quantities = ACTUATOR
+    histories: list[list[str]] = field(default_factory=list)
 
     def __post_init__(self) -> None:
         rate = self.sample_rate_hz
@@ -192,6 +198,18 @@ class Bundle:
             if r.quantities != self.quantities:
                 raise BundleError(f"run {r.name!r} holds {r.quantities.describe()} but the bundle declares "
                                   f"{self.quantities.describe()}")
+        if not isinstance(self.histories, list) or not all(
+                isinstance(h, list) and h and all(isinstance(n, str) for n in h) for h in self.histories):
+            raise BundleError("histories must be a list of non-empty lists of run names")
+        seen: set[str] = set()
+        for h in self.histories:
+            for n in h:
+                if n not in names:
+                    raise BundleError(f"history {h!r} names run {n!r}, which the bundle does not hold")
+                if n in seen:
+                    raise BundleError(f"run {n!r} is listed twice in the bundle's histories")
+                seen.add(n)
+        self.histories = [list(h) for h in self.histories]
 
     @property
     def device(self) -> str:
@@ -210,6 +228,7 @@ class Bundle:
         what = ", ".join(f"{n} {k}" for k, n in kinds.items())
         held = sum(not r.is_identification for r in self.runs) if any(r.role for r in self.runs) else None
         roles = f", {held} held out" if held is not None else ""
+        roles += "".join(f", one history of {len(h)} runs" for h in self.histories)
         device = "" if self.quantities.is_actuator else f"{self.quantities.describe()}: "
         return (f"Bundle({self.actuator!r}: {device}{len(self.runs)} runs ({what}{roles}), {samples} samples, "
                 f"{duration:.6g} s at {self.sample_rate_hz:g} Hz)")
@@ -219,6 +238,15 @@ class Bundle:
 
     def __len__(self) -> int:
         return len(self.runs)
+
+    def history_of(self, name: str) -> list[Run]:
+        """The runs of the measurement history run ``name`` belongs to, in recording order (empty when it belongs
+        to none)."""
+        self.run(name)
+        for h in self.histories:
+            if name in h:
+                return [self.run(n) for n in h]
+        return []
 
     def run(self, name: str) -> Run:
         for r in self.runs:
@@ -241,7 +269,8 @@ class Bundle:
             return self
         runs = [Run(r.name, r.kind, r.data.iloc[::factor].reset_index(drop=True), dict(r.meta), r.quantities,
                     r.role) for r in self.runs]
-        return Bundle(self.actuator, self.sample_rate_hz / factor, runs, dict(self.meta), self.quantities)
+        return Bundle(self.actuator, self.sample_rate_hz / factor, runs, dict(self.meta), self.quantities,
+                      self.histories)
 
     def identification_runs(self) -> list[Run]:
         """Runs labelled for identification (by role, or by an identification kind when they have no role)."""
@@ -414,8 +443,9 @@ def read_bundle(path: str | Path) -> Bundle:
             sample_rate_hz=manifest.get("sample_rate_hz", float("nan")),
             runs=runs,
             meta={k: v for k, v in manifest.items()
-                  if k not in ("format", device_key, "sample_rate_hz", "quantities", "runs")},
+                  if k not in ("format", device_key, "sample_rate_hz", "quantities", "runs", "histories")},
             quantities=quantities,
+            histories=manifest.get("histories", []),
         )
     except BmrError as exc:
         raise BundleError(f"{manifest_path}: {exc}") from None
@@ -467,7 +497,8 @@ def write_bundle(bundle: Bundle, path: str | Path, *, fmt: str = "csv",
         head = {"format": FORMAT_V1, "actuator": bundle.actuator}
     else:
         head = {"format": FORMAT, "device": bundle.actuator, "quantities": bundle.quantities.to_dict()}
-    manifest = {**head, "sample_rate_hz": float(bundle.sample_rate_hz), **bundle.meta, "runs": specs}
+    histories = {"histories": bundle.histories} if bundle.histories else {}
+    manifest = {**head, "sample_rate_hz": float(bundle.sample_rate_hz), **bundle.meta, **histories, "runs": specs}
     write_text(root / "manifest.json", json.dumps(manifest, indent=2, sort_keys=False) + "\n", error=BundleError)
     return root
 

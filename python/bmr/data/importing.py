@@ -121,6 +121,9 @@ class ImportResult:
                          format_number(r.duration_s, 4), r.source))
         widths = [max(len(row[k]) for row in rows) for k in range(len(rows[0]))]
         lines += ["  " + "  ".join(c.ljust(w) for c, w in zip(row, widths)).rstrip() for row in rows]
+        for h in self.bundle.histories:
+            shown = h if len(h) <= 8 else h[:3] + ["..."] + h[-3:]
+            lines.append(f"one measurement history of {len(h)} runs in recording order: {', '.join(shown)}")
         lines += [f"not imported: {src}: {why}" for src, why in self.skipped]
         lines += [f"note: {n}" for n in self.notes]
         return "\n".join(lines)
@@ -296,6 +299,16 @@ def _run_name(text: str, taken: set[str]) -> str:
 
 def _jsonable_meta(meta: dict[str, Any]) -> dict[str, Any]:
     return {str(k): (v if isinstance(v, (str, int, float, bool)) or v is None else str(v)) for k, v in meta.items()}
+
+
+def _histories(built: list[tuple[Path, Table, str, pd.DataFrame]]) -> list[list[str]]:
+    """The runs whose tables the reader placed in one measurement history, in recording order (a history of one run
+    says nothing and is left out)."""
+    groups: dict[str, list[tuple[float, int, str]]] = {}
+    for k, (_, t, name, _) in enumerate(built):
+        if t.recorded is not None:
+            groups.setdefault(t.recorded.history, []).append((t.recorded.order, k, name))
+    return [[name for *_, name in sorted(g)] for g in groups.values() if len(g) > 1]
 
 
 def import_logs(
@@ -481,7 +494,7 @@ def import_logs(
         raise off_protocol[0]
     rate = sample_rate([r.time for r in runs])
     meta = {"imported_from": [str(p) for p in paths], "protocol": protocol, "reversal_deadband": db}
-    bundle = Bundle(device, rate.hz, runs, meta, quantities)
+    bundle = Bundle(device, rate.hz, runs, meta, quantities, _histories(built))
     return ImportResult(bundle, report, protocol, db, rate, skipped, notes)
 
 

@@ -19,8 +19,18 @@ import pandas as pd
 from bmr._core import BmrError, BundleError
 from bmr.data.units import unit as parse_unit
 
-__all__ = ["Table", "read_text", "split_name_unit", "read_csv", "read_parquet",
+__all__ = ["Recorded", "Table", "read_text", "split_name_unit", "read_csv", "read_parquet",
            "read_tdms", "read_mat", "load_mat"]
+
+
+@dataclass(frozen=True)
+class Recorded:
+    """Where a table stands in a measurement history: the recordings made one after the other on one device, each
+    starting from the state the previous one left. ``history`` names the sequence (the same for every table of it),
+    ``order`` sorts its tables in recording order (a time stamp in s, or a position in the file)."""
+
+    history: str
+    order: float
 
 
 @dataclass
@@ -29,7 +39,8 @@ class Table:
     the unit the file states for it, ``time_column`` the format's time axis (None: find it by name), ``source``
     names the file (and the table inside it) in messages, ``aliases`` maps other spellings (lower case) to
     column names, ``not_numbers`` names the file's columns that hold something other than real numbers (date-times,
-    durations, booleans, complex numbers) and what they hold: naming one is an error that says so."""
+    durations, booleans, complex numbers) and what they hold: naming one is an error that says so. ``recorded``:
+    its place in a measurement history, when the format knows the recording order (None otherwise)."""
 
     name: str
     columns: dict[str, np.ndarray]
@@ -39,6 +50,7 @@ class Table:
     meta: dict[str, Any] = field(default_factory=dict)
     aliases: dict[str, list[str]] = field(default_factory=dict)
     not_numbers: dict[str, str] = field(default_factory=dict)
+    recorded: Recorded | None = None
 
     def __post_init__(self) -> None:
         if not self.columns:

@@ -101,6 +101,11 @@ class Effect(ABC):
         """Whether the nonlinear parameter is continuous (refined by a golden-section search)."""
         return False
 
+    def signature_missing(self, fitter: Any, before: Any) -> str:
+        """Why the residual of the configuration ``before`` (without this effect) does not show the effect's own
+        mechanism signature ("" when it does, or when the effect checks none beyond its held-out gain and range)."""
+        return ""
+
 
 # ------------------------------------------------------------------------------------------------ field effects
 class CoilLag(Effect):
@@ -616,10 +621,72 @@ class Accommodation(Effect):
         return True
 
 
+def input_rate(u: np.ndarray, dt_s: float) -> np.ndarray:
+    """``du/dt`` by the backward difference over each sample (input units/s; 0 at the first sample): the rate the
+    ``viscous`` stage of the core (:class:`bmr.ExtendedSimulation`, the compensator) sees."""
+    u = np.asarray(u, dtype=float)
+    out = np.zeros_like(u)
+    out[1:] = np.diff(u) / dt_s
+    return out
+
+
+class Viscous(Effect):
+    """A loss proportional to the input's rate adds to the output: ``c · du/dt`` (``c ≥ 0``, output units per
+    input unit per second), the same on steep and saturated branches. Linear in ``c``: one column, the input's
+    backward-difference rate over the evaluated spans. The loss also bent the protocol runs the tables come from, so
+    they are identified again with it removed. What tells it from a time shift (``time_delay``, ``coil_lag``) is a
+    second drive speed: the loss widens the loop in proportion to the rate and leaves the loop tips (where the rate
+    passes through zero) in place, a shift moves the tips too."""
+
+    name = "viscous"
+    excitation = ("the same loop at a second drive speed (a rate-proportional loss widens the loop and leaves its "
+                  "tips in place; a time shift moves the tips)")
+    doc = "a loss proportional to the input's rate adds to the output: c·du/dt"
+    needs_reidentify = True
+
+    def columns(self, data, value, y_field, model):
+        def make() -> np.ndarray:
+            return np.concatenate([input_rate(_run_input(r), r.dt_s)[r.start:] for r in data.runs])[:, None]
+
+        return data.cache.get("viscous_rate", make)
+
+    def update_path(self, path, value, own_beta, data):
+        return path.with_correction(self, value, own_beta)
+
+    @staticmethod
+    def remove(y, value, beta, run):
+        return y - beta[0] * input_rate(run.current, run.dt)
+
+    def params(self, value, beta, path):
+        return {"c": float(beta[0])}
+
+    def signature_missing(self, fitter: Any, before: Any) -> str:
+        """A loss in every run that moves: each run whose input rate (RMS) is at least a tenth of the fastest run's,
+        its residual under ``before`` fitted alone on the rate (with a constant), must give ``c > 0`` — the
+        residual grows with the rate, in the direction of the motion, in runs of every speed."""
+        data = fitter.data
+        residual, _ = fitter.fit(before.path, before.linear)
+        rate = self.columns(data, None, residual, fitter.model)[:, 0]
+        parts = list(zip(_split(data, residual), _split(data, rate), data.runs))
+        speeds = [float(np.sqrt(np.mean(q * q))) if q.size else 0.0 for _, q, _ in parts]
+        fastest = max(speeds, default=0.0)
+        if not fastest > 0:
+            return "the input never moves"
+        against = []
+        for (r, q, run), speed in zip(parts, speeds):
+            ok = np.isfinite(r)
+            if speed < 0.1 * fastest or np.count_nonzero(ok) < 3:
+                continue
+            x = np.column_stack([np.ones(np.count_nonzero(ok)), q[ok]])
+            coef = np.linalg.lstsq(x, r[ok], rcond=None)[0]
+            if not coef[1] > 0:
+                against.append(f"{run.name}: c = {coef[1]:.3g}")
+        return ("the residual opposes the motion in " + ", ".join(against)) if against else ""
+
 
 LIBRARY: tuple[Effect, ...] = (CoilLag(), ThermalDrift(), FrictionCurrent(), FrictionHarmonics(), TorqueRipple(),
                                SensorDrift(), TimeDelay(), NonCongruent(), Creep(), RateDependence(),
-                               RunGainOffset(), Leakage(), Accommodation(), TableResolution())
+                               RunGainOffset(), Leakage(), Accommodation(), Viscous(), TableResolution())
 # The candidates that are physical effects of the vocabulary (the others are notes on the tables).
 PHYSICAL = tuple(e.name for e in LIBRARY if e.name in _core.EFFECTS)
 ANGLE_EFFECTS: tuple[str, ...] = _core.ANGLE_EFFECTS

@@ -19,8 +19,10 @@ fault; ``"none"``), ``effects`` (accepted in order: ``name``, ``params``, ``held
 ``heldout_rms_after``, ``gain``, ``folds_positive``), ``rejected``, ``noise_floor``, ``residual_rms`` (held-out RMS
 of the extended model), ``unexplained`` (``signal``, ``strength`` RMS), ``alternatives`` (pairs of effects the
 excitation could not tell apart, with what would separate them), ``identification_drift`` (the leakage the nominal
-identification fitted with its tables when their branches did not close) and more detail (per-run RMS, nominal
-held-out RMS, closed loop, timing). Version 1 named the same fields with an ``_nmm`` suffix whatever the unit.
+identification fitted with its tables when their branches did not close), ``history`` (per measurement history of
+the bundle, what the model run through it cannot explain: the level at each run's start, repeated loops that do not
+retrace, the candidate effects that explain them and which were accepted; :mod:`bmr.diagnosis.history`) and more
+detail (per-run RMS, nominal held-out RMS, closed loop, timing). Version 1 named the same fields with an ``_nmm`` suffix whatever the unit.
 """
 from __future__ import annotations
 
@@ -40,6 +42,7 @@ from bmr.data.bundle import Bundle, read_bundle
 from bmr.diagnosis.discrepancy import candidate_library, learn
 from bmr.diagnosis.effects import ANGLE_EFFECTS, LIBRARY, PHYSICAL
 from bmr.diagnosis.field import FieldPath
+from bmr.diagnosis.history import HistoryFindings, history_findings
 from bmr.diagnosis.noise import from_residual
 from bmr.diagnosis.extended_model import ExtendedModel, extensions_from_selection, with_extensions
 from bmr.diagnosis.residuals import one_blas_thread, prepare, signal_label, structure
@@ -86,7 +89,8 @@ class Diagnosis:
     ``alternatives``: pairs of effects the excitation could not tell apart (:class:`Alternative`, with what would
     separate them). ``identification_drift``: the leakage the nominal identification fitted with its tables because
     their branches did not close (``leakage_rate`` in output per input·s, ``closure`` the share of the span a
-    saturation output moved), or None.
+    saturation output moved), or None. ``history``: per measurement history of the bundle, what the model run
+    through it cannot explain (:class:`bmr.diagnosis.history.HistoryFindings`).
     ``to_dict()`` is the ``bmr-diagnosis/2`` JSON; ``html_section()`` a self-contained HTML fragment;
     ``write_report(path)`` a whole page."""
 
@@ -111,6 +115,7 @@ class Diagnosis:
     closed_loop: dict[str, Any] | None = None
     alternatives: list[Alternative] = field(default_factory=list)
     identification_drift: dict[str, float] | None = None
+    history: list[HistoryFindings] = field(default_factory=list)
     wall_time_s: float = 0.0
     signals: dict[str, Any] = field(default_factory=dict)
     _figures: dict[str, str] | None = field(default=None, init=False)
@@ -161,6 +166,7 @@ class Diagnosis:
             "closed_loop": self.closed_loop,
             "alternatives": [a.to_dict() for a in self.alternatives],
             "identification_drift": self.identification_drift,
+            "history": [h.to_dict() for h in self.history],
             "folds": self.folds,
             "seed": self.seed,
             "wall_time_s": self.wall_time_s,
@@ -300,6 +306,10 @@ def diagnose(bundle: Bundle | str | Path, model: Any = None, *, folds: int = 5, 
                                      for t in learned["terms"]],
                            "intercept": learned["intercept"], "deadband": learned["deadband"],
                            "equation": learned["equation"]})
+    # What the memory model cannot explain across each measurement history, and which accepted effect explains it.
+    history = history_findings(model, bundle, data.noise_floor_nmm)
+    for h in history:
+        h.named = [e["name"] for e in accepted if e["name"] in h.candidates]
     ext_model = with_extensions(model, extensions)
     ext_model.meta["diagnosis"] = {"cause": cause, "effects": [e["name"] for e in accepted]}
     d = Diagnosis(device=bundle.actuator, cause=cause, effects=accepted, rejected=sel["rejected"],
@@ -308,7 +318,8 @@ def diagnose(bundle: Bundle | str | Path, model: Any = None, *, folds: int = 5, 
                   structure_nominal=struct_nom, structure_extended=struct_ext, per_run_rms=per_run, folds=folds,
                   seed=seed, wall_time_s=0.0, model=model, extended_model=ext_model, signals=signals,
                   quantities=bundle.quantities, noise=data.noise.to_dict(), learned=learned,
-                  alternatives=sel["alternatives"], identification_drift=_identification_drift(model))
+                  alternatives=sel["alternatives"], identification_drift=_identification_drift(model),
+                  history=history)
     # What each extension does: held-out prediction for all, closed-loop tracking for those the compensator undoes.
     rows = {e["name"]: e for e in accepted}
     for entry in ext_model.extensions:
@@ -530,6 +541,9 @@ def run_cli(args: Any) -> int:
         print(f"  identification: branches open by {100 * d.identification_drift['closure']:.3g} % of the span; "
               f"leakage {d.identification_drift['leakage_rate']:.4g} {q.output.unit} per {q.input.unit}·s fitted "
               "with the tables")
+    for h in d.history:
+        for line in h.lines(q):
+            print(f"  {line}")
     if d.learned:
         state = "learned" if d.learned["accepted"] else "not kept"
         print(f"  {state} (no named effect): {d.learned['equation']}; gain {100 * d.learned['gain']:.1f} % "

@@ -18,7 +18,9 @@ repeats until nothing is accepted or the held-out RMS is within :data:`NOISE_MAR
 A named effect is physical: a candidate whose parameters, refitted on all data, fall outside the documented range
 of the effect vocabulary (``bmr.effect_parameters()``) — or that pushes an effect already accepted outside its
 range — is not that effect and is rejected (the next best candidate is tried; the structure may still be learned
-by the sparse regression). When another accepted candidate of the same round explains as much (the paired fold
+by the sparse regression). A candidate whose mechanism signature the residual does not show
+(:meth:`bmr.diagnosis.effects.Effect.signature_missing`: a ``viscous`` loss that opposes the motion in some run) is
+rejected the same way. When another accepted candidate of the same round explains as much (the paired fold
 gains differ by less than their 95 % interval) and is no longer needed once the chosen one is in, the two are
 reported as indistinguishable on this excitation (:class:`Alternative`), with what would separate them.
 
@@ -292,6 +294,8 @@ class Candidate:
     noise_nmm: float = 0.0
     # The parameters outside the vocabulary's range when refitted on all data (empty: physical or not refitted).
     unphysical: str = ""
+    # Why the residual does not show the effect's mechanism signature (empty: shown or not checked).
+    no_signature: str = ""
 
     @property
     def mean_gain(self) -> float:
@@ -585,6 +589,10 @@ def forward_selection(fitter: Fitter, *, library: Sequence[Effect] = LIBRARY, ma
             if bad:
                 c.unphysical = "; ".join(f"{name}: {', '.join(v)}" for name, v in bad.items())
                 continue
+            missing = c.effect.signature_missing(fitter, config)
+            if missing:
+                c.no_signature = missing
+                continue
             best = c
             break
         if best is None:
@@ -592,7 +600,8 @@ def forward_selection(fitter: Fitter, *, library: Sequence[Effect] = LIBRARY, ma
                 remaining.append(candidates[0])
                 continue
             break
-        pending.extend(_alternatives(fitter, config, best, [c for c in ok if c is not best and not c.unphysical],
+        pending.extend(_alternatives(fitter, config, best, [c for c in ok if c is not best and not c.unphysical
+                                                            and not c.no_signature],
                                      field_effects))
         config = trial
         if best.effect.field:
@@ -624,6 +633,7 @@ def forward_selection(fitter: Fitter, *, library: Sequence[Effect] = LIBRARY, ma
         row["round"] = getattr(c, "round", 0)
         row["reason"] = ("not accepted" if not c.accepted else
                          f"parameters outside the documented range ({c.unphysical})" if c.unphysical else
+                         f"its mechanism signature is not in the residual ({c.no_signature})" if c.no_signature else
                          "accepted but another effect explained more; not needed afterwards")
         rejected.append(row)
     alternatives = [a for a in pending if a.other not in names]

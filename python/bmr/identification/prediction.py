@@ -5,7 +5,8 @@ measurement sigmas, next to the single-valued baseline; and ``bmr predict MODEL 
 
 A run's own offset (sensor offset, remanence left by the previous run), gain and initial state are parameters of
 the prediction, not hidden fits: they are given, taken from the model (its common offset), or estimated from a
-stated number of leading ``calibration`` samples, which are then not scored. Samples are scored from the point
+stated number of leading ``calibration`` samples, which are then not scored; the initial state may also be carried
+through the measurement history the run was recorded in (``initial="continue"``). Samples are scored from the point
 where the run's state is known (``evaluate="known"``: after it has been to both saturation ends, when it gets
 there) or all of them; every sample not scored is counted with its reason, a run whose state the input never
 determines is flagged, and inputs beyond the table's range are counted with their largest excess (clamped, or
@@ -343,6 +344,51 @@ def _converters(model: Model, run: Run) -> tuple[tuple[float, float], tuple[floa
     return out[0], out[1]
 
 
+CONTINUE_ALTERNATIVES = "use initial 'negative', 'positive' or 'estimate'"
+
+
+@dataclass
+class _Continued:
+    """A measurement history run through the model in one piece: each run's model output (core units, before gain
+    and offset), where the run starts in the concatenation, and the history's sample from which the state is
+    known (0 when it starts at an end of the range; None when it neither starts at one nor reaches both, so its
+    start is the assumed negative saturation)."""
+
+    outputs: dict[str, np.ndarray]
+    starts: dict[str, int]
+    known_from: int | None
+
+
+def _continued(model: Model, history: list[Run], extended: bool, out_of_range: str, tol: float) -> _Continued:
+    """Every run of ``history`` predicted as one recording from negative saturation: each run starts from the
+    state the model holds at the end of the previous one. Only inputs (and angles) are used, so held-out runs'
+    outputs never enter. The extended model runs the concatenation once (its stages' state is carried along;
+    the time between runs is not)."""
+    lo, hi = model.hysteresis.input_range
+    inputs, thetas, frictions = [], [], []
+    for r in history:
+        (si, oi), (so, oo) = _converters(model, r)
+        inputs.append(run_input(r) * si + oi)
+        thetas.append(r.angle if r.angle is not None else np.zeros(len(r.time)))
+        measured = run_output(r, None) * so + oo
+        frictions.append(measured - (run_output(r, model.friction) * so + oo))
+    u = np.concatenate(inputs)
+    if extended:
+        first = history[0]
+        dt = float(np.median(np.diff(first.time))) if len(first.time) > 1 else 1.0
+        whole = simulate_extended(model, u, np.concatenate(thetas), dt_s=dt, t0_s=float(first.time[0]),
+                                  initial="negative") - np.concatenate(frictions)
+    else:
+        whole = model.simulate(u, out_of_range=out_of_range)
+    bounds = np.cumsum([0] + [x.size for x in inputs])
+    # Known from the start when the history starts at an end of the range (as a single run is), else from where
+    # it has been to both ends.
+    reached = bool(np.any(u >= hi - tol)) and bool(np.any(u <= lo + tol))
+    known_from = 0 if (u[0] <= lo + tol or u[0] >= hi - tol) else evaluation_start(u, lo, hi, tol) if reached else None
+    return _Continued({r.name: whole[a:b] for r, a, b in zip(history, bounds[:-1], bounds[1:])},
+                      {r.name: int(a) for r, a in zip(history, bounds[:-1])}, known_from)
+
+
 def predict(
     model: Model | str | Path,
     runs: Bundle | Run | Iterable[Run] | str | Path,
@@ -354,6 +400,7 @@ def predict(
     evaluate: str = "known",
     out_of_range: str = "clamp",
     whole_model: bool = True,
+    bundle: Bundle | None = None,
 ) -> Prediction:
     """Predict ``runs`` (a bundle's evaluation runs, or all its non-off-state runs when none is held out; one run;
     a list; or a bundle folder) with ``model`` (or a model file) and score them.
@@ -369,7 +416,12 @@ def predict(
     ``initial``: ``"negative"``, ``"positive"``, ``("ascending", u)``, ``("descending", u)``, a history of inputs
     after negative saturation (``{name: ...}`` per run), or ``"estimate"`` (the memory among negative or positive
     saturation and one reversal after either that best predicts the ``calibration`` leading samples, or the whole
-    run when ``calibration`` is 0 — then the state is fitted on the scored samples, and the result says so).
+    run when ``calibration`` is 0 — then the state is fitted on the scored samples, and the result says so), or
+    ``"continue"``: the run is part of a measurement history (``Bundle.histories``) and starts from the state the
+    model holds at the end of the previous run, the model having run over every earlier run's input from negative
+    saturation (identification and held-out runs alike; no run's output is used); its samples are scored from
+    where the history's state is known. ``bundle``: the bundle the runs belong to (for ``"continue"``; taken from
+    ``runs`` when that is a bundle).
     ``evaluate``: ``"known"`` scores from the sample where the run has been to both saturation ends (all samples
     when it never gets there) or ``"all"``. ``out_of_range``: ``"clamp"`` or ``"extrapolate"`` (see
     ``Model.simulate``). Friction is added when the model has it and the run has an angle. A model with
@@ -383,6 +435,8 @@ def predict(
         model = Model.load(model)
     if isinstance(runs, (str, Path)):
         runs = read_bundle(runs)
+    if isinstance(runs, Bundle):
+        bundle = runs
     rs = runs_of(runs, scored=True)
     if not rs:
         raise BmrError("predict needs at least one run")
@@ -395,6 +449,7 @@ def predict(
     span = y_hi - y_lo
     extended = bool(model.extensions) and whole_model
     tol = SATURATION_TOL * (hi - lo)
+    continued: dict[str, _Continued] = {}
     out = []
     for r in rs:
         (si, oi), (so, oo) = _converters(model, r)
@@ -415,7 +470,24 @@ def predict(
         history: list[float] = []
         start: Any = "negative"
         estimated = False
-        if isinstance(init, str) and init == "estimate":
+        cont: _Continued | None = None
+        if isinstance(init, str) and init == "continue":
+            if bundle is None:
+                raise BmrError(f"initial 'continue' needs the bundle run {r.name!r} was recorded in (pass bundle=); "
+                               f"or {CONTINUE_ALTERNATIVES}")
+            history_runs = bundle.history_of(r.name)
+            if not history_runs:
+                why = ("the bundle records no measurement history" if not bundle.histories else
+                       f"run {r.name!r} is in none of the bundle's measurement histories")
+                raise BmrError(f"initial 'continue': {why}; {CONTINUE_ALTERNATIVES}")
+            key = history_runs[0].name
+            if key not in continued:
+                continued[key] = _continued(model, history_runs, extended, out_of_range, tol)
+            cont = continued[key]
+            position = [h.name for h in history_runs].index(r.name)
+            state = (f"continuing the history from {history_runs[0].name} (run {position + 1} of "
+                     f"{len(history_runs)})")
+        elif isinstance(init, str) and init == "estimate":
             best = None
             for cand in _candidates(model, float(u[0])):
                 p = y_lo + g * (model.simulate(u, history=cand) - y_lo)
@@ -433,7 +505,9 @@ def predict(
         else:
             history = [float(x) for x in init]
             state = _describe("negative", history)
-        if extended:
+        if cont is not None:
+            p = cont.outputs[r.name]
+        elif extended:
             # The whole model: its stages, learned term and offset in the Rust forward chain, from saturation.
             if estimated or history or not isinstance(start, str):
                 raise BmrError(f"run {r.name!r}: the extended model runs from a saturation: use initial "
@@ -451,7 +525,14 @@ def predict(
             dropped[CALIBRATION] = k
         top = bool(np.any(u >= hi - tol))
         bottom = bool(np.any(u <= lo + tol))
-        if evaluate == "known" and top and bottom:
+        if cont is not None:
+            # The state is known from where the history has been to both ends (before this run, or inside it).
+            if evaluate == "known" and cont.known_from is not None:
+                s = max(0, cont.known_from - cont.starts[r.name])
+                if s > first:
+                    dropped[BEFORE_KNOWN_STATE] = min(s, n) - first
+                    first = min(s, n)
+        elif evaluate == "known" and top and bottom:
             s = evaluation_start(u, lo, hi, tol)
             if s > first:
                 dropped[BEFORE_KNOWN_STATE] = s - first
@@ -468,7 +549,7 @@ def predict(
                 res = y[first:] - p[first:]
                 spread = (_offset_prior(model) or {}).get("spread")
                 # The run's own offset, shrunk towards the model's by how much training runs' offsets spread.
-                s2 = float(np.var(res)) / max(res.size, 1)
+                s2 = float(np.var(res)) / res.size if res.size else 0.0
                 weight = spread ** 2 / (spread ** 2 + s2) if spread is not None and spread ** 2 + s2 > 0 else 1.0
                 shift = weight * (float(np.mean(res)) if res.size else 0.0)
                 shift_b = weight * (float(np.mean(y[first:] - base[first:])) if res.size else 0.0)
@@ -501,6 +582,8 @@ def predict(
         # The state is determined once the input has been to both ends, or from the start when it starts at one;
         # otherwise it is the stated (or estimated) assumption, and the run is flagged.
         known = (top and bottom) or bool(u[0] <= lo + tol or u[0] >= hi - tol) or estimated
+        if cont is not None:
+            known = cont.known_from is not None and cont.known_from < cont.starts[r.name] + n
         if not known:
             state += " (assumed: the input never reaches both ends of the model's range)"
         scored = np.zeros(n, dtype=bool)
@@ -538,7 +621,7 @@ def run_cli(args: Any) -> int:
     calibration = args.calibration if args.calibration is not None else (1 if args.offset in ("first", "shrunk")
                                                                          else 0)
     p = predict(model, runs, offset=args.offset, calibration=calibration, initial=args.initial,
-                evaluate=args.evaluate, out_of_range=args.out_of_range)
+                evaluate=args.evaluate, out_of_range=args.out_of_range, bundle=bundle)
     p.model_source, p.bundle_source = str(args.model), str(args.bundle)
     q = p.quantities
     print(f"bmr predict: {args.model} ({q.describe()}) on {args.bundle}: {len(p.runs)} run(s); output span "

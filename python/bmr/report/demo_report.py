@@ -25,6 +25,10 @@ FIGURE_TEXT = {
     "fig24": "Random multi-peak reference with hysteresis compensation only and with both compensations.",
     "fig25": "Tracking errors of the two; the red dotted lines mark the paper's reported error (about ±60 N·mm).",
     "baseline": "The uncompensated linear map and the paper's inverse next to the exact inverse, same reference.",
+    "closed_loop": "The same multi-peak reference with the coils heating (field gain falling with coil temperature, "
+                   "unknown to the model): both compensations open loop, and bmr.Controller closed around them "
+                   "(integral feedback on the measured torque, adapted gain and offset). Top: torques; bottom: "
+                   "errors.",
 }
 
 

@@ -128,6 +128,9 @@ def html_section(d: Any) -> str:
         parts.append(f"<p><b>Identification:</b> the branches did not close (a saturation output moved by "
                      f"{100 * drift['closure']:.3g} % of the span); a leakage of {drift['leakage_rate']:.4g} "
                      f"{yu} per {html.escape(q.input.unit)}·s was fitted with the tables.</p>")
+    for h in d.history:
+        parts.append("<h3>Across the measurement history</h3><ul>"
+                     + "".join(f"<li>{html.escape(line.strip())}</li>" for line in h.lines(q)) + "</ul>")
     if d.learned:
         lr = d.learned
         verdict = "kept" if lr["accepted"] else "not kept (held-out gain too small)"

@@ -173,4 +173,22 @@ def _draw(out: Path, bundle: Any, model: Any, cases: dict[str, Any]) -> dict[str
     ax.set_title("Baseline and inverses on the multi-peak reference (errors in N·mm)", pad=22)
     legend_outside(ax)
     save(fig, "extra_baseline_and_inverses.png", "baseline")
+
+    o = cases.get("multipeak_heating_open_loop")
+    c = cases.get("multipeak_heating_controller")
+    if o is not None and c is not None:
+        fig, (ax, ax_e) = plot.figure("tall", nrows=2, sharex=True, height=6.0)
+        x, r, yo, yc, eo, ec = thin(c.t, c.reference_nmm, o.torque, c.torque, o.error, c.error)
+        ax.plot(x, yo, lw=0.5, color=COLORS["alternative"],
+                label=f"open loop (RMS error {o.metrics['rms_nmm']:.1f} N·mm)")
+        ax.plot(x, yc, lw=0.5, color=COLORS["model"],
+                label=f"Controller (RMS error {c.metrics['rms_nmm']:.1f} N·mm)")
+        reference_line(ax, x, r)
+        ax.set(ylabel="Torque (N·mm)")
+        ax.set_title("Closed loop: multi-peak reference, coils heating", pad=30)
+        legend_outside(ax, ncol=3)
+        ax_e.plot(x, eo, lw=0.5, color=COLORS["alternative"], label="open loop")
+        ax_e.plot(x, ec, lw=0.5, color=COLORS["model"], label="Controller")
+        ax_e.set(xlabel="Time (s)", ylabel="Error (N·mm)")
+        save(fig, "closed_loop_heating.png", "closed_loop")
     return figs

@@ -131,4 +131,5 @@ def device_bundle(preset: str = "piezo", *, effects: Mapping[str, Any] | Sequenc
         runs.append(_record(dev, q, name, kind, role, np.concatenate([opening, body]), opening.size, meta))
     sim = {"device": preset, "seed": int(seed), "effects": {k: dict(v) for k, v in dev.effects.items()},
            "noise": dev.noise, "rest_s": rest_s, "overrides": {k: float(v) for k, v in (overrides or {}).items()}}
-    return Bundle(dev.name, fs, runs, {"simulator": sim}, q)
+    # Every run was recorded on this one device after the previous: one measurement history.
+    return Bundle(dev.name, fs, runs, {"simulator": sim}, q, [[r.name for r in runs]] if len(runs) > 1 else [])

@@ -34,6 +34,7 @@ MEDIUM_EFFECTS: dict[str, dict[str, float]] = {
     "run_gain_offset": {"gain_sd": 0.03, "offset_sd": 4.0},
     "leakage": {"rate_per_s": 0.5},
     "accommodation": {"kappa": 0.08, "cycles": 3.0},
+    "viscous": {"c": 4.0},
 }
 
 

@@ -477,7 +477,9 @@ def simulate_bundle(preset: str = "bmr2013", *, effects: Mapping[str, Any] | Seq
                           "effects": {k: dict(v) for k, v in actuator.effects.items()},
                           "noise_nmm": actuator.noise_nmm, "rest_s": rest_s,
                           "overrides": {k: float(v) for k, v in (overrides or {}).items()}}}
-    return Bundle(actuator=actuator.name, sample_rate_hz=actuator.sample_rate_hz, runs=runs, meta=meta)
+    # Every run was recorded on this one actuator after the previous: one measurement history.
+    return Bundle(actuator=actuator.name, sample_rate_hz=actuator.sample_rate_hz, runs=runs, meta=meta,
+                  histories=[[r.name for r in runs]] if len(runs) > 1 else [])
 
 
 def _parse_overrides(items: Sequence[str]) -> dict[str, float]:

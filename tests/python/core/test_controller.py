@@ -55,7 +55,8 @@ def test_from_model_reports_its_design_and_steps_within_the_limit():
 
 def test_a_bandwidth_asked_for_is_given_or_refused():
     ctl = bmr.Controller.from_model(MODEL, dt_s=DT_S, bandwidth_hz=4.0)
-    assert ctl.design.bandwidth_hz == pytest.approx(4.0)
+    assert ctl.design.bandwidth_hz == pytest.approx(4.0) and ctl.design.asked_hz == 4.0
+    assert "asked_hz=4" in repr(ctl.design)
     assert ctl.design.phase_margin_deg == pytest.approx(90 - math.degrees(2 * math.pi * 4.0 * 4.5 * DT_S))
     with pytest.raises(bmr.BmrError, match="phase margin"):
         bmr.Controller.from_model(MODEL, dt_s=DT_S, bandwidth_hz=50.0)

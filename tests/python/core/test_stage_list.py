@@ -27,6 +27,7 @@ SIZES: dict[str, dict[str, float]] = {
     "creep": {"fraction": 0.1, "tau_min_s": 0.01, "tau_max_s": 10.0},
     "rate_dependence": {"tau_s": 0.01},
     "accommodation": {"kappa": 0.2, "cycles": 2.0},
+    "viscous": {"c": 2.0},
 }
 DT_S = 0.002
 MODEL = Path(__file__).resolve().parents[2] / "data" / "extended_model.json"
@@ -58,7 +59,7 @@ def test_every_in_loop_effect_has_a_size_here() -> None:
     assert effects == set(SIZES), "a new stage: give it a size here so the pickle checks cover it"
 
 
-@pytest.mark.parametrize("name", ["creep", "rate_dependence", "accommodation"])
+@pytest.mark.parametrize("name", ["creep", "rate_dependence", "accommodation", "viscous"])
 def test_pickled_mid_run_continues_bit_for_bit(hysteresis: bmr.Hysteresis, name: str) -> None:
     c = _compensator(hysteresis, [name])
     r, th = _reference(1500, 3)

@@ -165,6 +165,9 @@ def test_slac_tables_in_their_layout(tmp_path):
     assert "sigTHsp" in p.columns  # written +/-sigThsp in this file's header
     assert p.meta["metadata_from"] == "strdat.ru4" and p.meta["Comment"] == "Minor hysteresis loop 1"
     np.testing.assert_allclose(p.columns["MAIN"], cur, atol=1e-6)
+    # Its place in the magnet's measurement history: the header's date and time (11-11-2021 14:53:27).
+    assert d.recorded == p.recorded and d.recorded is not None and d.recorded.history == "SLAC magnet 4194"
+    assert d.recorded.order == 1636642407.0
     # Truncated: the last row lost its last columns.
     lines = plt.read_text().splitlines()
     plt.write_text("\n".join(lines[:-1] + [lines[-1][:30]]) + "\n")
@@ -253,6 +256,8 @@ def test_micromag_forc_export_one_run_per_curve_with_its_calibration_point(tmp_p
     assert tables[1].columns["time"][0] > tables[0].columns["time"][-1]
     result = bmr.import_logs([p], input="Field", output="Moment", holdout=["sample_forc-forc002"])
     assert len(result.bundle.runs) == 6 and result.bundle.quantities.output.unit == moment_unit
+    # The curves are one measurement history in file order, held-out curves included.
+    assert result.bundle.histories == [[f"sample_forc-forc{k:03d}" for k in range(1, 7)]]
 
 
 def test_lakeshore_forc_export_latin1_blank_lines_and_time_stamps(tmp_path):
@@ -267,6 +272,7 @@ def test_lakeshore_forc_export_latin1_blank_lines_and_time_stamps(tmp_path):
     assert "GOOD" not in "".join(t.columns)
     result = bmr.import_logs([p], input="Field:mT", output="Moment")
     np.testing.assert_allclose(result.bundle.runs[0].data["field_mt"].to_numpy()[1:], 1e3 * curves[0][0])
+    assert result.bundle.histories == [[f"B-9-FORC-forc{k:03d}" for k in range(1, 5)]]
 
 
 def test_matrix_columns_in_separate_files_become_one_run_per_loop(tmp_path):

@@ -15,6 +15,8 @@ CASES = {
     "multipeak_hysteresis_compensation",
     "multipeak_both_compensations",
     "multipeak_both_paper_inverse",
+    "multipeak_heating_open_loop",
+    "multipeak_heating_controller",
 }
 
 
@@ -60,6 +62,16 @@ def test_figures_are_png_with_data_and_embedded_in_report(demo_dirs):
     for p in pngs:
         assert base64.b64encode(p.read_bytes()).decode("ascii") in html, p.name + " is not embedded"
     assert "fig 25" in html and "N·mm" in html
+    assert (out / "closed_loop_heating.png").is_file()
+
+
+def test_the_controller_beats_the_open_loop_compensator_on_the_heating_actuator(demo_dirs):
+    r, out, _ = demo_dirs
+    c = json.loads((out / "metrics.json").read_text())["cases"]
+    ol, cl = c["multipeak_heating_open_loop"]["rms_nmm"], c["multipeak_heating_controller"]["rms_nmm"]
+    print(f"multi-peak, coils heating: open loop {ol:.2f} N·mm, Controller {cl:.2f} N·mm")
+    assert cl < 0.8 * ol
+    assert f"{ol:.2f} N·mm open loop -> {cl:.2f} N·mm with bmr.Controller" in r.stdout
 
 
 def test_compensation_is_far_better_than_the_uncompensated_baseline(demo_dirs):

@@ -22,8 +22,7 @@ CELLS: dict[str, str | None] = {
     "reptation": None,
     "eddy_field": "a dynamic eddy-current field of the core is named coil_lag (one time constant fits most of it: "
                   "held-out RMS 17.4 -> 4.06 N·mm, noise 1.48), rate_dependence is not accepted after it",
-    "rate_loss": "a loss proportional to the input's rate is left to the learned term (held-out RMS 6.01 -> 3.18 "
-                 "N·mm): no effect of the library has its signature",
+    "rate_loss": None,
     "log_after_effect": "an unbounded log-time after-effect is not named creep: nothing is accepted (held-out RMS "
                         "3.42 N·mm, noise 1.48)",
     "cubic_yield": "a cubic yield-stress map after a congruent core is not named non_congruent: nothing is "

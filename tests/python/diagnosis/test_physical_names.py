@@ -81,17 +81,17 @@ def _mr_damper_bundle() -> bmr.Bundle:
     return bmr.Bundle("mr-damper-utfpr", fs, runs, quantities=q)
 
 
-def test_the_mr_dampers_velocity_force_is_not_named_creep() -> None:
-    # Runs A.1-A.3 identify, A.4 is held out. A creep fit there has fraction -13.8 (range 0..0.9): not creep. The
-    # structure is the damper's viscous force, which the sparse regression learns (N per mm/s of piston speed).
+def test_the_mr_dampers_velocity_force_is_named_viscous_not_creep() -> None:
+    # Runs A.1-A.3 identify, A.4 is held out. The structure is the damper's viscous force (N per mm/s of piston
+    # speed): named viscous with its coefficient in range, far more than half the held-out error gone; creep (a fit
+    # with fraction -13.8, outside 0..0.9) is not named.
     d = bmr.diagnose(_mr_damper_bundle(), progress=False, closed_loop=False)
     _accepted_in_range(d)
-    assert "creep" not in [e["name"] for e in d.effects]
-    creep = next(r for r in d.rejected if r["name"] == "creep")
-    assert creep["reason"].startswith("parameters outside the documented range") and "fraction" in creep["reason"]
-    assert d.learned is not None and d.learned["accepted"]
-    viscous = [t for t in d.learned["terms"] if t["name"] == "du/dt"]
-    assert viscous and 5.0 < viscous[0]["coefficient"] < 30.0
+    names = [e["name"] for e in d.effects]
+    assert "creep" not in names
+    [viscous] = [e for e in d.effects if e["name"] == "viscous"]
+    assert 5.0 < viscous["params"]["c"] < 30.0, viscous
+    assert viscous["gain"] > 0.5, viscous
     assert d.to_dict()["alternatives"] == [a.to_dict() for a in d.alternatives]
 
 

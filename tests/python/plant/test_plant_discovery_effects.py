@@ -47,6 +47,42 @@ def test_rate_dependence_widens_loops_with_rate_most_where_the_loop_is_steep():
     assert widths[1] > 2.5 * widths[0]
 
 
+def test_viscous_loss_follows_the_rate_alike_on_steep_and_saturated_branches():
+    # c·du/dt with u the field current the steel sees: on a ramp it is c times the ramp rate wherever the loop is
+    # (steep middle or saturated end), changes sign with the ramp, and a faster ramp scales it by the rate.
+    c = 4.0
+    for rate in (0.5, 2.0):
+        u = ramp_path(0.0, [1.25, -1.25, 1.25, -1.25], rate / FS)
+        a, b = _pair({"viscous": {"c": c}}, u)
+        d = (b["torque_nmm"] - a["torque_nmm"])[u.size // 2:]
+        du = np.gradient(u)[u.size // 2:]
+        uu = u[u.size // 2:]
+        # Away from the turning points (where the converter and the coil still follow the command's kink).
+        ramp = np.abs(np.convolve(np.sign(du), np.ones(41) / 41, mode="same")) > 0.999
+        for part in (np.abs(uu) < 0.3, (np.abs(uu) > 1.0) & (np.abs(uu) < 1.2)):
+            sel = part & ramp
+            assert sel.sum() > 20
+            np.testing.assert_allclose(d[sel], c * rate * np.sign(du[sel]), rtol=0.02)
+    # A hold: no rate, no loss.
+    u = np.concatenate([ramp_path(0.0, [1.25, 0.3], 1.0 / FS), np.full(int(2 * FS), 0.3)])
+    a, b = _pair({"viscous": {"c": c}}, u)
+    assert np.abs((b["torque_nmm"] - a["torque_nmm"])[-int(FS):]).max() < 1e-9
+
+
+def test_an_actuator_with_a_viscous_loss_pickled_mid_run_continues_bit_for_bit():
+    import pickle
+
+    u = ramp_path(0.0, [1.25, -1.25, 0.7], 1.0 / FS)
+    act = bmr.VirtualActuator("ideal", sample_rate_hz=FS, effects={"viscous": {"c": 3.0}}, seed=4)
+    act.run(u[:700])
+    back = pickle.loads(pickle.dumps(act))
+    a, b = act.run(u[700:])["torque_nmm"], back.run(u[700:])["torque_nmm"]
+    assert a.tobytes() == b.tobytes()
+    # The loss's last input is part of the state: one without it would jump at the first sample.
+    fresh = bmr.VirtualActuator("ideal", sample_rate_hz=FS, effects={"viscous": {"c": 3.0}}, seed=4)
+    assert np.abs(fresh.run(u)["torque_nmm"][700:] - a).max() < 1e-9
+
+
 def test_leakage_integrates_the_input_and_restarts_with_each_recording():
     u = np.full(int(10 * FS), 0.5)
     act = bmr.VirtualActuator("ideal", sample_rate_hz=FS, effects={"leakage": {"rate_per_s": 2.0}})
@@ -127,3 +163,15 @@ def test_virtual_device_bundle_declares_its_quantities_and_has_no_angle():
         bmr.VirtualDevice("piezo", effects={"torque_ripple": {"eps": 0.1}})
     with pytest.raises(bmr.BmrError, match="unknown virtual device preset"):
         bmr.VirtualDevice("nope")
+
+
+def test_virtual_device_viscous_loss_is_c_times_the_input_rate():
+    # Piezo stack (V → µm): c = 0.01 µm per V/s; a ramp at 50 and 200 V/s adds 0.5 and 2 µm wherever it is.
+    for rate in (50.0, 200.0):
+        dev = bmr.VirtualDevice("piezo", effects={"viscous": {"c": 0.01}})
+        ref = bmr.VirtualDevice("piezo")
+        fs = dev.sample_rate_hz
+        u = np.concatenate([np.full(50, -90.0), np.arange(-90.0, 90.0, rate / fs)])
+        d = dev.run(u)["output_true"] - ref.run(u)["output_true"]
+        np.testing.assert_allclose(d[60:], 0.01 * rate, rtol=1e-9)
+        assert np.all(d[1:50] == 0.0)

@@ -35,7 +35,7 @@ def _assert_same(a, b, names):
 def test_vocabulary_and_parameter_listing():
     assert bmr.EFFECTS == ("coil_lag", "thermal_drift", "friction_current", "friction_harmonics",
                            "torque_ripple", "sensor_drift", "time_delay", "non_congruent", "creep",
-                           "rate_dependence", "run_gain_offset", "leakage", "accommodation")
+                           "rate_dependence", "run_gain_offset", "leakage", "accommodation", "viscous")
     params = bmr.effect_parameters()
     assert set(params) == set(bmr.EFFECTS)
     expected = {"coil_lag": {"tau_s"}, "thermal_drift": {"gain_loss", "tau_s"}, "friction_current": {"gain_per_a"},
@@ -44,7 +44,7 @@ def test_vocabulary_and_parameter_listing():
                 "time_delay": {"delay_s"}, "non_congruent": {"curvature", "scale_nmm"},
                 "creep": {"fraction", "tau_min_s", "tau_max_s"}, "rate_dependence": {"tau_s"},
                 "run_gain_offset": {"gain_sd", "offset_sd"}, "leakage": {"rate_per_s"},
-                "accommodation": {"kappa", "cycles"}}
+                "accommodation": {"kappa", "cycles"}, "viscous": {"c"}}
     for name, keys in expected.items():
         assert set(params[name]["params"]) == keys
         assert "Signature" in params[name]["doc"]

@@ -54,8 +54,10 @@ def test_chain_on_real_recordings(key, tmp_path):
         assert r.rms < 1000.0, r
         assert r.hand_lstsq_rms is not None and r.hand_lstsq_rms < 0.5 * r.baseline_rms
         assert "diagnose" in r.status
-        # The extended model (stages and learned term) predicts through the whole chain: today 115 N.
-        assert r.extended_rms is not None and r.extended_rms < 200.0, r
+        # The velocity dependence is named: a viscous loss (force per displacement rate, c >= 0), and the extended
+        # model predicts through the whole chain at least 50 % better than the nominal one (today 109 N, 0.17x).
+        assert "viscous" in r.named, r
+        assert r.extended_rms is not None and r.extended_rms < 0.5 * r.rms and r.extended_rms < 200.0, r
     elif key in ("feco_forc", "sediment_forc", "sediment_lakeshore"):
         assert r.noise_floor is not None and r.noise_floor > 0
         # With the table chosen by cross-validation: feco_forc 4.6x the noise (8.6x with the fixed default),

@@ -3,8 +3,9 @@ calibration field (the instrument's drift check, measured after each saturation)
 curve. Each curve becomes a table of its own (one run of the bundle, so curves can be held out), led by its
 calibration point: that point is a measurement of the state the curve starts from (the branch's top after
 saturation), and its moment, which should be the same before every curve, is the drift of the instrument; the
-tables' metadata keep it (``calibration_field``, ``calibration_moment``). Time continues through the file, so the
-curves remain one history."""
+tables' metadata keep it (``calibration_field``, ``calibration_moment``). The curves were measured one after the
+other on one sample, so they are one measurement history in file order (:class:`~bmr.data.tables.Recorded`), as are
+a hysteresis export's initial curve and loop."""
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -14,7 +15,7 @@ from typing import Any
 import numpy as np
 
 from bmr._core import BundleError
-from bmr.data.tables import Table
+from bmr.data.tables import Recorded, Table
 
 __all__ = ["Segment", "forc_tables"]
 
@@ -48,10 +49,13 @@ def forc_tables(path: Path, segments: list[Segment], *, forc: bool, field: str, 
     h_cal = calibration_field if calibration_field is not None else float(segments[0].columns[field][0])
     is_cal = [s.size == 1 and abs(float(s.columns[field][0]) - h_cal) <= 0.02 * span for s in segments]
     stem = path.stem or path.name
+    made: list[Table] = []
 
     def table(name: str, columns: dict[str, np.ndarray], where: str, extra: dict[str, Any]) -> Table:
-        return Table(f"{stem}-{name}", columns, f"{path} ({where})", dict(units), time_column=time_column,
-                     meta={**meta, **extra}, aliases=dict(aliases or {}))
+        made.append(Table(f"{stem}-{name}", columns, f"{path} ({where})", dict(units), time_column=time_column,
+                          meta={**meta, **extra}, aliases=dict(aliases or {}),
+                          recorded=Recorded(f"measurement sequence of {path}", float(len(made)))))
+        return made[-1]
 
     def joined(parts: list[Segment]) -> dict[str, np.ndarray]:
         return {k: np.concatenate([p.columns[k] for p in parts]) for k in parts[0].columns}

@@ -16,17 +16,22 @@ Columns are named as in the header with every uncertainty as ``sig<NAME>`` (``MA
 ``sigBL``, ``TF``, ``sigTF``, ``THsp``, ``sigTHsp``; ``Time`` in s). Units come from the ``strdat`` units line
 (for a ``strplt`` file, from the ``strdat`` file of the same run beside it; otherwise from the layout: A, T, T/A,
 deg). The run's header lines (comment, date, run number) are the table's metadata; its name is ``runN``.
+
+The runs of one magnet were measured one after the other, each starting from the field the previous one left: the
+table is placed in the magnet's measurement history (``SLAC magnet <name> <serial>``) at the header's date and time
+(``MM-DD-YYYY``, ``HH:MM:SS``, as the run log ``index.dat`` lists them), or at its run number without a date.
 """
 from __future__ import annotations
 
 import re
+from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from bmr._core import BundleError
-from bmr.data.tables import Table, read_text
+from bmr.data.tables import Recorded, Table, read_text
 
 __all__ = ["read", "looks_like"]
 
@@ -138,6 +143,22 @@ def _strdat(text: str, source: str) -> tuple[dict[str, Any], list[str], str | No
     return meta, _sigma_case(_names(header)), units_line, dash + 1
 
 
+def _recorded(meta: dict[str, Any], run: str | None) -> Recorded | None:
+    """The run's place in its magnet's measurement history (None when the header names no magnet)."""
+    magnet = " ".join(str(meta.get(k, "")).strip() for k in ("Magnet Name", "Serial Number")).strip()
+    if not magnet:
+        return None
+    try:
+        # The header's local time, read as UTC: only the order of one magnet's runs matters.
+        stamp = datetime.strptime(f"{meta.get('Date', '')} {meta.get('Time', '')}", "%m-%d-%Y %H:%M:%S")
+        order = stamp.replace(tzinfo=timezone.utc).timestamp()
+    except ValueError:
+        if run is None or not str(run).isdigit():
+            return None
+        order = float(run)
+    return Recorded(f"SLAC magnet {magnet}", order)
+
+
 def read(path: str | Path) -> list[Table]:
     """The run's samples as one table named ``runN``."""
     p = Path(path)
@@ -170,4 +191,4 @@ def read(path: str | Path) -> list[Table]:
     if value_names and f"sig{value_names[0]}" in columns:
         aliases["sigma"] = [f"sig{value_names[0]}"]  # the header calls the first uncertainty just "sigma"
     return [Table(name, columns, str(p), units, time_column="Time" if "Time" in columns else None, meta=meta,
-                  aliases=aliases)]
+                  aliases=aliases, recorded=_recorded(meta, run))]
