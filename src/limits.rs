@@ -26,6 +26,8 @@ pub const MAX_EVERETT_INTERVALS: usize = 2048;
 /// Most unknowns (cell masses plus output offsets) of one least-squares Everett fit: its dense normal
 /// equations hold the square of this many values (128 MiB).
 pub const MAX_EVERETT_UNKNOWNS: usize = 4096;
+/// Most cross-validation folds of one Everett fit: each holds its own normal equations (up to 128 MiB).
+pub const MAX_CV_FOLDS: usize = 10;
 /// Most pivoting iterations of the nonnegative least-squares solver.
 pub const MAX_SOLVER_ITERATIONS: usize = 100_000;
 /// Most `(input, output)` points in the first-order curves generated from an Everett table (both families).

@@ -37,6 +37,7 @@ __all__ = [
     "EverettModel",
     "ExtendedSimulation",
     "EverettRegression",
+    "EverettFolds",
     "Friction",
     "Hysteresis",
     "HysteresisState",
@@ -433,6 +434,31 @@ class EverettRegression:
     @property
     def n_rows(self) -> int: ...
     def fit(self, outputs: Sequence[_ArrayLike], warm_start: Sequence[bool] | np.ndarray | None = None) -> EverettFit: ...
+@final
+class EverettFolds:
+    """The ``fit_everett`` least squares split into folds for cross-validation (regressors built once): ``runs``
+    as ``(u, y, weight, fold, offset_col, history, gain)`` with ``fold[i]`` the fold holding sample ``i`` out
+    (negative or ``>= folds``: never held out); ``score`` returns every fold's held-out ``(sse, weight)``."""
+    def __new__(
+        cls,
+        grid: _ArrayLike,
+        runs: Sequence[tuple[_ArrayLike, _ArrayLike, _ArrayLike, _ArrayLike, int, _ArrayLike, float]],
+        n_offsets: int = 1,
+        folds: int = 3,
+        *,
+        drift: Sequence[_ArrayLike] | None = None,
+    ) -> Self: ...
+    @property
+    def n_unknowns(self) -> int: ...
+    def score(
+        self,
+        smoothing: float = 1e-4,
+        *,
+        ridge: float = 1e-9,
+        max_iter: int = 500,
+        warm_start: Sequence[bool] | np.ndarray | None = None,
+    ) -> list[tuple[float, float]]: ...
+
 EFFECTS: tuple[str, ...]
 """Names of the virtual actuator's switchable effects (the diagnosis vocabulary)."""
 PRESETS: tuple[str, ...]

@@ -84,11 +84,12 @@ def _parser() -> argparse.ArgumentParser:
                         "squares from any excitation (lstsq), or both, keeping the one with the lower held-out "
                         "error on the evaluation runs or, without any, on first-order curves held out in two "
                         "folds (auto, the default, also when one of them is impossible)")
-    i.add_argument("--intervals", type=int, default=48, metavar="N",
-                   help="least-squares table: grid intervals over the input range (default: 48; nodes on the "
-                        "measurement's input steps resolve reversals there exactly)")
-    i.add_argument("--smoothing", type=float, default=1e-4, metavar="S",
-                   help="least-squares table: weight of the density's smoothness (default: 1e-4)")
+    i.add_argument("--intervals", type=int, default=None, metavar="N",
+                   help="least-squares table: grid intervals over the input range (default: chosen by "
+                        "cross-validation over time blocks of the training runs)")
+    i.add_argument("--smoothing", type=float, default=None, metavar="S",
+                   help="least-squares table: weight of the density's smoothness (default: chosen by "
+                        "cross-validation over time blocks of the training runs)")
     i.add_argument("-o", "--out", required=True,
                    help="model file to write (bmr-model/2 JSON: tables, friction, the bundle's quantities and units)")
 

@@ -98,6 +98,8 @@ pub enum IdentificationError {
     BadParameter { name: &'static str, value: f64 },
     /// An Everett fit without offset columns.
     NoOffsets,
+    /// Cross-validation with fewer than two folds.
+    TooFewFolds { folds: usize },
     /// A problem in one training run.
     Run { run: usize, error: RunError },
     /// No sample had a positive weight.
@@ -199,6 +201,9 @@ impl fmt::Display for IdentificationError {
                 write!(f, "{name} must be finite and nonnegative, got {value}")
             }
             E::NoOffsets => f.write_str("at least one offset column is needed"),
+            E::TooFewFolds { folds } => {
+                write!(f, "cross-validation needs at least 2 folds, got {folds}")
+            }
             E::Run { run, error } => write!(f, "run {run}: {error}"),
             E::NoSamples => f.write_str("no samples with positive weight to fit"),
             E::EmptyOffset { column } => write!(f, "offset column {column} has no samples"),

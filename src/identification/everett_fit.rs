@@ -354,7 +354,10 @@ pub fn fit_everett(
     Ok(fit)
 }
 
-fn check_options(n_offsets: usize, options: EverettFitOptions) -> Result<(), IdentificationError> {
+pub(super) fn check_options(
+    n_offsets: usize,
+    options: EverettFitOptions,
+) -> Result<(), IdentificationError> {
     if n_offsets == 0 {
         return Err(IdentificationError::NoOffsets);
     }
@@ -372,7 +375,7 @@ fn check_options(n_offsets: usize, options: EverettFitOptions) -> Result<(), Ide
 }
 
 /// The data term of the least squares: node-space Gram matrix, right-hand side, `Σ w y²` and the row counts.
-struct DataTerm<'a> {
+pub(super) struct DataTerm<'a> {
     gram: &'a [f64],
     rhs: &'a [f64],
     yy: f64,
@@ -382,7 +385,7 @@ struct DataTerm<'a> {
 }
 
 impl<'a> DataTerm<'a> {
-    fn of(ne: &'a NormalEquations, rhs: &'a [f64], yy: f64) -> Self {
+    pub(super) fn of(ne: &'a NormalEquations, rhs: &'a [f64], yy: f64) -> Self {
         Self {
             gram: &ne.gram,
             rhs,
@@ -397,7 +400,7 @@ impl<'a> DataTerm<'a> {
 /// The regularised quadratic in mass space: `Q = Cᵀ G C + λ_s DᵀD + λ_r I` on the node block (`C` maps masses
 /// to node values), `Cᵀ G` on the node/offset block, `G` on the offset block. Depends on the input history and
 /// the row weights only, not on the output.
-fn mass_space_matrix(
+pub(super) fn mass_space_matrix(
     grid: &EverettGrid,
     ne: &NormalEquations,
     options: EverettFitOptions,
@@ -473,7 +476,7 @@ fn adjoint_rows(grid: &EverettGrid, a: &[f64], stride: usize, nn: usize, out: &m
 
 /// Solve the nonnegative quadratic for the right-hand side of `data` (optionally warm-started from a passive
 /// set) and measure the data-term residual.
-fn solve(
+pub(super) fn solve(
     grid: &EverettGrid,
     data: &DataTerm<'_>,
     q: &[f64],

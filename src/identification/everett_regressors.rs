@@ -555,6 +555,24 @@ impl NormalEquations {
         Ok(())
     }
 
+    /// Accumulate one sparse regressor row (as handed to the visitor of [`Self::add_rows`]: sorted by column, one
+    /// entry per column) with weight `w` and output `y`: the upper triangle of the Gram matrix, the right-hand
+    /// side and the counts. Call [`Self::finish`] after the last row.
+    pub fn add_row(&mut self, w: f64, row: &[(usize, f64)], y: f64) {
+        let m = self.n_cols();
+        for (e, &(a, va)) in row.iter().enumerate() {
+            let wa = w * va;
+            self.rhs[a] += wa * y;
+            let ga = &mut self.gram[a * m..(a + 1) * m];
+            for &(b, vb) in &row[e..] {
+                ga[b] += wa * vb;
+            }
+        }
+        self.yy += w * y * y;
+        self.n_rows += 1;
+        self.weight_sum += w;
+    }
+
     /// Complete the Gram matrix: the runs accumulate its upper triangle only; this copies it onto the lower one
     /// (symmetric to the bit). Call once after the last run.
     pub fn finish(&mut self) {

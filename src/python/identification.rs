@@ -1,13 +1,13 @@
 //! Python bindings of the identification least squares: `fit_friction_order`, `EverettModel`, `fit_everett`,
-//! `EverettRegression`.
+//! `EverettRegression`, `EverettFolds`.
 use numpy::{PyArray1, PyArray2, PyArrayMethods};
 use pyo3::prelude::*;
 use pyo3::types::PyTuple;
 
 use crate::cbh::Initial;
 use crate::identification::{
-    EverettFit, EverettFitOptions, EverettGrid, EverettInput, EverettModel, EverettRegression,
-    EverettRun, fit_everett as fit_everett_rs, fit_friction,
+    EverettFit, EverettFitOptions, EverettFoldRun, EverettFolds, EverettGrid, EverettInput,
+    EverettModel, EverettRegression, EverettRun, fit_everett as fit_everett_rs, fit_friction,
 };
 use crate::python::arrays::{curves_to_py, extract_f64_array};
 use crate::python::hysteresis::PyHysteresis;
@@ -522,6 +522,131 @@ fn fit_result(py: Python<'_>, fit: EverettFit) -> PyResult<PyEverettFit> {
     })
 }
 
+/// The Everett-table least squares of `fit_everett` split into `folds` folds for cross-validation, the regressors
+/// built once: `runs` is a list of `(u, y, weight, fold, offset_col, history, gain)` where `fold[i]` is the fold
+/// holding sample `i` out (an integer; negative or `>= folds`: never held out) and `drift` one array per run as
+/// in `fit_everett`. `score(smoothing)` fits each fold's training part and returns every fold's held-out
+/// `(sse, weight)`: one warm-started nonnegative solve per fold and no pass over the data.
+#[pyclass(name = "EverettFolds", module = "bmr._core")]
+pub struct PyEverettFolds {
+    inner: EverettFolds,
+}
+
+#[pymethods]
+impl PyEverettFolds {
+    #[new]
+    #[pyo3(signature = (grid, runs, n_offsets=1, folds=3, *, drift=None))]
+    #[allow(clippy::type_complexity)]
+    fn new(
+        py: Python<'_>,
+        grid: Array<'_>,
+        runs: Vec<(
+            Array<'_>,
+            Array<'_>,
+            Array<'_>,
+            Array<'_>,
+            usize,
+            Array<'_>,
+            f64,
+        )>,
+        n_offsets: usize,
+        folds: usize,
+        drift: Option<Vec<Array<'_>>>,
+    ) -> PyResult<Self> {
+        let grid = EverettGrid::new(extract_f64_array(&grid, "grid")?)
+            .map_err(|e| identification_err("Everett table cross-validation", e))?;
+        let mut data = Vec::with_capacity(runs.len());
+        for (i, (u, y, w, f, o, h, g)) in runs.into_iter().enumerate() {
+            let fold: Vec<usize> = extract_f64_array(&f, &format!("runs[{i}] fold"))?
+                .into_iter()
+                .map(|x| {
+                    if x.is_finite() && x >= 0.0 && x < folds as f64 {
+                        x as usize
+                    } else {
+                        usize::MAX
+                    }
+                })
+                .collect();
+            data.push((
+                extract_f64_array(&u, &format!("runs[{i}] input"))?,
+                extract_f64_array(&y, &format!("runs[{i}] output"))?,
+                extract_f64_array(&w, &format!("runs[{i}] weights"))?,
+                fold,
+                o,
+                extract_f64_array(&h, &format!("runs[{i}] history"))?,
+                g,
+            ));
+        }
+        let drift: Vec<Vec<f64>> = match drift {
+            None => Vec::new(),
+            Some(arrays) => {
+                if arrays.len() != data.len() {
+                    return Err(BmrError::new_err(format!(
+                        "drift has {} arrays, runs {}: give one per run",
+                        arrays.len(),
+                        data.len()
+                    )));
+                }
+                arrays
+                    .iter()
+                    .enumerate()
+                    .map(|(i, a)| extract_f64_array(a, &format!("drift[{i}]")))
+                    .collect::<PyResult<_>>()?
+            }
+        };
+        let inner = py
+            .detach(|| {
+                let views: Vec<EverettFoldRun<'_>> = data
+                    .iter()
+                    .enumerate()
+                    .map(|(k, (u, y, w, f, o, h, g))| EverettFoldRun {
+                        u,
+                        y,
+                        weight: w,
+                        fold: f,
+                        offset_col: *o,
+                        history: h,
+                        gain: *g,
+                        drift: drift.get(k).map_or(&[], Vec::as_slice),
+                    })
+                    .collect();
+                EverettFolds::new(&grid, &views, n_offsets, folds)
+            })
+            .map_err(|e| identification_err("Everett table cross-validation", e))?;
+        Ok(Self { inner })
+    }
+
+    /// Number of unknowns (cell masses, offsets, the drift coefficient).
+    #[getter]
+    fn n_unknowns(&self) -> usize {
+        self.inner.n_unknowns()
+    }
+
+    /// Every fold's held-out `(sse, weight)` (output units², row weights) of the table fitted on the rest with
+    /// this `smoothing` and `ridge`; each fold's solve is warm-started from its solve at the nearest smoothing,
+    /// its first one from `warm_start` (a passive set of `n_unknowns` entries, e.g. a fit of the whole).
+    #[pyo3(signature = (smoothing=1e-4, *, ridge=1e-9, max_iter=500, warm_start=None))]
+    fn score(
+        &mut self,
+        py: Python<'_>,
+        smoothing: f64,
+        ridge: f64,
+        max_iter: usize,
+        warm_start: Option<Vec<bool>>,
+    ) -> PyResult<Vec<(f64, f64)>> {
+        let options = EverettFitOptions {
+            smoothing,
+            ridge,
+            max_iter,
+        };
+        let inner = &mut self.inner;
+        let scores = py
+            .detach(|| inner.score(options, warm_start.as_deref()))
+            .map_err(|e| identification_err("Everett table cross-validation", e))?;
+        Ok(scores.iter().map(|s| (s.sse, s.weight)).collect())
+    }
+}
+
 /// The Everett-table least squares of `fit_everett` prepared for one input history: `inputs` is a list of
 /// `(u, weight, offset_col)`. The regressors and the regularised normal matrix are built once; `fit(outputs)`
 /// then identifies the table for any outputs of the same runs (one array per run) at the cost of a right-hand
@@ -617,6 +742,7 @@ pub(crate) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(fit_everett, m)?)?;
     m.add_class::<PyEverettModel>()?;
     m.add_class::<PyEverettRegression>()?;
+    m.add_class::<PyEverettFolds>()?;
     m.add_class::<PyEverettFit>()?;
     m.add_class::<PyFrictionOrderFit>()?;
     Ok(())

@@ -176,6 +176,7 @@ fn limits_dict(py: Python<'_>) -> PyResult<Bound<'_, pyo3::types::PyDict>> {
     d.set_item("everett_intervals", MAX_EVERETT_INTERVALS)?;
     d.set_item("everett_unknowns", MAX_EVERETT_UNKNOWNS)?;
     d.set_item("solver_iterations", MAX_SOLVER_ITERATIONS)?;
+    d.set_item("cv_folds", MAX_CV_FOLDS)?;
     d.set_item("curve_points", MAX_CURVE_POINTS)?;
     Ok(d)
 }

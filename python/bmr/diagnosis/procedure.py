@@ -49,6 +49,7 @@ from bmr.diagnosis.residuals import one_blas_thread, prepare, signal_label, stru
 from bmr.diagnosis.selection import MIN_EXCESS, NOISE_MARGIN, Alternative, Fitter, forward_selection, t975
 from bmr.identification.procedure import identify
 from bmr.identification.model import LOOP_STAGES, Model
+from bmr.identification.table_choice import DEFAULT_INTERVALS, DEFAULT_SMOOTHING
 from bmr.report.diagnosis import figures, html_page, html_section
 from bmr.simulation.experiments import MULTIPEAK_SEED, reference_multipeak, tracking
 
@@ -210,7 +211,9 @@ def nominal_model(bundle: Bundle) -> Any:
             return identify(bundle, method="forc", max_order=NOMINAL_FRICTION_ORDER, subdivisions=1)
         except TableError:
             pass
-    return identify(bundle, method="lstsq", max_order=NOMINAL_FRICTION_ORDER, subdivisions=1, drift="auto")
+    # The fixed default resolution and smoothing: the paper's model, not one tuned by cross-validation.
+    return identify(bundle, method="lstsq", max_order=NOMINAL_FRICTION_ORDER, subdivisions=1, drift="auto",
+                    n_intervals=DEFAULT_INTERVALS, smoothing=DEFAULT_SMOOTHING)
 
 
 @one_blas_thread

@@ -29,14 +29,16 @@ from bmr.identification.forc import Curve
 from bmr.identification.signals import run_input, run_output, running_integral
 from bmr.identification.spans import SATURATION_TOL, evaluation_start, input_range_of
 
-__all__ = ["RunCalibration", "LstsqTables", "fit_tables_lstsq", "INITIAL_STATES", "DRIFTS", "saturation_closure",
-           "Conditioning", "OPEN_BRANCH_SHARE"]
+__all__ = ["RunCalibration", "LstsqTables", "fit_tables_lstsq", "row_weights", "INITIAL_STATES", "DRIFTS",
+           "saturation_closure", "Conditioning", "OPEN_BRANCH_SHARE", "MAX_ROWS"]
 
 INITIAL_STATES = ("estimate", "saturation", "negative")
 DRIFTS = ("none", "leakage", "auto")
 # Branches count as open when a run's output at one saturation end moves by more than this share of its output
 # span between visits (a closed Preisach loop repeats its saturation outputs to the noise).
 OPEN_BRANCH_SHARE = 0.02
+# Regression rows above which the runs are thinned uniformly.
+MAX_ROWS = 2_000_000
 BEFORE_KNOWN_STATE = "before the run's state is known (initial_state='saturation')"
 THINNED = "thinned to max_rows (every k-th sample kept)"
 HELD_OUT = "held out (cross-validation)"
@@ -133,6 +135,8 @@ class LstsqTables:
     leakage_rate: float | None = None
     closure: float = 0.0
     conditioning: Conditioning | None = None
+    # The final solve's passive set (unknowns off their bound): a warm start for neighbouring problems.
+    passive: np.ndarray | None = None
 
     @property
     def offsets(self) -> np.ndarray:
@@ -157,6 +161,18 @@ class LstsqTables:
         return {"common": self.offset, "runs": float(offs.size),
                 "spread": float(np.std(offs, ddof=1)) if offs.size > 1 else math.nan,
                 "first_sample_error": float(np.sqrt(np.mean(first ** 2))) if first.size else math.nan}
+
+    def run_prediction(self, k: int, u: np.ndarray, integral: np.ndarray | None = None) -> np.ndarray:
+        """Training run ``k``'s output as fitted, along its input ``u``: its offset plus its gain times the table's
+        output from its initial state, plus the leakage along the input's running ``integral`` when one was
+        fitted (``integral`` needed then)."""
+        r = self.runs[k]
+        part = r.gain * self.everett.simulate(np.ascontiguousarray(u, dtype=float), 0.0, list(r.history))
+        if self.leakage_rate is not None:
+            if integral is None:
+                raise BmrError("run_prediction: the fit has a leakage term; pass the input's running integral")
+            part = part + self.leakage_rate * integral
+        return r.offset + part
 
     def calibration(self, name: str) -> RunCalibration:
         for r in self.runs:
@@ -191,6 +207,20 @@ def _fit(grid: np.ndarray, packed: list[tuple], n_offsets: int, smoothing: float
     return _core.fit_everett(grid, packed, n_offsets, smoothing=smoothing, ridge=ridge, drift=drift)
 
 
+def row_weights(us: Sequence[np.ndarray], lo: float, hi: float, initial_state: str,
+                max_rows: int) -> list[np.ndarray]:
+    """Each run's row weights in :func:`fit_tables_lstsq` before any sample is held out: 1 on the rows fitted, 0
+    before the known state (``initial_state="saturation"``) and between rows thinned uniformly above ``max_rows``."""
+    stride = max(1, math.ceil(sum(u.size for u in us) / max_rows))
+    tol = SATURATION_TOL * (hi - lo)
+    out = []
+    for u in us:
+        w = np.zeros(u.size)
+        w[(evaluation_start(u, lo, hi, tol) if initial_state == "saturation" else 0)::stride] = 1.0
+        out.append(w)
+    return out
+
+
 def fit_tables_lstsq(
     runs: Iterable[Run],
     friction: Any = None,
@@ -204,7 +234,7 @@ def fit_tables_lstsq(
     gain_prior: float = 0.05,
     initial_state: str = "estimate",
     iterations: int = 3,
-    max_rows: int = 2_000_000,
+    max_rows: int = MAX_ROWS,
     curve_subdivisions: int = 1,
     exclude: Mapping[str, np.ndarray] | None = None,
     drift: str = "none",
@@ -263,17 +293,13 @@ def fit_tables_lstsq(
     closure = saturation_closure(us, ys, lo, hi, tol)
     leakage = drift == "leakage" or (drift == "auto" and closure > OPEN_BRANCH_SHARE)
     integrals = [running_integral(u, r.t) for r, u in zip(runs, us)] if leakage else None
-    total = sum(u.size for u in us)
-    stride = max(1, math.ceil(total / max_rows))
     per_run = offsets == "per_run"
     n_off = len(runs) if per_run else 1
 
     account = SampleAccount()
     weights = []
-    for r, u in zip(runs, us):
-        w = np.zeros(u.size)
+    for r, u, w in zip(runs, us, row_weights(us, lo, hi, initial_state, max_rows)):
         s = evaluation_start(u, lo, hi, tol) if initial_state == "saturation" else 0
-        w[s::stride] = 1.0
         held = np.zeros(u.size, dtype=bool)
         if exclude is not None and r.name in exclude:
             held = np.asarray(exclude[r.name], dtype=bool)
@@ -378,7 +404,7 @@ def fit_tables_lstsq(
                        rms=res.rms, n_rows=res.n_rows, iterations=res.iterations,
                        runs=calib, samples=account, n_intervals=int(n_intervals), settings=settings,
                        leakage_rate=rate if integrals is not None else None, closure=closure,
-                       conditioning=Conditioning.of(res))
+                       conditioning=Conditioning.of(res), passive=np.asarray(res.passive))
 
 
 def _fit_gains(model: Any, us: Sequence[np.ndarray], ys: Sequence[np.ndarray], weights: Sequence[np.ndarray],

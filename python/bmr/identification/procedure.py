@@ -32,6 +32,7 @@ from bmr.identification.model import Model
 from bmr.identification.prediction import Prediction, predict
 from bmr.identification.signals import run_input, run_output
 from bmr.identification.spans import input_range_of
+from bmr.identification.table_choice import DEFAULT_INTERVALS, DEFAULT_SMOOTHING, TableChoice, choose_table_settings
 
 __all__ = ["IdentificationReport", "identify", "run_cli", "METHODS"]
 
@@ -51,7 +52,9 @@ class IdentificationReport:
     fitted, derived and added (``bmr.TableReport.to_dict()``); ``lstsq``: the least-squares fit with every
     training run's offset, gain and initial state. ``scores``: per method, per scored run, RMS and largest error
     (output units) on held-out data; ``cv``: cross-validated RMS per method when the bundle has no evaluation run.
-    ``out_of_range``: per scored run, inputs beyond the table's range and the largest excess.
+    ``out_of_range``: per scored run, inputs beyond the table's range and the largest excess. ``table_choice``:
+    the least-squares table's resolution and smoothing and how cross-validation inside the training runs chose
+    them (None when both were given).
     """
 
     method: str
@@ -69,6 +72,7 @@ class IdentificationReport:
     cv: dict[str, float] | None = None
     out_of_range: dict[str, dict[str, float]] = field(default_factory=dict)
     time_s: dict[str, float] = field(default_factory=dict)
+    table_choice: TableChoice | None = None
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-safe content (what the model file keeps in ``meta["identification"]``)."""
@@ -95,6 +99,8 @@ class IdentificationReport:
             out["forc_consistency"] = self.table.get("mismatch")
         if self.lstsq is not None:
             out["lstsq_fit"] = self.lstsq.to_dict()
+        if self.table_choice is not None:
+            out["table_choice"] = self.table_choice.to_dict()
         return out
 
     def __repr__(self) -> str:
@@ -127,6 +133,8 @@ class IdentificationReport:
                          f"bound {o.format(max(nd['ascending']['tolerance'], nd['descending']['tolerance']))}")
         if self.lstsq is not None:
             lines.append(f"  {self.lstsq!r}")
+        if self.table_choice is not None:
+            lines.append(f"  {self.table_choice!r}")
         if self.cv:
             lines.append("  cross-validated RMS: " + ", ".join(f"{m} {o.format(v, 4)}" for m, v in self.cv.items()))
         for m, runs in self.scores.items():
@@ -214,8 +222,8 @@ def identify(
     *,
     method: str = "auto",
     max_order: int = DEFAULT_MAX_ORDER,
-    n_intervals: int = 48,
-    smoothing: float = 1e-4,
+    n_intervals: int | None = None,
+    smoothing: float | None = None,
     train_kinds: Sequence[str] | None = None,
     deadband: float | None = None,
     offsets: str = "per_run",
@@ -225,6 +233,7 @@ def identify(
     deadband_a: float | None = None,
     n_nodes: int | None = None,
     drift: str = "auto",
+    input_range: tuple[float, float] | None = None,
 ) -> Model:
     """Identify friction and hysteresis from ``bundle`` and return a ``bmr.Model`` whose ``identification``
     (an :class:`IdentificationReport`) says what was done.
@@ -236,6 +245,11 @@ def identify(
     an error when one of them is impossible). ``offsets``, ``gains``, ``initial_state``: the least-squares fit's
     per-run calibration (see ``fit_tables_lstsq``); ``drift``: its leakage term (default ``"auto"``: fitted with the
     table when the branches do not close and it closes them; the rate is in ``model.identification.lstsq``).
+    ``input_range``: the tables' input range (default: the range the identification runs measure).
+    ``n_intervals``, ``smoothing``: the least-squares table's resolution (grid intervals over the input range) and
+    the weight of its density's smoothness; each one not given is chosen by cross-validation over time blocks of
+    the training runs (:func:`~bmr.identification.table_choice.choose_table_settings`; the evaluation runs are
+    never used), reported as ``model.identification.table_choice``.
     ``subdivisions``: curves added per interval between measured
     reversals of the first-order tables. ``deadband``: reversal dead-band in input units (``deadband_a``: its
     former name; ``n_nodes`` is ignored: curve nodes now follow the data).
@@ -255,7 +269,12 @@ def identify(
     times: dict[str, float] = {"friction": time.perf_counter() - t0}
     if not active:
         raise BmrError("the bundle has no run besides off-state runs; nothing to identify the hysteresis from")
-    lo, hi = input_range_of([run_input(r) for r in active])
+    if input_range is None:
+        lo, hi = input_range_of([run_input(r) for r in active])
+    else:
+        lo, hi = (float(x) for x in input_range)
+        if not (math.isfinite(lo) and math.isfinite(hi) and hi > lo):
+            raise BmrError(f"input_range must be two finite inputs, the lower first, got {input_range!r}")
     limits = {q.input.column: [lo, hi]}
     train, evaluation = roles.train, roles.evaluation
 
@@ -263,6 +282,7 @@ def identify(
     accounts: dict[str, SampleAccount] = {}
     curves: FirstOrderCurves | None = None
     tables: LstsqTables | None = None
+    choice: TableChoice | None = None
     forc_error: BmrError | None = None
     if method in ("auto", "both", "forc"):
         if not protocol:
@@ -284,9 +304,20 @@ def identify(
         if not train:
             raise BmrError("no runs to train the least-squares tables on")
         t = time.perf_counter()
-        tables = fit_tables_lstsq(train, friction, n_intervals=n_intervals, smoothing=smoothing,
-                                  input_range=(lo, hi), offsets=offsets, gains=gains, initial_state=initial_state,
-                                  drift=drift)
+        if n_intervals is None or smoothing is None:
+            choice = choose_table_settings(train, friction, input_range=(lo, hi), n_intervals=n_intervals,
+                                           smoothing=smoothing, offsets=offsets, gains=gains,
+                                           initial_state=initial_state, drift=drift)
+            n_intervals, smoothing = choice.n_intervals, choice.smoothing
+            times["table_choice"] = time.perf_counter() - t
+        reference = choice.reference if choice is not None else None
+        if reference is not None and (reference.n_intervals, reference.settings["smoothing"]) == (n_intervals,
+                                                                                                   smoothing):
+            tables = reference  # the folds' reference fit is the fit at the setting chosen
+        else:
+            tables = fit_tables_lstsq(train, friction, n_intervals=n_intervals, smoothing=smoothing,
+                                      input_range=(lo, hi), offsets=offsets, gains=gains,
+                                      initial_state=initial_state, drift=drift)
         candidates["lstsq"] = _lstsq_model(tables, friction, limits, q)
         accounts["lstsq"] = tables.samples
         times["lstsq"] = time.perf_counter() - t
@@ -306,7 +337,9 @@ def identify(
     else:
         t = time.perf_counter()
         assert curves is not None
-        cv = _cross_validate(protocol, curves, friction, lo, hi, n_intervals, smoothing, offsets, subdivisions,
+        cv = _cross_validate(protocol, curves, friction, lo, hi,
+                             DEFAULT_INTERVALS if n_intervals is None else n_intervals,
+                             DEFAULT_SMOOTHING if smoothing is None else smoothing, offsets, subdivisions,
                              curves.deadband)
         times["cross_validation"] = time.perf_counter() - t
         if cv:
@@ -338,7 +371,7 @@ def identify(
         output_range=tuple(model.hysteresis.output_range), friction=friction.to_dict() if friction else None,
         samples=acc, curves=curves, table=(model.hysteresis.build_report.to_dict()
                                            if model.hysteresis.build_report is not None else None),
-        lstsq=tables, scores=scores, cv=cv, out_of_range=out_of_range, time_s=times)
+        lstsq=tables, scores=scores, cv=cv, out_of_range=out_of_range, time_s=times, table_choice=choice)
     model.identification = report
     model.meta["identification"] = report.to_dict()
     return model
