@@ -355,10 +355,8 @@ mod tests {
     }
 
     /// A dense, badly conditioned problem (a Hilbert-like Gram matrix plus a small ridge) with many active
-    /// bounds: pivoting cut off after one iteration hands over to coordinate descent, which reaches the same
-    /// minimiser as pivoting left to finish.
-    #[test]
-    fn descent_after_pivoting_gives_up_reaches_the_pivoting_answer() {
+    /// bounds: size, Gram matrix, linear term, which unknowns are bounded.
+    fn hilbert_problem() -> (usize, Vec<f64>, Vec<f64>, Vec<bool>) {
         let n = 24;
         let mut q = alloc::vec![0.0; n * n];
         for i in 0..n {
@@ -377,6 +375,14 @@ mod tests {
             })
             .collect();
         let constrained: Vec<bool> = (0..n).map(|i| i + 1 < n).collect();
+        (n, q, c, constrained)
+    }
+
+    /// On [`hilbert_problem`], pivoting cut off after one iteration hands over to coordinate descent, which
+    /// reaches the same minimiser as pivoting left to finish.
+    #[test]
+    fn descent_after_pivoting_gives_up_reaches_the_pivoting_answer() {
+        let (n, q, c, constrained) = hilbert_problem();
         let exact = nnls_gram(&q, &c, &constrained, 500).unwrap();
         let cut = nnls_gram(&q, &c, &constrained, 1).unwrap();
         assert!(exact.converged && !exact.descent);
@@ -402,24 +408,7 @@ mod tests {
         // The ill-conditioned problem above, started from the complement of its solution's passive set with a
         // budget the cold start needs: the warm start's share of it runs out, pivoting starts again cold and
         // finds the same minimiser without the descent.
-        let n = 24;
-        let mut q = alloc::vec![0.0; n * n];
-        for i in 0..n {
-            for j in 0..n {
-                q[i * n + j] = 1.0 / (1.0 + i as f64 + j as f64);
-            }
-            q[i * n + i] += 1e-6;
-        }
-        let c: Vec<f64> = (0..n)
-            .map(|i| {
-                if i % 3 == 0 {
-                    -0.5
-                } else {
-                    1.0 / (1.0 + i as f64)
-                }
-            })
-            .collect();
-        let constrained: Vec<bool> = (0..n).map(|i| i + 1 < n).collect();
+        let (n, q, c, constrained) = hilbert_problem();
         let cold = nnls_gram(&q, &c, &constrained, 500).unwrap();
         let far: Vec<bool> = cold.passive.iter().map(|&p| !p).collect();
         let budget = 10 * cold.iterations;

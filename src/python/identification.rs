@@ -349,6 +349,24 @@ impl PyEverettModel {
     }
 }
 
+/// The optional drift regressor: one array per run (`runs` of them), or none.
+fn drift_columns(drift: Option<Vec<Array<'_>>>, runs: usize) -> PyResult<Vec<Vec<f64>>> {
+    let Some(arrays) = drift else {
+        return Ok(Vec::new());
+    };
+    if arrays.len() != runs {
+        return Err(BmrError::new_err(format!(
+            "drift has {} arrays, runs {runs}: give one per run",
+            arrays.len()
+        )));
+    }
+    arrays
+        .iter()
+        .enumerate()
+        .map(|(i, a)| extract_f64_array(a, &format!("drift[{i}]")))
+        .collect()
+}
+
 /// Regularised nonnegative least squares for an Everett table on `grid` from `runs`, a list of
 /// `(u, y, weight, offset_col[, history[, gain]])` (weight 0 keeps a sample out of the fit while it drives the
 /// memory; `history`: inputs after negative saturation that set the run's initial state; `gain`: the run's
@@ -375,23 +393,7 @@ fn fit_everett<'py>(
         .enumerate()
         .map(|(i, run)| run.into_data(i))
         .collect::<PyResult<_>>()?;
-    let drift: Vec<Vec<f64>> = match drift {
-        None => Vec::new(),
-        Some(arrays) => {
-            if arrays.len() != data.len() {
-                return Err(BmrError::new_err(format!(
-                    "drift has {} arrays, runs {}: give one per run",
-                    arrays.len(),
-                    data.len()
-                )));
-            }
-            arrays
-                .iter()
-                .enumerate()
-                .map(|(i, a)| extract_f64_array(a, &format!("drift[{i}]")))
-                .collect::<PyResult<_>>()?
-        }
-    };
+    let drift = drift_columns(drift, data.len())?;
     let options = EverettFitOptions {
         smoothing,
         ridge,
@@ -577,23 +579,7 @@ impl PyEverettFolds {
                 g,
             ));
         }
-        let drift: Vec<Vec<f64>> = match drift {
-            None => Vec::new(),
-            Some(arrays) => {
-                if arrays.len() != data.len() {
-                    return Err(BmrError::new_err(format!(
-                        "drift has {} arrays, runs {}: give one per run",
-                        arrays.len(),
-                        data.len()
-                    )));
-                }
-                arrays
-                    .iter()
-                    .enumerate()
-                    .map(|(i, a)| extract_f64_array(a, &format!("drift[{i}]")))
-                    .collect::<PyResult<_>>()?
-            }
-        };
+        let drift = drift_columns(drift, data.len())?;
         let inner = py
             .detach(|| {
                 let views: Vec<EverettFoldRun<'_>> = data

@@ -245,7 +245,7 @@ def identify(
     an error when one of them is impossible). ``offsets``, ``gains``, ``initial_state``: the least-squares fit's
     per-run calibration (see ``fit_tables_lstsq``); ``drift``: its leakage term (default ``"auto"``: fitted with the
     table when the branches do not close and it closes them; the rate is in ``model.identification.lstsq``).
-    ``input_range``: the tables' input range (default: the range the identification runs measure).
+    ``input_range``: the tables' input range (default: the range the runs not held out measure).
     ``n_intervals``, ``smoothing``: the least-squares table's resolution (grid intervals over the input range) and
     the weight of its density's smoothness; each one not given is chosen by cross-validation over time blocks of
     the training runs (:func:`~bmr.identification.table_choice.choose_table_settings`; the evaluation runs are
@@ -270,7 +270,10 @@ def identify(
     if not active:
         raise BmrError("the bundle has no run besides off-state runs; nothing to identify the hysteresis from")
     if input_range is None:
-        lo, hi = input_range_of([run_input(r) for r in active])
+        # Held-out runs never set the range: their inputs beyond it are counted as out of range when predicted.
+        held_out = {id(r) for r in roles.evaluation}
+        lo, hi = input_range_of([run_input(r) for r in active if id(r) not in held_out] or
+                                [run_input(r) for r in active])
     else:
         lo, hi = (float(x) for x in input_range)
         if not (math.isfinite(lo) and math.isfinite(hi) and hi > lo):
