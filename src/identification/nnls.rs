@@ -408,7 +408,7 @@ mod tests {
         // The ill-conditioned problem above, started from the complement of its solution's passive set with a
         // budget the cold start needs: the warm start's share of it runs out, pivoting starts again cold and
         // finds the same minimiser without the descent.
-        let (n, q, c, constrained) = hilbert_problem();
+        let (_, q, c, constrained) = hilbert_problem();
         let cold = nnls_gram(&q, &c, &constrained, 500).unwrap();
         let far: Vec<bool> = cold.passive.iter().map(|&p| !p).collect();
         let budget = 10 * cold.iterations;
