@@ -48,7 +48,7 @@ def run(data_dir: Path, folds: int = 5) -> tuple[dict, object]:
 def figure(d: object, path: Path) -> None:
     from bmr import plot
 
-    runs = d._signals["runs"]  # type: ignore[attr-defined]
+    runs = d.signals["runs"]  # type: ignore[attr-defined]
     sigma = d.noise_floor  # type: ignore[attr-defined]
     with plot.style():
         fig, axes = plot.figure("wide", nrows=2, height=5.2)
