@@ -339,7 +339,7 @@ class FrictionHarmonics(Effect):
         return list(range(4, 13))
 
     def columns(self, data, value, y_field, model):
-        return np.column_stack(_angle_harmonic(data, value))
+        return data.cache.get(("friction_harmonics_cols", value), lambda: np.column_stack(_angle_harmonic(data, value)))
 
     needs_reidentify = True
 
@@ -348,8 +348,8 @@ class FrictionHarmonics(Effect):
 
     @staticmethod
     def remove(y, value, beta, run):
-        th = run.theta
-        return y - beta[0] * np.sin(value * th) - beta[1] * np.cos(value * th)
+        s, c = run.harmonic(value)
+        return y - beta[0] * s - beta[1] * c
 
     def params(self, value, beta, path):
         return {"order": float(value), "amplitude_nmm": float(math.hypot(beta[0], beta[1])),
@@ -373,8 +373,8 @@ class TorqueRipple(Effect):
 
     @staticmethod
     def remove(y, value, beta, run):
-        th = run.theta
-        return y / np.maximum(1.0 + beta[0] * np.cos(th) + beta[1] * np.sin(th), 1e-3)
+        s, c = run.harmonic(1)
+        return y / np.maximum(1.0 + beta[0] * c + beta[1] * s, 1e-3)
 
     def params(self, value, beta, path):
         return {"eps": float(math.hypot(beta[0], beta[1])), "phase_rad": float(math.atan2(-beta[1], beta[0]))}

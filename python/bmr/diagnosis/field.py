@@ -103,7 +103,15 @@ class ProtocolRun:
         names = list(getattr(context, "run_start_s", {}) or {})
         self.bundle_index = names.index(run.name) if run.name in names else None
         self._friction: np.ndarray | None = None
+        self._harmonic: tuple[Any, tuple[np.ndarray, np.ndarray]] | None = None
         self.torque = run.output - self.friction()
+
+    def harmonic(self, order: Any) -> tuple[np.ndarray, np.ndarray]:
+        """``sin(order·θ)``, ``cos(order·θ)`` along the run (the last order asked for is kept: the folds of one
+        candidate remove the same harmonic again and again)."""
+        if self._harmonic is None or self._harmonic[0] != order:
+            self._harmonic = (order, (np.sin(order * self.theta), np.cos(order * self.theta)))
+        return self._harmonic[1]
 
     def friction(self) -> np.ndarray:
         """The nominal model's friction (output units) along the run (computed once; zero without an angle)."""
@@ -118,7 +126,8 @@ class Reidentifier:
     path, for one diagnosis of ``model``. ``context`` (the diagnosis's :class:`bmr.diagnosis.residuals.EvalData`)
     is what the corrections' ``remove`` may read (e.g. the heating state of the whole bundle).
 
-    Caches (bounded): the prepared regression of the last few input histories and the tables of recent paths.
+    Caches (bounded): the prepared regression of the last few input histories (one slot kept for the history asked
+    for again, the configuration's) and the tables of recent paths.
     """
 
     def __init__(self, model: Any, protocol: Sequence[Any], context: Any = None, *, max_inputs: int = 3,
@@ -129,6 +138,7 @@ class Reidentifier:
         self.max_inputs = max_inputs
         self.max_tables = max_tables
         self._regressions: OrderedDict[tuple, Any] = OrderedDict()
+        self._kept: tuple[tuple, Any] | None = None  # the regression asked for again (counted in max_inputs)
         self._tables: OrderedDict[tuple, Curves] = OrderedDict()
         self._passive: np.ndarray | None = None
         self.fits = 0  # least-squares solves done (for the benchmarks)
@@ -141,6 +151,19 @@ class Reidentifier:
         """Drop the prepared regressions (tens of MB each on a long bundle) once no more tables will be
         identified; the tables identified so far stay."""
         self._regressions.clear()
+        self._kept = None
+
+    def correction_change(self, effect: Any, value: Any, before: Sequence[float], after: Sequence[float]) -> float:
+        """RMS (output units, over the protocol runs' samples) of what changes in the corrected protocol torque
+        when ``effect``'s linear parameters go from ``before`` to ``after``: how much a re-identification with the
+        new parameters could change the tables."""
+        total, count = 0.0, 0
+        b0, b1 = np.asarray(before, dtype=float), np.asarray(after, dtype=float)
+        for pr in self.runs:
+            d = effect.remove(pr.torque, value, b1, pr) - effect.remove(pr.torque, value, b0, pr)
+            total += float(np.dot(d, d))
+            count += d.size
+        return math.sqrt(total / count) if count else 0.0
 
     def curves(self, path: "FieldPath") -> Curves:
         key = (path.lag_tau_s, path.delay_s, path.rate_tau_s, path.curvature, path.corrections)
@@ -156,9 +179,16 @@ class Reidentifier:
     def _regression(self, path: "FieldPath") -> Any:
         """The prepared least squares of the protocol runs under ``path``'s input stages."""
         key = (path.lag_tau_s, path.delay_s, path.rate_tau_s)
+        if self._kept is not None and self._kept[0] == key:
+            return self._kept[1]
         if key in self._regressions:
-            self._regressions.move_to_end(key)
-            return self._regressions[key]
+            # Asked for again: the input history of the round's configuration, which every output-side
+            # candidate re-identifies under while the input-side ones fill the other slots.
+            reg = self._regressions.pop(key)
+            if self._kept is not None:
+                self._regressions[self._kept[0]] = self._kept[1]
+            self._kept = (key, reg)
+            return reg
         lo, hi = self.input_range
         inputs, weights = [], []
         for pr in self.runs:
@@ -182,7 +212,7 @@ class Reidentifier:
                                       smoothing=1e-4, ridge=1e-9)
         self.regressions += 1
         self._regressions[key] = reg
-        while len(self._regressions) > self.max_inputs:
+        while len(self._regressions) + (self._kept is not None) > self.max_inputs:
             self._regressions.popitem(last=False)
         return reg
 

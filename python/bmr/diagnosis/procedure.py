@@ -270,7 +270,7 @@ def diagnose(bundle: Bundle | str | Path, model: Any = None, *, folds: int = 5, 
     # Residuals on all data (nominal with its offset, extended) for the figures and the structure study.
     r_nom, _ = fitter.fit(FieldPath.nominal(model), [])
     r_ext, _ = fitter.fit(config.path, config.linear)
-    fitter.reidentifier.release()  # every table is identified: free the regressions before the library is built
+    fitter.release()  # every fit is made: free the regressions and caches before the library is built
     split = np.cumsum([r.n_eval for r in data.runs])[:-1]
     nom_runs, ext_runs = np.split(r_nom, split), np.split(r_ext, split)
     struct_nom = structure(data, nom_runs, lo, hi)

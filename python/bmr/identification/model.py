@@ -524,7 +524,7 @@ def _curves(value: Any, where: str) -> list[tuple[np.ndarray, np.ndarray]]:
     for k, c in enumerate(value):
         if not (isinstance(c, list) and len(c) == 2 and isinstance(c[0], list) and isinstance(c[1], list)):
             raise ModelFileError(f"{where}[{k}] must be [[u...], [y...]]")
-        if not all(_is_number(v) for v in c[0]) or not all(_is_number(v) for v in c[1]):
+        if not _all_numbers(c[0]) or not _all_numbers(c[1]):
             raise ModelFileError(f"{where}[{k}] holds values that are not numbers")
         u = np.asarray(c[0], dtype=float)
         y = np.asarray(c[1], dtype=float)
@@ -587,6 +587,12 @@ def _friction(value: Any, source: str) -> FrictionFit | None:
 def _is_number(v: Any) -> bool:
     """A real number (numpy scalars included), not a bool."""
     return isinstance(v, numbers.Real) and not isinstance(v, (bool, np.bool_))
+
+
+def _all_numbers(values: list[Any]) -> bool:
+    """Every value a real number (:func:`_is_number`); plain floats and ints, what a model file holds, are
+    recognised without the abstract-class check (a table holds thousands of values)."""
+    return all(type(v) in (float, int) or _is_number(v) for v in values)
 
 
 def _number_or_null(v: Any) -> bool:
