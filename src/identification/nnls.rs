@@ -236,8 +236,9 @@ fn pivot(
 /// `grad = Q x − c`: on a variable at its bound, its Lagrange multiplier (must be ≥ 0).
 ///
 /// Accumulated over the rows of `Q` whose `x_j` is not zero (`Q` is symmetric: row `j` is column `j`), in
-/// increasing `j`: the same sums, term for term and in the same order, as the products of the rows of `Q` with
-/// `x`, but reading only the passive set's rows (a quarter of `Q` in a table fit) instead of all of it.
+/// increasing `j`: the same sums in the same order as the products of the rows of `Q` with `x` (to the bit when
+/// `Q` is symmetric to the bit; a normal matrix built as `Cᵀ G C` may differ from its transpose by round-off),
+/// but reading only the passive set's rows (a quarter of `Q` in a table fit) instead of all of it.
 fn gradient(q: &[f64], c: &[f64], x: &[f64], grad: &mut [f64]) {
     let n = c.len();
     grad.iter_mut().for_each(|g| *g = -0.0);
