@@ -116,6 +116,22 @@ def test_one_major_loop_keeps_the_default_table_for_the_loops_inside_it(major_lo
     assert ranked > 1.05 * default  # the plant exposes what the blocks alone get wrong
 
 
+def test_one_monotone_sweep_offers_no_check_and_the_blocks_ranking_stands(major_loop):
+    # The major loop's descending branch alone: one sweep, nothing to hold out whole.
+    major, _ = major_loop
+    u = run_input(major)
+    top = int(np.argmax(u[: u.size // 2]))
+    bottom = top + int(np.argmin(u[top:]))
+    branch = bmr.Run("branch", "custom", major.data.iloc[top:bottom + 1].reset_index(drop=True))
+    lo, hi = input_range_of([run_input(branch)])
+    choice = choose_table_settings([branch], input_range=(lo, hi))
+    assert choice.skipped is None and choice.undecided is None and choice.ranked is None
+    assert choice.sweeps == 1 and np.isnan(choice.sweep_rms)
+    best = min(choice.candidates, key=lambda c: c.cv_rms)
+    assert choice.cv_rms <= best.cv_rms * 1.01  # the blocks' ranking (within its tie band)
+    print(choice)
+
+
 def test_the_chosen_setting_predicts_held_out_loops_at_least_as_well_as_the_default(loops):
     train, held = loops
     chosen = bmr.identify(bmr.Bundle("loops", FS, train), method="lstsq")
