@@ -30,7 +30,7 @@ pub enum InverseKind<S, const N: usize> {
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 #[cfg_attr(
     feature = "python",
-    pyo3::pyclass(name = "Command", module = "bmr", frozen, get_all, eq)
+    pyo3::pyclass(name = "Command", module = "bmr", get_all, eq)
 )]
 pub struct Command {
     /// Nominal current (A): negative drives coil 1, positive coil 2.

@@ -11,6 +11,7 @@ use crate::friction::MAX_ORDER;
 use crate::limits::{MAX_GENERATED_SAMPLES, check};
 use crate::python::arrays::{extract_f64_array, to_numpy};
 use crate::python::compensator::PyCompensator;
+use crate::python::compensator::command::CommandSlots;
 use crate::python::hysteresis::{MEMORY, initial_or_negative};
 use crate::python::virtual_actuator::PyVirtualActuator;
 use crate::python::{BmrError, bmr_err, bytes_to_words, limit_err, table_err, words_to_bytes};
@@ -88,6 +89,8 @@ pub(crate) struct PyController {
     /// The compensator it was built from (copies and pickles are rebuilt from it).
     source: Py<PyCompensator>,
     settings: ControllerSettings,
+    /// The `Command` objects `step` hands out again.
+    commands: CommandSlots,
 }
 
 fn busy<'py>(slf: &Bound<'py, PyController>) -> PyResult<PyRefMut<'py, PyController>> {
@@ -121,6 +124,7 @@ impl PyController {
             core,
             source: source.unbind(),
             settings,
+            commands: CommandSlots::default(),
         })
         .inspect(|_| {
             let _ = py;
@@ -204,8 +208,10 @@ impl PyController {
         reference_nmm: f64,
         theta_rad: f64,
         measured_nmm: f64,
-    ) -> PyResult<Command> {
-        Ok(busy(slf)?.core.step(reference_nmm, theta_rad, measured_nmm))
+    ) -> PyResult<Py<Command>> {
+        let mut me = busy(slf)?;
+        let c = me.core.step(reference_nmm, theta_rad, measured_nmm);
+        me.commands.give(slf.py(), c)
     }
 
     /// The loop as designed.
