@@ -442,9 +442,8 @@ fn _simulate_closed_loop<'py>(
     for (name, v) in NAMES.iter().zip(cols) {
         out.set_item(*name, to_numpy(py, v))?;
     }
-    let np = py.import("numpy")?;
     for (name, v) in ["saturated", "fault"].iter().zip(flags) {
-        out.set_item(*name, np.call_method1("array", (v, "bool"))?)?;
+        out.set_item(*name, numpy::PyArray1::from_vec(py, v))?;
     }
     Ok(out)
 }
