@@ -383,6 +383,8 @@ fn _simulate_closed_loop<'py>(
     )
     .map_err(limit_err)?;
     let plant = plant.get();
+    // Without angles given, each sample's is the actuator's own, read as it turns (what `theta_ahead` would
+    // give, without a second pass over the drive).
     let thetas = match theta_rad {
         Some(t) => {
             let t = extract_f64_array(t, "theta_rad")?;
@@ -393,9 +395,9 @@ fn _simulate_closed_loop<'py>(
                     refs.len()
                 )));
             }
-            t
+            Some(t)
         }
-        None => plant.sim()?.theta_ahead(refs.len()).map_err(limit_err)?,
+        None => None,
     };
     let mut ctl = busy(controller)?;
     let ctl = &mut ctl.core;
@@ -406,7 +408,8 @@ fn _simulate_closed_loop<'py>(
         let mut cols: [Vec<f64>; 8] = std::array::from_fn(|_| Vec::with_capacity(n));
         let mut flags: [Vec<bool>; 2] = std::array::from_fn(|_| Vec::with_capacity(n));
         let mut measured = f64::NAN;
-        for (&r, &th) in refs.iter().zip(&thetas) {
+        for (i, &r) in refs.iter().enumerate() {
+            let th = thetas.as_ref().map_or_else(|| sim.theta_rad(), |t| t[i]);
             let c = ctl.step(r, th, measured);
             let s = sim.step(c.current_a);
             measured = s.torque_nmm;
