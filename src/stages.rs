@@ -266,7 +266,9 @@ pub struct OutputMap {
     len: usize,
     core: MapAxis,
     field: MapAxis,
-    hint: usize,
+    /// The cell each axis was last looked up in (where its next search starts).
+    core_hint: usize,
+    field_hint: usize,
 }
 
 /// One axis of an output map, as the per-sample search and interpolation read it: the nodes, each cell's lower
@@ -350,7 +352,8 @@ impl OutputMap {
             len: n,
             core: MapAxis::new(core, field),
             field: MapAxis::new(field, core),
-            hint: 0,
+            core_hint: 0,
+            field_hint: 0,
         })
     }
 
@@ -387,17 +390,23 @@ impl OutputMap {
         (&self.core.nodes[..self.len], &self.field.nodes[..self.len])
     }
 
-    /// Field torque of core torque `core_nmm`.
+    /// Field torque of core torque `core_nmm` (the hint only speeds the search up).
     #[inline]
-    pub fn forward(&self, core_nmm: f64) -> f64 {
-        self.core.map(&self.field, self.len, core_nmm, self.hint).0
+    pub fn forward(&mut self, core_nmm: f64) -> f64 {
+        let (field, k) = self
+            .core
+            .map(&self.field, self.len, core_nmm, self.core_hint);
+        self.core_hint = k;
+        field
     }
 
     /// Core torque giving field torque `field_nmm` (the hint only speeds the search up).
     #[inline]
     pub fn inverse(&mut self, field_nmm: f64) -> f64 {
-        let (core, k) = self.field.map(&self.core, self.len, field_nmm, self.hint);
-        self.hint = k;
+        let (core, k) = self
+            .field
+            .map(&self.core, self.len, field_nmm, self.field_hint);
+        self.field_hint = k;
         core
     }
 }
@@ -975,7 +984,7 @@ impl Stages {
             Some(c) => c.step(core_nmm),
             None => core_nmm,
         };
-        let mut field = match &self.output_map {
+        let mut field = match &mut self.output_map {
             Some(m) => m.forward(crept),
             None => crept,
         };
@@ -1010,6 +1019,9 @@ mod tests {
             let a = m.inverse(v);
             m.inverse(-650.0);
             assert_eq!(m.inverse(v).to_bits(), a.to_bits());
+            let b = m.forward(v);
+            m.forward(650.0);
+            assert_eq!(m.forward(v).to_bits(), b.to_bits());
         }
         assert!(OutputMap::from_table(&[0.0, 1.0], &[1.0, 0.0]).is_err());
     }
