@@ -594,11 +594,12 @@ class RunGainOffset(Effect):
     # times (in mean square), or what the per-run terms fit is not a calibration.
     BETWEEN_OVER_WITHIN = 4.0
     # Share of the corrections' spread between runs that a straight line in the runs' times must leave unexplained
-    # (a line through 5 runs' random offsets explains 75 % of their spread in 5 % of sessions), unless the runs do
-    # not move along the line within themselves: less than WITHIN_RUN_TREND of the change it predicts between
-    # each run's halves.
+    # (a line through 5 runs' random offsets explains 75 % of their spread in 5 % of sessions, through 4 runs in
+    # 13 %: judged on TREND_RUNS runs or more), unless the runs do not move along the line within themselves: less
+    # than WITHIN_RUN_TREND of the change it predicts between each run's halves.
     UNTRENDED_SHARE = 0.25
     WITHIN_RUN_TREND = 0.5
+    TREND_RUNS = 5
 
     def signature_missing(self, fitter: Any, before: Any) -> str:
         """A calibration differs between recordings and holds along each. The residual of ``before`` is fitted in
@@ -609,8 +610,8 @@ class RunGainOffset(Effect):
           a calibration is named when recordings differ by more than one reading's noise),
         * change between runs at least :attr:`BETWEEN_OVER_WITHIN` times more (mean square) than between the
           halves of one run (a drift, a leakage or a heating moves the output along a recording), and
-        * not follow a straight line in the runs' times (explaining more than ``1 -`` :attr:`UNTRENDED_SHARE` of
-          their spread) along which each run also moves from its first half to its second (at least
+        * not follow a straight line in the runs' times (at least :attr:`TREND_RUNS` runs; explaining more than
+          ``1 -`` :attr:`UNTRENDED_SHARE` of their spread) along which each run also moves from its first half to its second (at least
           :attr:`WITHIN_RUN_TREND` of the change the line predicts): what a drift along the session leaves."""
         data = fitter.data
         if len(data.runs) < 2:
@@ -645,7 +646,7 @@ class RunGainOffset(Effect):
         if between < self.BETWEEN_OVER_WITHIN * within:
             return (f"the per-run corrections change as much within a run as between runs (mean squares "
                     f"{between / n:.3g} between, {within / n:.3g} within): not a calibration per recording")
-        if len(fits) < 3:
+        if len(fits) < self.TREND_RUNS:
             return ""
         # The runs' offsets and gains as straight lines of the runs' times: what a drift along the session leaves.
         tt = np.column_stack([np.ones(len(times)), np.asarray(times)])
