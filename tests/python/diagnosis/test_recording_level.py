@@ -53,3 +53,11 @@ def test_leakage_on_the_piezo_device_is_named_without_a_per_run_calibration() ->
     bundle = device_bundle("piezo", effects={"leakage": {"rate_per_s": 0.002}}, seed=1000)
     d = bmr.diagnose(bundle, progress=False, closed_loop=False)
     assert _physical(d) == ["leakage"], d.to_dict()["effects"]
+
+
+def test_a_piezo_recalibrated_per_recording_is_named_without_a_sensor_drift() -> None:
+    # Four evaluation recordings, each with its own gain and offset: what the calibration leaves is no trend that
+    # every recording shares (left alone, one recording carries it).
+    bundle = device_bundle("piezo", effects={"run_gain_offset": {"gain_sd": 0.02, "offset_sd": 0.1}}, seed=1001)
+    d = bmr.diagnose(bundle, progress=False, closed_loop=False)
+    assert _physical(d) == ["run_gain_offset"], d.to_dict()["effects"]
