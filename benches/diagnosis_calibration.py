@@ -18,6 +18,10 @@ at medium size, and clean bundles are diagnosed blind:
 * detection: the effect is among the accepted ones (pairs: both are);
 * wrong name: another *physical* effect is accepted (``table_resolution`` is not physics and not counted; a learned
   discrepancy is not a name);
+* an ambiguous report: the diagnosis names an effect and says which others it cannot tell it from on this excitation
+  (``alternatives``: "coil_lag or rate_dependence"). It is scored as what it says: it detects the hidden effect when
+  the hidden effect is one of its names, it is a wrong name only when none of its names is right, and the share of
+  bundles with such a report is listed next to the detection ("0.50 as 'a or b'");
 * false alarm (clean bundles): any physical effect accepted;
 * parameter error: relative error of the effect's main parameter;
 * held-out RMS of the nominal and the extended model (output units) and the noise floor.
@@ -187,6 +191,16 @@ def _diagnose_all(makers: list[Any], workers: int) -> list[tuple[dict[str, Any] 
     return out
 
 
+def reported_names(d: dict[str, Any], physical: list[str]) -> list[tuple[str, ...]]:
+    """What the diagnosis reports for each accepted physical effect: the name alone, or the name and the effects it
+    could not tell it from on this excitation (``alternatives``: "coil_lag or rate_dependence")."""
+    others: dict[str, list[str]] = {}
+    for a in d.get("alternatives") or []:
+        if a["other"] in PHYSICAL and a["other"] not in others.setdefault(a["chosen"], []):
+            others[a["chosen"]].append(a["other"])
+    return [(n, *others.get(n, [])) for n in physical]
+
+
 def _row(case: dict[str, Any], d: dict[str, Any] | str, cpu_s: float, medium: dict[str, Any] | None
          ) -> dict[str, Any]:
     row = dict(case)
@@ -204,9 +218,12 @@ def _row(case: dict[str, Any], d: dict[str, Any] | str, cpu_s: float, medium: di
         # The names that are right for each hidden effect (the independent family: for each mechanism).
         expect = case.get("expect") or [[n] for n in truth]
         allowed = {n for names in expect for n in names}
-        row["detected"] = all(any(n in physical for n in names) for names in expect)
-        row["wrong"] = any(n not in allowed for n in physical)
-        row["wrong_names"] = sorted({n for n in physical if n not in allowed})
+        reports = reported_names(d, physical)
+        row["reports"] = [" or ".join(r) for r in reports]
+        row["detected"] = all(any(n in r for r in reports for n in names) for names in expect)
+        row["wrong"] = any(not (set(r) & allowed) for r in reports)
+        row["wrong_names"] = sorted({" or ".join(r) for r in reports if not (set(r) & allowed)})
+        row["ambiguous"] = any(len(r) > 1 for r in reports)
         errs = []
         for name, params in truth.items():
             if medium is None or name not in medium:
@@ -330,11 +347,11 @@ def _quantiles(values: list[float]) -> dict[str, float]:
 
 
 def _mean(rows: list[dict[str, Any]], key: str) -> float | None:
-    return float(np.mean([bool(r[key]) for r in rows])) if rows else None
+    return float(np.mean([bool(r.get(key)) for r in rows])) if rows else None
 
 
 def rates(rows: list[dict[str, Any]]) -> dict[str, Any]:
-    """Detection and wrong-name rates of single effects and pairs, false alarms on clean bundles, per plant and
+    """Detection, wrong-name and ambiguous-report rates of single effects and pairs, false alarms on clean bundles, per plant and
     over all."""
     out: dict[str, Any] = {}
     for plant in sorted({r["plant"] for r in rows}) + ["all"]:
@@ -343,8 +360,9 @@ def rates(rows: list[dict[str, Any]]) -> dict[str, Any]:
         pairs = [r for r in sel if " + " in r["label"]]
         clean = [r for r in sel if r["label"] == "clean"]
         out[plant] = {"single": {"n": len(single), "detection": _mean(single, "detected"),
-                                 "wrong": _mean(single, "wrong")},
-                      "pairs": {"n": len(pairs), "detection": _mean(pairs, "detected"), "wrong": _mean(pairs, "wrong")},
+                                 "wrong": _mean(single, "wrong"), "ambiguous": _mean(single, "ambiguous")},
+                      "pairs": {"n": len(pairs), "detection": _mean(pairs, "detected"), "wrong": _mean(pairs, "wrong"),
+                                "ambiguous": _mean(pairs, "ambiguous")},
                       "clean": {"n": len(clean), "false_alarm": _mean(clean, "false_alarm"),
                                 "learned": sum(bool(r.get("learned")) for r in clean)}}
     return out
@@ -371,6 +389,7 @@ def summarize(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
         else:
             g["detection"] = _mean(ok, "detected")
             g["wrong"] = _mean(ok, "wrong")
+            g["ambiguous"] = _mean(ok, "ambiguous")
             g["wrong_names"] = sorted({n for r in ok for n in r.get("wrong_names", [])})
         errs = [r.get("param_err", math.nan) for r in ok]
         errs = [e for e in errs if e is not None and math.isfinite(e)]
@@ -396,7 +415,8 @@ def table_line(g: dict[str, Any]) -> str:
     size = "—" if g["label"] == "clean" else f"×{g['size']:g}"
     if "error" in g:
         return f"| {g['plant']} | {g['label']} | {size} | failed: {g['error'][:60]} | | | | |"
-    det = "—" if g["label"] == "clean" else f"{g['detection']:.2f}"
+    det = "—" if g["label"] == "clean" else f"{g['detection']:.2f}" + (
+        f" ({g['ambiguous']:.2f} as 'a or b')" if g.get("ambiguous") else "")
     wrong = "—" if g["label"] == "clean" else f"{g['wrong']:.2f}" + (
         f" ({', '.join(g['wrong_names'])})" if g["wrong_names"] else "")
     fa = f"{g['false_alarm']:.2f}" + (f" ({', '.join(g['found'])})" if g["found"] else "") \

@@ -309,6 +309,11 @@ def _rate(x: float | None) -> str:
     return "—" if x is None else f"{x:.2f}"
 
 
+def _ambiguous(r: dict[str, Any]) -> str:
+    """The share of bundles whose report says "a or b" (an effect the excitation could not tell from another)."""
+    return f" ({r['ambiguous']:.2f} as 'a or b')" if r.get("ambiguous") else ""
+
+
 def render_calibration(rec: dict[str, Any]) -> str:
     v = rec["values"]
     units = {"rig_preisach": "N·mm", "rig_soft": "N·mm", "piezo": "µm", "independent": "N·mm",
@@ -325,15 +330,18 @@ def render_calibration(rec: dict[str, Any]) -> str:
                                                           else "")
         fa = (_rate(g["false_alarm"]) + (f" ({', '.join(g['found'])})" if g["found"] else "")) if clean else "—"
         err = "—" if g["param_err"] is None else f"{g['param_err']:.2f}"
-        text.append(f"| {g['plant']} | {g['label']} | {size} | {'—' if clean else _rate(g['detection'])} | {wrong} | "
+        det = "—" if clean else _rate(g["detection"]) + (f" ({g['ambiguous']:.2f} as 'a or b')"
+                                                         if g.get("ambiguous") else "")
+        text.append(f"| {g['plant']} | {g['label']} | {size} | {det} | {wrong} | "
                     f"{fa} | {err} | {g['nominal']:.3g} → {g['final']:.3g} ({g['noise']:.3g}) "
                     f"{units.get(g['plant'], '')} |")
     text += ["", "| plant | single effects: detected | wrong name | pairs: both detected | wrong name | "
              "clean: false alarm | learned term kept on clean |", "|---|---|---|---|---|---|---|"]
     for plant, r in v["rates"].items():
         s, p, c = r["single"], r["pairs"], r["clean"]
-        text.append(f"| {plant} | {_rate(s['detection'])} of {s['n']} | {_rate(s['wrong'])} | "
-                    f"{_rate(p['detection'])} of {p['n']} | {_rate(p['wrong'])} | {_rate(c['false_alarm'])} of "
+        text.append(f"| {plant} | {_rate(s['detection'])} of {s['n']}{_ambiguous(s)} | {_rate(s['wrong'])} | "
+                    f"{_rate(p['detection'])} of {p['n']}{_ambiguous(p)} | {_rate(p['wrong'])} | "
+                    f"{_rate(c['false_alarm'])} of "
                     f"{c['n']} | {c['learned']} |")
     bw, bc = v["bundle_wall_s"], v["bundle_cpu_s"]
     text += ["", f"{v['bundles']} bundles ({v['failed']} failed) on {v['workers']} Dask workers in "

@@ -30,7 +30,7 @@ pub enum InverseKind<S, const N: usize> {
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 #[cfg_attr(
     feature = "python",
-    pyo3::pyclass(name = "Command", module = "bmr", frozen, get_all, eq)
+    pyo3::pyclass(name = "Command", module = "bmr", get_all, eq)
 )]
 pub struct Command {
     /// Nominal current (A): negative drives coil 1, positive coil 2.
@@ -251,8 +251,8 @@ impl<S: AsRef<[f64]>, const N: usize, const K: usize> Compensator<S, N, K> {
 
     /// Field torque before the gains of a core output with the stages' present state (no creep or
     /// accommodation advanced): through the output map, plus the accommodation shift.
-    fn field_of(&self, core_nmm: f64) -> f64 {
-        let mapped = match &self.stages.output_map {
+    fn field_of(&mut self, core_nmm: f64) -> f64 {
+        let mapped = match &mut self.stages.output_map {
             Some(m) => m.forward(core_nmm),
             None => core_nmm,
         };

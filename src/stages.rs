@@ -29,7 +29,7 @@
 //! over the stages (snapshot, restore, words, reset, the names of those that are on) is generated from that list.
 use crate::accommodation::Accommodation;
 use crate::creep::{Creep, MAX_CREEP_TERMS};
-use crate::filters::{DelayLine, Heating, Lag};
+use crate::filters::{Heating, Lag};
 use crate::friction::{AngleTerms, FrictionError};
 use crate::rate_dependence::RateDependence;
 use crate::viscous::Viscous;
@@ -93,8 +93,11 @@ impl CoilLag {
 pub struct Predictor {
     samples: usize,
     reach: f64,
-    refs: DelayLine<[f64; PREDICT_WINDOW]>,
-    thetas: DelayLine<[f64; PREDICT_WINDOW]>,
+    /// The last `window` references and angles, one ring (`head`: the oldest, the next to be replaced).
+    refs: [f64; PREDICT_WINDOW],
+    thetas: [f64; PREDICT_WINDOW],
+    window: usize,
+    head: usize,
     seen: usize,
 }
 
@@ -102,15 +105,13 @@ impl Predictor {
     pub fn new(delay_s: f64, dt_s: f64) -> Self {
         let samples = libm::round(delay_s / dt_s).clamp(0.0, u32::MAX as f64) as usize;
         let window = samples.clamp(1, PREDICT_WINDOW);
-        let line = || match DelayLine::new([0.0; PREDICT_WINDOW], window, 0.0) {
-            Some(l) => l,
-            None => unreachable!("window <= PREDICT_WINDOW"),
-        };
         Predictor {
             samples,
             reach: samples as f64 / window as f64,
-            refs: line(),
-            thetas: line(),
+            refs: [0.0; PREDICT_WINDOW],
+            thetas: [0.0; PREDICT_WINDOW],
+            window,
+            head: 0,
             seen: 0,
         }
     }
@@ -120,16 +121,31 @@ impl Predictor {
     }
     /// Forget the history.
     pub fn reset(&mut self) {
-        self.refs.fill(0.0);
-        self.thetas.fill(0.0);
+        self.refs = [0.0; PREDICT_WINDOW];
+        self.thetas = [0.0; PREDICT_WINDOW];
+        self.head = 0;
         self.seen = 0;
+    }
+    /// The history, oldest first: references, then angles.
+    fn history(&self) -> impl Iterator<Item = f64> + '_ {
+        let (w, h) = (self.window, self.head);
+        let (r, t) = (&self.refs[..w], &self.thetas[..w]);
+        r[h..]
+            .iter()
+            .chain(&r[..h])
+            .chain(&t[h..])
+            .chain(&t[..h])
+            .copied()
     }
     /// The reference and angle `samples` ahead, predicted from this sample's and the history (finite inputs).
     #[inline]
     pub fn predict(&mut self, reference: f64, theta: f64) -> (f64, f64) {
-        let r_old = self.refs.step(reference);
-        let t_old = self.thetas.step(theta);
-        if self.seen < self.refs.samples() {
+        // `head < window ≤ PREDICT_WINDOW` always; said here so the ring needs no bounds check.
+        let h = self.head.min(PREDICT_WINDOW - 1);
+        let r_old = core::mem::replace(&mut self.refs[h], reference);
+        let t_old = core::mem::replace(&mut self.thetas[h], theta);
+        self.head = if h + 1 == self.window { 0 } else { h + 1 };
+        if self.seen < self.window {
             self.seen += 1;
             return (reference, theta);
         }
@@ -248,9 +264,72 @@ impl Ripple {
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct OutputMap {
     len: usize,
-    core: [f64; MAP_NODES],
-    field: [f64; MAP_NODES],
-    hint: usize,
+    core: MapAxis,
+    field: MapAxis,
+    /// The cell each axis was last looked up in (where its next search starts).
+    core_hint: usize,
+    field_hint: usize,
+}
+
+/// One axis of an output map, as the per-sample search and interpolation read it: the nodes, each cell's lower
+/// edge (the first cell open below, the last open above, so one cell holds every value) and each cell's slope
+/// towards the other axis (worked out once: the very quotient the interpolation would take).
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct MapAxis {
+    nodes: [f64; MAP_NODES],
+    /// `edges[k] ≤ v < edges[k + 1]` for `v` in cell `k`: `−∞`, the inner nodes, then `+∞`.
+    edges: [f64; MAP_NODES],
+    /// `(other[k + 1] − other[k]) / (nodes[k + 1] − nodes[k])` of cell `k`.
+    slope: [f64; MAP_NODES],
+}
+
+impl MapAxis {
+    fn new(nodes: &[f64], other: &[f64]) -> Self {
+        let n = nodes.len();
+        let mut a = MapAxis {
+            nodes: [0.0; MAP_NODES],
+            edges: [f64::INFINITY; MAP_NODES],
+            slope: [0.0; MAP_NODES],
+        };
+        a.nodes[..n].copy_from_slice(nodes);
+        a.edges[..n - 1].copy_from_slice(&nodes[..n - 1]);
+        a.edges[0] = f64::NEG_INFINITY;
+        for k in 0..n - 1 {
+            a.slope[k] = (other[k + 1] - other[k]) / (nodes[k + 1] - nodes[k]);
+        }
+        a
+    }
+
+    /// The other axis's value at `v` and the cell `k` (nodes `k`, `k+1`) holding `v`: the last node `≤ v`,
+    /// within `0..len−1` (the end cells extend).
+    #[inline(always)]
+    fn map(&self, other: &MapAxis, len: usize, v: f64, hint: usize) -> (f64, usize) {
+        let interpolate = |k: usize| other.nodes[k] + (v - self.nodes[k]) * self.slope[k];
+        // `hint ≤ len − 2 ≤ MAP_NODES − 2` always; said here so the hot path needs no bounds check.
+        let h = hint.min(MAP_NODES - 2);
+        if self.edges[h] <= v && v < self.edges[h + 1] {
+            return (interpolate(h), h);
+        }
+        let k = self.cell_searched(len, v, h).min(MAP_NODES - 2);
+        (interpolate(k), k)
+    }
+
+    /// The cell holding `v` when it is not cell `h`: a neighbour of it, or found by bisection.
+    #[cold]
+    fn cell_searched(&self, len: usize, v: f64, h: usize) -> usize {
+        let last = len - 2;
+        let inside = |k: usize| self.edges[k] <= v && v < self.edges[k + 1];
+        if h < last && inside(h + 1) {
+            return h + 1;
+        }
+        if h > 0 && inside(h - 1) {
+            return h - 1;
+        }
+        self.nodes[..len]
+            .partition_point(|&x| x <= v)
+            .clamp(1, last + 1)
+            - 1
+    }
 }
 
 impl OutputMap {
@@ -269,15 +348,13 @@ impl OutputMap {
                 "nodes must be finite and strictly increasing (a monotone map)",
             ));
         }
-        let mut m = OutputMap {
+        Ok(OutputMap {
             len: n,
-            core: [0.0; MAP_NODES],
-            field: [0.0; MAP_NODES],
-            hint: 0,
-        };
-        m.core[..n].copy_from_slice(core);
-        m.field[..n].copy_from_slice(field);
-        Ok(m)
+            core: MapAxis::new(core, field),
+            field: MapAxis::new(field, core),
+            core_hint: 0,
+            field_hint: 0,
+        })
     }
 
     /// The vocabulary's map `T = S·n(1 + c|n|)/(1 + c)`, `n = T_core/S`, tabulated on [`MAP_NODES`] even nodes
@@ -310,47 +387,27 @@ impl OutputMap {
 
     /// The nodes `(core, field)`.
     pub fn nodes(&self) -> (&[f64], &[f64]) {
-        (&self.core[..self.len], &self.field[..self.len])
+        (&self.core.nodes[..self.len], &self.field.nodes[..self.len])
     }
 
-    /// Cell `k` (nodes `k`, `k+1`) holding `v` in `xs`: the last node `≤ v`, within `0..len−1` (ends extend).
-    #[inline(always)]
-    fn cell(xs: &[f64], v: f64, hint: usize) -> usize {
-        let last = xs.len() - 2;
-        let h = hint.min(last);
-        let inside = |k: usize| (k == 0 || xs[k] <= v) && (k == last || v < xs[k + 1]);
-        if inside(h) {
-            return h;
-        }
-        if h < last && inside(h + 1) {
-            return h + 1;
-        }
-        if h > 0 && inside(h - 1) {
-            return h - 1;
-        }
-        xs.partition_point(|&x| x <= v).clamp(1, last + 1) - 1
-    }
-
+    /// Field torque of core torque `core_nmm` (the hint only speeds the search up).
     #[inline]
-    fn interpolate(xs: &[f64], ys: &[f64], k: usize, v: f64) -> f64 {
-        ys[k] + (v - xs[k]) * ((ys[k + 1] - ys[k]) / (xs[k + 1] - xs[k]))
-    }
-
-    /// Field torque of core torque `core_nmm`.
-    #[inline]
-    pub fn forward(&self, core_nmm: f64) -> f64 {
-        let (c, f) = self.nodes();
-        let k = Self::cell(c, core_nmm, self.hint);
-        Self::interpolate(c, f, k, core_nmm)
+    pub fn forward(&mut self, core_nmm: f64) -> f64 {
+        let (field, k) = self
+            .core
+            .map(&self.field, self.len, core_nmm, self.core_hint);
+        self.core_hint = k;
+        field
     }
 
     /// Core torque giving field torque `field_nmm` (the hint only speeds the search up).
     #[inline]
     pub fn inverse(&mut self, field_nmm: f64) -> f64 {
-        let n = self.len;
-        let k = Self::cell(&self.field[..n], field_nmm, self.hint);
-        self.hint = k;
-        Self::interpolate(&self.field[..n], &self.core[..n], k, field_nmm)
+        let (core, k) = self
+            .field
+            .map(&self.core, self.len, field_nmm, self.field_hint);
+        self.field_hint = k;
+        core
     }
 }
 
@@ -481,14 +538,13 @@ impl Stage for Predictor {
     }
     fn write_words(&self, push: &mut dyn FnMut(u64)) {
         push(self.seen as u64);
-        push(self.refs.samples() as u64);
-        self.refs.values().for_each(|v| push(v.to_bits()));
-        self.thetas.values().for_each(|v| push(v.to_bits()));
+        push(self.window as u64);
+        self.history().for_each(|v| push(v.to_bits()));
     }
     fn read_words(&mut self, words: &mut &[u64]) -> Option<()> {
         let seen = usize::try_from(take_word(words)?).ok()?;
         let window = usize::try_from(take_word(words)?).ok()?;
-        if window != self.refs.samples() || seen > window {
+        if window != self.window || seen > window {
             return None;
         }
         let mut refs = [0.0; PREDICT_WINDOW];
@@ -499,9 +555,7 @@ impl Stage for Predictor {
         for v in thetas.iter_mut().take(window) {
             *v = take_float(words)?;
         }
-        self.refs.set_values(refs);
-        self.thetas.set_values(thetas);
-        self.seen = seen;
+        (self.refs, self.thetas, self.head, self.seen) = (refs, thetas, 0, seen);
         Some(())
     }
 }
@@ -930,7 +984,7 @@ impl Stages {
             Some(c) => c.step(core_nmm),
             None => core_nmm,
         };
-        let mut field = match &self.output_map {
+        let mut field = match &mut self.output_map {
             Some(m) => m.forward(crept),
             None => crept,
         };
@@ -965,6 +1019,9 @@ mod tests {
             let a = m.inverse(v);
             m.inverse(-650.0);
             assert_eq!(m.inverse(v).to_bits(), a.to_bits());
+            let b = m.forward(v);
+            m.forward(650.0);
+            assert_eq!(m.forward(v).to_bits(), b.to_bits());
         }
         assert!(OutputMap::from_table(&[0.0, 1.0], &[1.0, 0.0]).is_err());
     }

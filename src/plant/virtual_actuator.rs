@@ -704,6 +704,12 @@ impl VirtualActuator {
         f.offset_nmm + ripple * (1.0 + self.fx.friction_gain_per_a * field_current_a.abs())
     }
 
+    /// The encoder angle (rad) of the next sample: the first of [`Self::theta_ahead`].
+    #[inline]
+    pub fn theta_rad(&self) -> f64 {
+        self.drive.theta_rad()
+    }
+
     /// The encoder angles (rad) of the next `n` samples, without advancing the actuator (the rotor angle does
     /// not depend on the current, so a controller can be fed it ahead of time).
     /// At most [`crate::limits::MAX_GENERATED_SAMPLES`] at a time (checked before allocating).

@@ -11,6 +11,7 @@ use crate::friction::MAX_ORDER;
 use crate::limits::{MAX_GENERATED_SAMPLES, check};
 use crate::python::arrays::{extract_f64_array, to_numpy};
 use crate::python::compensator::PyCompensator;
+use crate::python::compensator::command::CommandSlots;
 use crate::python::hysteresis::{MEMORY, initial_or_negative};
 use crate::python::virtual_actuator::PyVirtualActuator;
 use crate::python::{BmrError, bmr_err, bytes_to_words, limit_err, table_err, words_to_bytes};
@@ -88,6 +89,8 @@ pub(crate) struct PyController {
     /// The compensator it was built from (copies and pickles are rebuilt from it).
     source: Py<PyCompensator>,
     settings: ControllerSettings,
+    /// The `Command` objects `step` hands out again.
+    commands: CommandSlots,
 }
 
 fn busy<'py>(slf: &Bound<'py, PyController>) -> PyResult<PyRefMut<'py, PyController>> {
@@ -121,6 +124,7 @@ impl PyController {
             core,
             source: source.unbind(),
             settings,
+            commands: CommandSlots::default(),
         })
         .inspect(|_| {
             let _ = py;
@@ -204,8 +208,10 @@ impl PyController {
         reference_nmm: f64,
         theta_rad: f64,
         measured_nmm: f64,
-    ) -> PyResult<Command> {
-        Ok(busy(slf)?.core.step(reference_nmm, theta_rad, measured_nmm))
+    ) -> PyResult<Py<Command>> {
+        let mut me = busy(slf)?;
+        let c = me.core.step(reference_nmm, theta_rad, measured_nmm);
+        me.commands.give(slf.py(), c)
     }
 
     /// The loop as designed.
@@ -377,6 +383,8 @@ fn _simulate_closed_loop<'py>(
     )
     .map_err(limit_err)?;
     let plant = plant.get();
+    // Without angles given, each sample's is the actuator's own, read as it turns (what `theta_ahead` would
+    // give, without a second pass over the drive).
     let thetas = match theta_rad {
         Some(t) => {
             let t = extract_f64_array(t, "theta_rad")?;
@@ -387,9 +395,9 @@ fn _simulate_closed_loop<'py>(
                     refs.len()
                 )));
             }
-            t
+            Some(t)
         }
-        None => plant.sim()?.theta_ahead(refs.len()).map_err(limit_err)?,
+        None => None,
     };
     let mut ctl = busy(controller)?;
     let ctl = &mut ctl.core;
@@ -400,7 +408,8 @@ fn _simulate_closed_loop<'py>(
         let mut cols: [Vec<f64>; 8] = std::array::from_fn(|_| Vec::with_capacity(n));
         let mut flags: [Vec<bool>; 2] = std::array::from_fn(|_| Vec::with_capacity(n));
         let mut measured = f64::NAN;
-        for (&r, &th) in refs.iter().zip(&thetas) {
+        for (i, &r) in refs.iter().enumerate() {
+            let th = thetas.as_ref().map_or_else(|| sim.theta_rad(), |t| t[i]);
             let c = ctl.step(r, th, measured);
             let s = sim.step(c.current_a);
             measured = s.torque_nmm;
@@ -436,9 +445,8 @@ fn _simulate_closed_loop<'py>(
     for (name, v) in NAMES.iter().zip(cols) {
         out.set_item(*name, to_numpy(py, v))?;
     }
-    let np = py.import("numpy")?;
     for (name, v) in ["saturated", "fault"].iter().zip(flags) {
-        out.set_item(*name, np.call_method1("array", (v, "bool"))?)?;
+        out.set_item(*name, numpy::PyArray1::from_vec(py, v))?;
     }
     Ok(out)
 }

@@ -401,6 +401,42 @@ class SensorDrift(Effect):
     def params(self, value, beta, path):
         return {"rate_nmm_per_s": float(beta[0])}
 
+    # Every run left out, the trend of the others must keep at least this share of the trend over all runs.
+    LEAVE_ONE_OUT_SHARE = 0.25
+
+    def signature_missing(self, fitter: Any, before: Any) -> str:
+        """A sensor's zero moves with time all through the session: the residual of ``before``, fitted on a straight
+        line in time over all runs, keeps at least :attr:`LEAVE_ONE_OUT_SHARE` of that slope, in the same
+        direction, with any one run left out. A step between one recording and the others (the tables identified
+        between them, a gain that the coils' heating changed in one run) tilts a line through all runs too, but
+        not through the others."""
+        data = fitter.data
+        residual, _ = fitter.fit(before.path, before.linear)
+        t = data.t_abs
+        ok = np.isfinite(residual)
+
+        def slope(mask: np.ndarray) -> float:
+            if np.count_nonzero(mask) < 3 or not np.ptp(t[mask]) > 0:
+                return math.nan
+            x = np.column_stack([np.ones(np.count_nonzero(mask)), t[mask]])
+            return float(np.linalg.lstsq(x, residual[mask], rcond=None)[0][1])
+
+        overall = slope(ok)
+        if not (math.isfinite(overall) and overall != 0) or len(data.runs) < 2:
+            return ""
+        bounds = np.concatenate([[0], np.cumsum([r.n_eval for r in data.runs])])
+        weak = []
+        for j, run in enumerate(data.runs):
+            rest = ok.copy()
+            rest[bounds[j]:bounds[j + 1]] = False
+            share = slope(rest) / overall
+            if math.isfinite(share) and share < self.LEAVE_ONE_OUT_SHARE:
+                weak.append(f"{run.name}: {share:.2f}")
+        if not weak:
+            return ""
+        return (f"the trend ({overall:.3g} per s) comes from single recordings: without them the others keep "
+                f"{', '.join(weak)} of it")
+
 
 # ------------------------------------------------------------------------------ material and measurement effects
 # Relaxation times the creep spectrum is built from (three per decade), limited per bundle by its sample period and
@@ -553,6 +589,85 @@ class RunGainOffset(Effect):
             c0 = model.friction.c0 if model.friction is not None else 0.0
             cols.append((data.friction_nmm - c0)[:, None])
         return np.column_stack(cols)
+
+    # The calibration's differences between recordings must exceed its changes within one recording this many
+    # times (in mean square), or what the per-run terms fit is not a calibration.
+    BETWEEN_OVER_WITHIN = 4.0
+    # Share of the corrections' spread between runs that a straight line in the runs' times must leave unexplained
+    # (a line through 5 runs' random offsets explains 75 % of their spread in 5 % of sessions, through 4 runs in
+    # 13 %: judged on TREND_RUNS runs or more), unless the runs do not move along the line within themselves: less
+    # than WITHIN_RUN_TREND of the change it predicts between each run's halves.
+    UNTRENDED_SHARE = 0.25
+    WITHIN_RUN_TREND = 0.5
+    TREND_RUNS = 5
+
+    def signature_missing(self, fitter: Any, before: Any) -> str:
+        """A calibration differs between recordings and holds along each. The residual of ``before`` is fitted in
+        each run as an offset plus a gain on the sensed output (field output and friction), on the whole run and
+        separately on its two halves; the runs' corrections (RMS over the samples, around their mean) must
+
+        * differ between runs by more than the noise floor (per-run terms fit any slow model error by a little:
+          a calibration is named when recordings differ by more than one reading's noise),
+        * change between runs at least :attr:`BETWEEN_OVER_WITHIN` times more (mean square) than between the
+          halves of one run (a drift, a leakage or a heating moves the output along a recording), and
+        * not follow a straight line in the runs' times (at least :attr:`TREND_RUNS` runs; explaining more than
+          ``1 -`` :attr:`UNTRENDED_SHARE` of their spread) along which each run also moves from its first half to its second (at least
+          :attr:`WITHIN_RUN_TREND` of the change the line predicts): what a drift along the session leaves."""
+        data = fitter.data
+        if len(data.runs) < 2:
+            return ""
+        residual, _ = fitter.fit(before.path, before.linear)
+        sensed = fitter.field(before.path) + data.friction_nmm
+        within, n = 0.0, 0
+        designs, fits, times, halves = [], [], [], []
+        for r, y, t in zip(_split(data, residual), _split(data, sensed), _split(data, data.t_abs)):
+            ok = np.isfinite(r) & np.isfinite(y)
+            r, y, t = r[ok], y[ok], t[ok]
+            if r.size < 20:
+                continue
+            x = np.column_stack([np.ones(r.size), y])
+            half = r.size // 2
+            a = np.linalg.lstsq(x[:half], r[:half], rcond=None)[0]
+            b = np.linalg.lstsq(x[half:], r[half:], rcond=None)[0]
+            within += float(np.sum((x @ (a - b) / 2.0) ** 2))
+            designs.append(x)
+            fits.append(np.linalg.lstsq(x, r, rcond=None)[0])
+            times.append(float(np.mean(t)))
+            halves.append((b - a, float(np.mean(t[half:]) - np.mean(t[:half]))))
+            n += r.size
+        if len(fits) < 2 or n == 0:
+            return ""
+        mean = float(np.mean(np.concatenate([x @ f for x, f in zip(designs, fits)])))
+        between = sum(float(np.sum((x @ f - mean) ** 2)) for x, f in zip(designs, fits))
+        spread = math.sqrt(between / n)
+        if spread <= data.noise_floor_nmm:
+            return (f"the recordings' corrections differ by {spread:.3g} (RMS), less than the noise floor "
+                    f"{data.noise_floor_nmm:.3g}")
+        if between < self.BETWEEN_OVER_WITHIN * within:
+            return (f"the per-run corrections change as much within a run as between runs (mean squares "
+                    f"{between / n:.3g} between, {within / n:.3g} within): not a calibration per recording")
+        if len(fits) < self.TREND_RUNS:
+            return ""
+        # The runs' offsets and gains as straight lines of the runs' times: what a drift along the session leaves.
+        tt = np.column_stack([np.ones(len(times)), np.asarray(times)])
+        coef = np.asarray(fits)
+        line = np.linalg.lstsq(tt, coef, rcond=None)[0]
+        rest = coef - tt @ line
+        mean_rest = float(np.mean(np.concatenate([x @ f for x, f in zip(designs, rest)])))
+        detrended = sum(float(np.sum((x @ f - mean_rest) ** 2)) for x, f in zip(designs, rest))
+        if detrended >= self.UNTRENDED_SHARE * between:
+            return ""
+        # Calibrations drawn per recording can line up by chance; a drift also moves each run from its first half
+        # to its second as the line says.
+        predicted = [x @ (line[1] * dt) for x, (_, dt) in zip(designs, halves)]
+        measured = [x @ d for x, (d, _) in zip(designs, halves)]
+        norm = sum(float(np.sum(p * p)) for p in predicted)
+        along = sum(float(np.sum(m * p)) for m, p in zip(measured, predicted)) / norm if norm > 0 else 0.0
+        if along < self.WITHIN_RUN_TREND:
+            return ""
+        return (f"the per-run corrections follow a trend in time ({100 * (1 - detrended / between):.0f} % of their "
+                f"spread between runs) that moves each run along it too ({100 * along:.0f} % of the trend's change "
+                "between its halves): a drift along the session, not a calibration per recording")
 
     def params(self, value, beta, path):
         beta = np.asarray(beta, dtype=float)

@@ -19,8 +19,9 @@ A named effect is physical: a candidate whose parameters, refitted on all data, 
 of the effect vocabulary (``bmr.effect_parameters()``) — or that pushes an effect already accepted outside its
 range — is not that effect and is rejected (the next best candidate is tried; the structure may still be learned
 by the sparse regression). A candidate whose mechanism signature the residual does not show
-(:meth:`bmr.diagnosis.effects.Effect.signature_missing`: a ``viscous`` loss that opposes the motion in some run) is
-rejected the same way. When another accepted candidate of the same round explains as much (the paired fold
+(:meth:`bmr.diagnosis.effects.Effect.signature_missing`: a ``viscous`` loss that opposes the motion in some run, a
+``sensor_drift`` whose trend one recording makes, a ``run_gain_offset`` that changes along a recording or follows
+the session's time) is rejected the same way, and is no alternative to another either. When another accepted candidate of the same round explains as much (the paired fold
 gains differ by less than their 95 % interval) and is no longer needed once the chosen one is in, the two are
 reported as indistinguishable on this excitation (:class:`Alternative`), with what would separate them.
 
@@ -743,7 +744,8 @@ def _unphysical(fitter: Fitter, config: Configuration, field_effects: Sequence[E
 def _alternatives(fitter: Fitter, config: Configuration, best: Candidate, others: Sequence[Candidate],
                   field_effects: Sequence[Effect]) -> list[Alternative]:
     """The accepted candidates of a round that explain as much as ``best`` (paired fold gains within their 95 %
-    interval) with physical parameters: alternatives to it, unless a later round accepts them too."""
+    interval) with physical parameters and their mechanism signature: alternatives to it, unless a later round
+    accepts them too."""
     out = []
     for c in others:
         d = best.fold_gains - c.fold_gains
@@ -756,6 +758,11 @@ def _alternatives(fitter: Fitter, config: Configuration, best: Candidate, others
             continue
         trial, _ = refit(fitter, config, c.effect)
         if _unphysical(fitter, trial, list(field_effects) + ([c.effect] if c.effect.field else [])):
+            continue
+        # An alternative is a name too: its mechanism signature must be in the residual.
+        missing = c.effect.signature_missing(fitter, config)
+        if missing:
+            c.no_signature = missing
             continue
         ea, eb = best.effect.excitation, c.effect.excitation
         excitation = ea if ea == eb else f"{ea}, or {eb}"

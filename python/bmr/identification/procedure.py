@@ -248,8 +248,10 @@ def identify(
     ``input_range``: the tables' input range (default: the range the runs not held out measure).
     ``n_intervals``, ``smoothing``: the least-squares table's resolution (grid intervals over the input range) and
     the weight of its density's smoothness; each one not given is chosen by cross-validation over time blocks of
-    the training runs (:func:`~bmr.identification.table_choice.choose_table_settings`; the evaluation runs are
-    never used), reported as ``model.identification.table_choice``.
+    the training runs, trusted only where whole sweeps held out are predicted from the rest (else the default is
+    kept: one major loop says nothing of the loops inside it)
+    (:func:`~bmr.identification.table_choice.choose_table_settings`; the evaluation runs are never used), reported
+    as ``model.identification.table_choice``.
     ``subdivisions``: curves added per interval between measured
     reversals of the first-order tables. ``deadband``: reversal dead-band in input units (``deadband_a``: its
     former name; ``n_nodes`` is ignored: curve nodes now follow the data).

@@ -12,6 +12,14 @@ the smoothing at the default resolution, then the resolution at that smoothing, 
 the chosen resolution, each walked one step at a time while the score improves. Among settings within :data:`TIE_SHARE` of the best score the smoother, then the coarser, is kept: a
 smoother density moves little when the range's ends move a little.
 
+The time blocks of one major loop interpolate the loop along itself: they say nothing of the cells inside it that
+smaller loops visit, and there they rank settings by noise (a B(H) loop's smaller loops predicted 45 % worse).
+So the ranking is trusted only when the data determine paths they do not contain: fold by fold, every sweep
+between two input reversals (:func:`sweep_folds`: a branch of a loop, a first-order curve) is held out whole and
+predicted at the default setting from the rest; when that RMS exceeds :data:`EVIDENCE_SHARE` of the held-out
+outputs' spread, the runs do not determine their own unseen branches, the default is kept and the result says why
+(``undecided``). Runs with fewer than two sweeps offer no such check, and the ranking stands.
+
 Resolutions are capped by the data: a table finer than the default gets at most one cell per
 :data:`ROWS_PER_CELL` regression rows (a short recording does not pay for tables it cannot inform), and every table
 stays within the solver's unknowns. Cross-validation is skipped (the default kept, the reason reported) when the
@@ -31,9 +39,9 @@ from bmr.data.bundle import Run
 from bmr.identification.lstsq import MAX_ROWS, LstsqTables, fit_tables_lstsq, row_weights
 from bmr.identification.signals import run_input, run_output, running_integral
 
-__all__ = ["TableCandidate", "TableChoice", "choose_table_settings", "block_folds", "RESOLUTIONS", "SMOOTHINGS",
-           "DEFAULT_INTERVALS", "DEFAULT_SMOOTHING", "FOLDS", "TIE_SHARE", "ROWS_PER_CELL", "MIN_ROWS_PER_BLOCK",
-           "MAX_UNKNOWNS"]
+__all__ = ["TableCandidate", "TableChoice", "choose_table_settings", "block_folds", "sweeps", "sweep_folds",
+           "RESOLUTIONS", "SMOOTHINGS", "DEFAULT_INTERVALS", "DEFAULT_SMOOTHING", "FOLDS", "TIE_SHARE",
+           "ROWS_PER_CELL", "MIN_ROWS_PER_BLOCK", "MAX_UNKNOWNS", "EVIDENCE_SHARE", "SWEEP_DEADBAND"]
 
 DEFAULT_INTERVALS = 48
 DEFAULT_SMOOTHING = 1e-4
@@ -43,6 +51,12 @@ FOLDS = 3
 BLOCKS_PER_FOLD = 8
 # Samples a run keeps in the fit in every fold (its offset is fitted on them).
 MIN_KEPT = 2
+# A sweep ends where the input turns back by more than this share of the table's input range.
+SWEEP_DEADBAND = 0.01
+# The ranking is trusted when the default setting predicts whole held-out sweeps to within this share of their
+# outputs' spread about their run's mean (0.2: 96 % of the variance; one major loop predicts its other branch at
+# 0.6 of the spread, multi-loop recordings at 0.001-0.004).
+EVIDENCE_SHARE = 0.2
 # Scores within this share of the best count as equal (the noise of a cross-validated RMS on a few folds).
 TIE_SHARE = 0.01
 # Regression rows a table finer than the default needs per cell to be tried.
@@ -72,7 +86,11 @@ class TableChoice:
     """The setting chosen (``n_intervals``, ``smoothing``) over ``input_range``, how (``folds`` folds of
     contiguous time blocks, ``blocks`` per run), every candidate's cross-validated RMS, the chosen and the default
     setting's scores (output units), which settings the caller fixed (not searched), and ``skipped``: why no
-    cross-validation was run (the default setting kept), None when it was."""
+    cross-validation was run (the default setting kept), None when it was. The check of the ranking: ``sweeps``
+    held out whole in ``sweep_folds`` folds, the default setting's RMS on them (``sweep_rms``) and their outputs'
+    spread about their run's mean (``sweep_spread``, output units; NaN when the runs hold fewer than two sweeps);
+    ``undecided``: why the default was kept although the blocks ranked another setting first (``ranked``; both None:
+    the ranking was trusted)."""
 
     n_intervals: int
     smoothing: float
@@ -82,6 +100,12 @@ class TableChoice:
     candidates: list[TableCandidate] = field(default_factory=list)
     fixed: tuple[str, ...] = ()
     skipped: str | None = None
+    sweeps: int = 0
+    sweep_folds: int = 0
+    sweep_rms: float = math.nan
+    sweep_spread: float = math.nan
+    undecided: str | None = None
+    ranked: tuple[int, float] | None = None
     # The fit at the reference setting the folds were built on (reused when that setting is chosen).
     reference: LstsqTables | None = field(default=None, repr=False, compare=False)
 
@@ -106,12 +130,18 @@ class TableChoice:
         return {"n_intervals": self.n_intervals, "smoothing": self.smoothing, "input_range": list(self.input_range),
                 "folds": self.folds, "blocks": self.blocks, "cv_rms": finite(self.cv_rms),
                 "default_cv_rms": finite(self.default_cv_rms), "fixed": list(self.fixed), "skipped": self.skipped,
+                "sweeps": self.sweeps, "sweep_folds": self.sweep_folds, "sweep_rms": finite(self.sweep_rms),
+                "sweep_spread": finite(self.sweep_spread), "undecided": self.undecided,
+                "ranked": None if self.ranked is None else list(self.ranked),
                 "candidates": [c.to_dict() for c in self.candidates]}
 
     def __repr__(self) -> str:
         if self.skipped is not None:
             return (f"TableChoice({self.n_intervals} intervals, smoothing {self.smoothing:g}: the default, "
                     f"not cross-validated: {self.skipped})")
+        if self.undecided is not None:
+            return (f"TableChoice({self.n_intervals} intervals, smoothing {self.smoothing:g}: the default, kept: "
+                    f"{self.undecided})")
         d = self.default_cv_rms
         default = f", default ({DEFAULT_INTERVALS}, {DEFAULT_SMOOTHING:g}) {d:.4g}" if math.isfinite(d) else ""
         return (f"TableChoice({self.n_intervals} intervals, smoothing {self.smoothing:g}: cross-validated RMS "
@@ -135,6 +165,72 @@ def block_folds(lengths: Sequence[int], folds: int = FOLDS,
             # A run too short to keep samples for its own offset in this fold is not held out in it.
             out[f].append(held if n - int(held.sum()) >= MIN_KEPT else np.zeros(n, dtype=bool))
     return out
+
+
+def sweeps(u: np.ndarray, deadband: float) -> list[slice]:
+    """The monotone sweeps of ``u``: from the sample after one reversal extremum (beyond ``deadband``, input units)
+    to the next extremum; the first starts at the run's start, the last ends at its end."""
+    u = np.asarray(u, dtype=float)
+    ends = [int(i) + 1 for i in _core.find_reversals(u, deadband)]
+    bounds = [0, *[e for e in ends if 0 < e < u.size], u.size]
+    return [slice(a, b) for a, b in zip(bounds[:-1], bounds[1:]) if b > a]
+
+
+def sweep_folds(us: Sequence[np.ndarray], weights: Sequence[np.ndarray], deadband: float,
+                folds: int = FOLDS) -> list[list[np.ndarray]]:
+    """Held-out masks, ``[fold][run]``, of whole sweeps: the sweeps of every run (:func:`sweeps`), counted across
+    the runs in order, go to the folds in turn, so a fold holds out paths — a branch of a loop, a first-order
+    curve — that the rest of its run does not contain. A run that is one sweep keeps its first :data:`MIN_KEPT`
+    fitted rows (``weights > 0``) for its own offset; a run left with fewer than :data:`MIN_KEPT` fitted rows is
+    not held out in that fold. Fewer sweeps than ``folds`` give as many folds as sweeps (at least 2)."""
+    if folds < 2:
+        raise BmrError(f"cross-validation needs at least 2 folds, got {folds}")
+    parts = [sweeps(u, deadband) for u in us]
+    folds = max(2, min(folds, sum(len(p) for p in parts)))
+    out: list[list[np.ndarray]] = [[] for _ in range(folds)]
+    count = 0
+    for u, w, run_sweeps in zip(us, weights, parts):
+        fold = np.full(u.size, -1)
+        for part in run_sweeps:
+            fold[part] = count % folds
+            count += 1
+        fitted = np.flatnonzero(w > 0)
+        if len(run_sweeps) == 1:
+            fold[fitted[:MIN_KEPT]] = -1
+        for f in range(folds):
+            held = fold == f
+            out[f].append(held if fitted.size - int(np.count_nonzero(held[fitted])) >= MIN_KEPT
+                          else np.zeros(u.size, dtype=bool))
+    return out
+
+
+def held_out_spread(ys: Sequence[np.ndarray], weights: Sequence[np.ndarray],
+                    masks: list[list[np.ndarray]]) -> float:
+    """RMS (output units) of every fold's held-out fitted rows about their run's weighted mean output: the scale a
+    held-out RMS is measured against."""
+    sse = total = 0.0
+    for k, (y, w) in enumerate(zip(ys, weights)):
+        if not w.any():
+            continue
+        mean = float(np.average(y, weights=w))
+        for fold in masks:
+            wh = w[fold[k]]
+            sse += float(np.sum(wh * (y[fold[k]] - mean) ** 2))
+            total += float(wh.sum())
+    return math.sqrt(sse / total) if total > 0 else math.nan
+
+
+def fold_of_each_sample(masks: list[list[np.ndarray]], run: int) -> np.ndarray:
+    """The fold holding each sample of ``run`` out (``len(masks)``: none)."""
+    folds = len(masks)
+    return np.where(np.array([fold[run] for fold in masks]).T, np.arange(folds), folds).min(axis=1)
+
+
+def pooled_rms(parts: Sequence[tuple[float, float]]) -> float:
+    """The RMS over every fold's held-out rows from the folds' ``(weighted squared error, weight)`` (``inf``
+    without any)."""
+    weight = sum(w for _, w in parts)
+    return math.sqrt(sum(e for e, _ in parts) / weight) if weight > 0 else math.inf
 
 
 def cells(n_intervals: int) -> int:
@@ -183,9 +279,8 @@ def choose_table_settings(runs: Sequence[Run], friction: Any = None, *, input_ra
     reference = fit_tables_lstsq(runs, friction, n_intervals=n0, smoothing=s0, input_range=(lo, hi), **fit_options)
     # Every fold keeps the reference's initial states, gains and leakage; only the table and the offsets are refitted.
     drift = ([running_integral(u, r.t) for r, u in zip(runs, us)] if reference.leakage_rate is not None else None)
-    data = [(u, y, w, np.where(np.array([fold[k] for fold in masks]).T, np.arange(folds), folds).min(axis=1),
-             k if n_off > 1 else 0, np.asarray(c.history, dtype=float), c.gain)
-            for k, (u, y, w, c) in enumerate(zip(us, ys, weights, reference.runs))]
+    data = [(u, y, w, fold_of_each_sample(masks, k), k if n_off > 1 else 0, np.asarray(c.history, dtype=float),
+             c.gain) for k, (u, y, w, c) in enumerate(zip(us, ys, weights, reference.runs))]
     regressions: dict[int, Any] = {}
     scores: dict[tuple[int, float], float] = {}
 
@@ -198,8 +293,7 @@ def choose_table_settings(runs: Sequence[Run], friction: Any = None, *, input_ra
                                                         drift=drift)
                 start = reference.passive if n == reference.n_intervals else None
                 parts = regressions[n].score(s, warm_start=None if start is None else [bool(x) for x in start])
-                weight = sum(w for _, w in parts)
-                scores[(n, s)] = math.sqrt(sum(e for e, _ in parts) / weight) if weight > 0 else math.inf
+                scores[(n, s)] = pooled_rms(parts)
             except BmrError:
                 scores[(n, s)] = math.inf
         return scores[(n, s)]
@@ -225,4 +319,42 @@ def choose_table_settings(runs: Sequence[Run], friction: Any = None, *, input_ra
         s = best([(n, x) for x in smoothings], (n, s))[1]
     score(n0, s0)  # the default's score, for the report
     cands = [TableCandidate(k[0], k[1], v) for k, v in sorted(scores.items())]
-    return choice(n_intervals=n, smoothing=s, candidates=cands, reference=reference)
+    check = check_on_sweeps(us, ys, weights, reference, (lo, hi), n_off, drift, folds)
+    undecided, ranked = None, None
+    # Without two folds of sweeps (one monotone run) there is nothing to check against: the ranking stands.
+    if (n, s) != (n0, s0) and check["sweep_rms"] > EVIDENCE_SHARE * check["sweep_spread"]:
+        undecided = (f"whole sweeps held out are predicted at {check['sweep_rms']:.4g} RMS, more than "
+                     f"{EVIDENCE_SHARE:g} of their spread {check['sweep_spread']:.4g}: the runs do not determine "
+                     f"paths they do not contain, and the blocks' ranking ({n} intervals, smoothing {s:g}) is not "
+                     f"evidence")
+        ranked, (n, s) = (n, s), (n0, s0)
+    return choice(n_intervals=n, smoothing=s, candidates=cands, reference=reference, undecided=undecided,
+                  ranked=ranked, **check)
+
+
+def check_on_sweeps(us: list[np.ndarray], ys: list[np.ndarray], weights: list[np.ndarray], reference: LstsqTables,
+                    input_range: tuple[float, float], n_off: int, drift: list[np.ndarray] | None,
+                    folds: int) -> dict[str, Any]:
+    """The reference setting's RMS on whole sweeps held out (:func:`sweep_folds`) and their outputs' spread: the
+    :class:`TableChoice` fields ``sweeps``, ``sweep_folds``, ``sweep_rms``, ``sweep_spread`` (NaN figures when
+    fewer than two folds hold a sweep out or a fold cannot be fitted)."""
+    lo, hi = input_range
+    deadband = SWEEP_DEADBAND * (hi - lo)
+    count = sum(len(sweeps(u, deadband)) for u in us)
+    masks = sweep_folds(us, weights, deadband, folds)
+    out: dict[str, Any] = {"sweeps": count, "sweep_folds": len(masks), "sweep_rms": math.nan,
+                           "sweep_spread": math.nan}
+    if sum(1 for fold in masks if any(np.count_nonzero(w[m]) for w, m in zip(weights, fold))) < 2:
+        return out
+    data = [(u, y, w, fold_of_each_sample(masks, k), k if n_off > 1 else 0, np.asarray(c.history, dtype=float),
+             c.gain) for k, (u, y, w, c) in enumerate(zip(us, ys, weights, reference.runs))]
+    try:
+        cv = _core.EverettFolds(np.linspace(lo, hi, reference.n_intervals + 1), data, n_off, len(masks),
+                                drift=drift)
+        start = None if reference.passive is None else [bool(x) for x in reference.passive]
+        parts = cv.score(reference.settings["smoothing"], warm_start=start)
+    except BmrError:
+        return out
+    out["sweep_rms"] = pooled_rms(parts)
+    out["sweep_spread"] = held_out_spread(ys, weights, masks)
+    return out

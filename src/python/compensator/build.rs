@@ -76,6 +76,7 @@ impl PyCompensator {
             extensions,
             dt_s,
             full_torque_nmm,
+            commands: CommandSlots::default(),
         })
     }
 

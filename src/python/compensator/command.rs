@@ -1,8 +1,37 @@
-//! `bmr.Command`: the core's [`Command`] itself, bound (its fields are the Python attributes).
+//! `bmr.Command`: the core's [`Command`] itself, bound (its fields are the Python attributes), and the objects a
+//! stepping loop hands out again.
 use pyo3::prelude::*;
 use pyo3::types::PyTuple;
 
 use crate::compensator::Command;
+
+/// The last two `Command` objects a `step` returned. A step at 1-10 kHz would otherwise allocate (and the caller
+/// free) one object per sample, a large share of the call: once no reference but this one is left to an object
+/// (the caller dropped it or moved on to the next command), the next command is written into it and it is
+/// returned again. Nothing else can see that object, so to Python every command is still a new, unchanging
+/// value; two slots cover `cmd = c.step(...)`, where the previous command is still held during the call.
+#[derive(Default)]
+pub(crate) struct CommandSlots([Option<Py<Command>>; 2]);
+
+impl CommandSlots {
+    /// `command` as a Python object: a slot no one else holds, else a new object (which takes the older slot).
+    pub(crate) fn give(&mut self, py: Python<'_>, command: Command) -> PyResult<Py<Command>> {
+        for slot in self.0.iter().flatten() {
+            let obj = slot.bind(py);
+            // SAFETY: reads the reference count of a live object this thread holds a reference to, while
+            // attached to the interpreter.
+            if unsafe { pyo3::ffi::Py_REFCNT(obj.as_ptr()) } == 1 {
+                // Held here only: its borrow cannot fail and no reader can see the change.
+                *obj.try_borrow_mut()? = command;
+                return Ok(slot.clone_ref(py));
+            }
+        }
+        let obj = Py::new(py, command)?;
+        self.0.swap(0, 1);
+        self.0[1] = Some(obj.clone_ref(py));
+        Ok(obj)
+    }
+}
 
 #[pymethods]
 impl Command {
@@ -34,7 +63,7 @@ impl Command {
         *self
     }
     fn __reduce__<'py>(slf: &Bound<'py, Self>) -> PyResult<Bound<'py, PyTuple>> {
-        let c = slf.get();
+        let c = *slf.try_borrow()?;
         let args = (
             c.current_a,
             c.coil1_a,

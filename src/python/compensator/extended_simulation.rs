@@ -139,7 +139,7 @@ pub(super) fn output_map<'py>(
     curvature: f64,
     scale_nmm: f64,
 ) -> PyResult<Bound<'py, PyArray1<f64>>> {
-    let m = output_map_of(curvature, scale_nmm)?;
+    let mut m = output_map_of(curvature, scale_nmm)?;
     let x = extract_f64_array(core_nmm, "core_nmm")?;
     Ok(to_numpy(py, x.iter().map(|&v| m.forward(v)).collect()))
 }

@@ -3,7 +3,7 @@
 //! entries (`build`), offline runs (`run`), snapshots and pickles (`state`), the forward chain it inverts
 //! (`extended_simulation`) and firmware export (`export`).
 mod build;
-mod command;
+pub(crate) mod command;
 mod export;
 mod extended_simulation;
 mod run;
@@ -23,6 +23,7 @@ use crate::vocabulary::{EffectKind, Params, loop_stages};
 
 use build::extensions_to_py;
 pub(crate) use build::parse_extensions;
+use command::CommandSlots;
 use state::{PyCompensatorState, StateData};
 
 type Core = Compensator<Vec<f64>, MEMORY, MAX_ORDER>;
@@ -41,6 +42,8 @@ pub(crate) struct PyCompensator {
     extensions: Vec<Params>,
     dt_s: Option<f64>,
     full_torque_nmm: f64,
+    /// The `Command` objects `step` hands out again.
+    commands: CommandSlots,
 }
 
 impl PyCompensator {
@@ -109,8 +112,10 @@ impl PyCompensator {
     /// One control period: reference torque (N·mm) and rotor angle (rad) → `Command`. Never raises: a NaN/inf
     /// input gives zero current with `fault=True`. With a `time_delay` stage the reference `delay` ahead is
     /// predicted; use `step_ahead` when it is known.
-    fn step(slf: &Bound<'_, Self>, torque_ref_nmm: f64, theta_rad: f64) -> PyResult<Command> {
-        Ok(busy(slf)?.core.step(torque_ref_nmm, theta_rad))
+    fn step(slf: &Bound<'_, Self>, torque_ref_nmm: f64, theta_rad: f64) -> PyResult<Py<Command>> {
+        let mut me = busy(slf)?;
+        let c = me.core.step(torque_ref_nmm, theta_rad);
+        me.commands.give(slf.py(), c)
     }
 
     /// One control period given the reference torque and angle of the sample the command acts on
@@ -119,10 +124,10 @@ impl PyCompensator {
         slf: &Bound<'_, Self>,
         torque_ref_ahead_nmm: f64,
         theta_ahead_rad: f64,
-    ) -> PyResult<Command> {
-        Ok(busy(slf)?
-            .core
-            .step_ahead(torque_ref_ahead_nmm, theta_ahead_rad))
+    ) -> PyResult<Py<Command>> {
+        let mut me = busy(slf)?;
+        let c = me.core.step_ahead(torque_ref_ahead_nmm, theta_ahead_rad);
+        me.commands.give(slf.py(), c)
     }
 
     /// `step` without creating a `Command`: writes `current_a, coil1_a, coil2_a, volt1_v, volt2_v, saturated,

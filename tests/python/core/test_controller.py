@@ -121,6 +121,42 @@ def test_copies_pickles_and_snapshots_continue_bit_for_bit():
         other.restore(snap)
 
 
+def fields(c: bmr.Command) -> tuple:
+    return (c.current_a, c.coil1_a, c.coil2_a, c.volt1_v, c.volt2_v, c.saturated, c.fault)
+
+
+@pytest.mark.parametrize("make", ["controller", "compensator"])
+def test_commands_handed_out_again_never_change_under_a_holder(make):
+    """A step writes its command into an object only this loop still holds: commands kept (the last one, or all of
+    them) keep their values, and whatever the caller keeps, every step gives the same values."""
+    comp = bmr.Compensator.from_model(MODEL, dt_s=DT_S)
+    ref = reference(400)
+    if make == "controller":
+        ctls = [bmr.Controller(copy.copy(comp), dt_s=DT_S) for _ in range(3)]
+        steps = [lambda i, c=c: c.step(float(ref[i]), 0.004 * i, 0.9 * float(ref[i - 1]) if i else math.nan)
+                 for c in ctls]
+    else:
+        comps = [copy.copy(comp) for _ in range(3)]
+        steps = [lambda i, c=c: (c.step if i % 2 else c.step_ahead)(float(ref[i]), 0.004 * i) for c in comps]
+    kept_all, values_all = [], []
+    prev, prev_values, values_last = None, None, []
+    values_dropped = []
+    for i in range(ref.size):
+        c = steps[0](i)
+        kept_all.append(c)
+        values_all.append(fields(c))
+        if prev is not None:
+            assert fields(prev) == prev_values  # the previous command, still held, is untouched
+        prev = steps[1](i)
+        prev_values = fields(prev)
+        values_last.append(prev_values)
+        values_dropped.append(fields(steps[2](i)))  # dropped at once: its object is written again
+    assert [fields(c) for c in kept_all] == values_all
+    assert len({id(c) for c in kept_all}) == ref.size
+    assert values_all == values_last == values_dropped
+    assert len({v[0] for v in values_all}) > 100  # the commands do vary
+
+
 def test_simulate_closed_loop_is_stepping_by_hand():
     ctl = bmr.Controller.from_model(MODEL, dt_s=DT_S)
     act = plant()

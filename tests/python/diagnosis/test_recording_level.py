@@ -11,6 +11,7 @@ import pytest
 import bmr
 import independent_plant as ip
 from bmr.diagnosis.effects import PHYSICAL
+from bmr.simulation.device import device_bundle
 from bmr.simulation.excitation import MEDIUM_EFFECTS, diagnosis_bundle
 
 pytestmark = pytest.mark.slow
@@ -43,3 +44,20 @@ def test_drive_scaled_seal_friction_is_named_without_a_per_run_calibration(plant
     d = bmr.diagnose(bundle, progress=False, closed_loop=False)
     names = _physical(d)
     assert "friction_current" in names and "run_gain_offset" not in names, d.to_dict()["effects"]
+
+
+def test_leakage_on_the_piezo_device_is_named_without_a_per_run_calibration() -> None:
+    # The charge amplifier integrates a leakage through the stack from the start of every recording; the
+    # calibration does not change between recordings. What per-run terms fit after the leakage is smaller than one
+    # reading's noise and changes along each recording.
+    bundle = device_bundle("piezo", effects={"leakage": {"rate_per_s": 0.002}}, seed=1000)
+    d = bmr.diagnose(bundle, progress=False, closed_loop=False)
+    assert _physical(d) == ["leakage"], d.to_dict()["effects"]
+
+
+def test_a_piezo_recalibrated_per_recording_is_named_without_a_sensor_drift() -> None:
+    # Four evaluation recordings, each with its own gain and offset: what the calibration leaves is no trend that
+    # every recording shares (left alone, one recording carries it).
+    bundle = device_bundle("piezo", effects={"run_gain_offset": {"gain_sd": 0.02, "offset_sd": 0.1}}, seed=1001)
+    d = bmr.diagnose(bundle, progress=False, closed_loop=False)
+    assert _physical(d) == ["run_gain_offset"], d.to_dict()["effects"]

@@ -1,7 +1,7 @@
-"""The least-squares table's resolution and smoothing chosen by cross-validation over time blocks of the training
+"""The least-squares table's resolution and smoothing chosen by cross-validation over whole sweeps of the training
 runs, on the independently written Preisach plant (``independent_preisach``): the choice predicts a held-out run
-at least as well as the fixed default, it does not hinge on where exactly the input range ends, and ``identify``
-reports it."""
+at least as well as the fixed default, one major loop (which says nothing about the loops inside it) keeps the
+default, it does not hinge on where exactly the input range ends, and ``identify`` reports it."""
 from __future__ import annotations
 
 import numpy as np
@@ -13,7 +13,7 @@ from bmr.identification.prediction import predict
 from bmr.identification.signals import run_input, run_output
 from bmr.identification.spans import SATURATION_TOL, evaluation_start, input_range_of
 from bmr.identification.table_choice import (DEFAULT_INTERVALS, DEFAULT_SMOOTHING, block_folds,
-                                             choose_table_settings)
+                                             choose_table_settings, sweep_folds, sweeps)
 
 import independent_preisach as P
 
@@ -61,6 +61,77 @@ def test_folds_hold_out_every_sample_once_in_contiguous_blocks():
         block_folds([10], folds=1)
 
 
+def test_sweep_folds_hold_out_whole_branches():
+    # Two runs: a loop of two sweeps and a first-order curve (one sweep, from its reversal up).
+    loop = np.concatenate([np.linspace(1.0, -1.0, 50), np.linspace(-1.0, 1.0, 50)[1:]])
+    curve = np.linspace(-0.3, 1.0, 30)
+    assert [(s.start, s.stop) for s in sweeps(loop, 0.02)] == [(0, 50), (50, 99)]
+    masks = sweep_folds([loop, curve], [np.ones(99), np.ones(30)], 0.02)
+    assert len(masks) == 3
+    # The loop's branches go to folds 0 and 1, the curve to fold 2 less its first two samples (its offset).
+    assert masks[0][0][:50].all() and not masks[0][0][50:].any() and masks[1][0][50:].all()
+    assert not masks[2][1][:2].any() and masks[2][1][2:].all() and not masks[0][1].any()
+    # One loop alone: two folds, one branch each.
+    assert len(sweep_folds([loop], [np.ones(99)], 0.02)) == 2
+
+
+@pytest.fixture(scope="module")
+def major_loop():
+    """One major loop recorded from positive saturation down and back (a hysteresisgraph's B(H) loop, 313
+    samples), and three smaller symmetric loops, each entered from positive saturation, held out."""
+    rng = np.random.default_rng(0)
+    fs = 25.0
+    plant = P.Plant(coercivity_width=0.1, interaction_width=0.05)
+    plant.reset()
+    major = P.record(plant, "major", "custom", [0.0, P.HI, P.LO, P.HI], rng, fs=fs, fresh=False)
+    smaller = []
+    for a in (0.4, 0.7, 0.9):
+        plant.reset()
+        plant.drive(P.ramps([P.LO, P.HI, a], 0.5, fs)[1], 1.0 / fs)
+        smaller.append(P.record(plant, f"loop{a}", "custom", [a, -a, a, -a, a], rng, fs=fs, fresh=False))
+    return major, smaller
+
+
+def test_one_major_loop_keeps_the_default_table_for_the_loops_inside_it(major_loop):
+    # The loops inside a major loop lie in cells of the Preisach plane the major loop never reaches: time blocks
+    # along it rank first a table that predicts the smaller loops 8 % worse; holding out a whole branch shows that
+    # the rest does not determine it, so the default is kept and the result says why.
+    major, smaller = major_loop
+    lo, hi = input_range_of([run_input(major)])
+    choice = choose_table_settings([major], input_range=(lo, hi))
+
+    def smaller_rms(n: int, s: float) -> float:
+        tables = fit_tables_lstsq([major], n_intervals=n, smoothing=s, input_range=(lo, hi))
+        e = [(d := run_output(r) - tables.everett.simulate(run_input(r), 0.0, [P.HI])) - d.mean() for r in smaller]
+        return float(np.sqrt(np.mean(np.concatenate(e) ** 2)))
+
+    chosen, default = smaller_rms(choice.n_intervals, choice.smoothing), smaller_rms(DEFAULT_INTERVALS,
+                                                                                      DEFAULT_SMOOTHING)
+    print(choice, "smaller loops:", round(chosen, 2), "default:", round(default, 2))
+    assert choice.undecided is not None and choice.ranked is not None and choice.sweep_folds >= 2
+    assert choice.sweep_rms > 0.2 * choice.sweep_spread
+    assert chosen <= 1.02 * default
+    ranked = smaller_rms(*choice.ranked)
+    print("ranked first by the blocks:", choice.ranked, round(ranked, 2))
+    assert ranked > 1.05 * default  # the plant exposes what the blocks alone get wrong
+
+
+def test_one_monotone_sweep_offers_no_check_and_the_blocks_ranking_stands(major_loop):
+    # The major loop's descending branch alone: one sweep, nothing to hold out whole.
+    major, _ = major_loop
+    u = run_input(major)
+    top = int(np.argmax(u[: u.size // 2]))
+    bottom = top + int(np.argmin(u[top:]))
+    branch = bmr.Run("branch", "custom", major.data.iloc[top:bottom + 1].reset_index(drop=True))
+    lo, hi = input_range_of([run_input(branch)])
+    choice = choose_table_settings([branch], input_range=(lo, hi))
+    assert choice.skipped is None and choice.undecided is None and choice.ranked is None
+    assert choice.sweeps == 1 and np.isnan(choice.sweep_rms)
+    best = min(choice.candidates, key=lambda c: c.cv_rms)
+    assert choice.cv_rms <= best.cv_rms * 1.01  # the blocks' ranking (within its tie band)
+    print(choice)
+
+
 def test_the_chosen_setting_predicts_held_out_loops_at_least_as_well_as_the_default(loops):
     train, held = loops
     chosen = bmr.identify(bmr.Bundle("loops", FS, train), method="lstsq")
@@ -73,13 +144,15 @@ def test_the_chosen_setting_predicts_held_out_loops_at_least_as_well_as_the_defa
     assert chosen.identification.lstsq.settings["smoothing"] == choice.smoothing
     # The default is among the settings scored, and the choice scores no worse on the held-out blocks.
     assert choice.cv_rms <= choice.default_cv_rms
+    # Minor loops inside the major one: the rest predicts whole held-out sweeps, so the ranking is trusted.
+    assert choice.undecided is None and choice.sweep_rms < 0.2 * choice.sweep_spread
     assert len(choice.candidates) >= 4  # the default and its neighbours in smoothing and resolution
     rms_chosen, rms_default = predict(chosen, held).rms, predict(default, held).rms
     print(choice, "held out:", round(rms_chosen, 3), "default:", round(rms_default, 3))
     assert rms_chosen <= 1.05 * rms_default
     # Reported in the model file's identification record and in the summary.
     record = chosen.meta["identification"]["table_choice"]
-    assert record["n_intervals"] == choice.n_intervals and record["folds"] == 3
+    assert record["n_intervals"] == choice.n_intervals and record["folds"] == 3 and record["undecided"] is None
     assert "TableChoice(" in repr(chosen.identification)
 
 

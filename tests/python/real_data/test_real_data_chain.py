@@ -67,7 +67,9 @@ def test_chain_on_real_recordings(key, tmp_path):
         assert r.rms < bound * r.noise_floor, (r.rms / r.noise_floor, r)
         assert r.rms < 0.2 * r.baseline_rms, r
     elif key == "steel_bh":
-        assert r.rms < 0.5 * r.baseline_rms, r  # today 0.40x (0.28x with the fixed default table)
+        # One major loop identifies: whole branches held out show it does not determine the loops inside it, so
+        # the default table is kept (0.28x; 0.40x when time blocks along the loop chose a coarser table).
+        assert r.rms < 0.33 * r.baseline_rms, r
     elif key == "ferrite_bh":
         assert r.rms < 0.95 * r.baseline_rms, r  # today 0.76x
 
