@@ -115,8 +115,9 @@ class CaptureEdges:
 def capture_edges(u: np.ndarray) -> CaptureEdges:
     """The idle hold at the start of input ``u`` (at least ``MIN_HOLD_SAMPLES`` samples within 4× the input's
     sample noise of its first value) and a command jump within its last ``END_JUMP_STEPS`` steps (a step above
-    10 % of the input span and 10× the 99th percentile of the run's other steps). A run that is all hold, or too
-    short to tell, has no edges."""
+    10 % of the input span and either 10× the 99th percentile of the run's other steps or 3× the largest of them:
+    a switching excitation such as a PRBS has large steps of its own, but none like the drive set back to rest).
+    A run that is all hold, or too short to tell, has no edges."""
     u = np.asarray(u, dtype=float)
     n = u.size
     if n < 2 * MIN_HOLD_SAMPLES or not np.all(np.isfinite(u)):
@@ -133,6 +134,7 @@ def capture_edges(u: np.ndarray) -> CaptureEdges:
     k = int(np.argmax(tail))
     rest = steps[hold:-END_JUMP_STEPS]
     jump = 0
-    if rest.size and tail[k] > max(0.1 * span, 10.0 * float(np.percentile(rest, 99))):
+    if rest.size and tail[k] > 0.1 * span and tail[k] > min(10.0 * float(np.percentile(rest, 99)),
+                                                            3.0 * float(rest.max())):
         jump = END_JUMP_STEPS - k  # the samples after the jump's step
     return CaptureEdges(hold, jump, float(u[0]) + 0.0 if hold else math.nan)  # + 0.0: no "-0"

@@ -33,7 +33,7 @@ from bmr.data.quantities import Quantities
 from bmr.data.units import format_number
 from bmr.identification.extended import parts, simulate_extended
 from bmr.identification.model import Model
-from bmr.identification.signals import run_input, run_output
+from bmr.identification.signals import run_input, run_output, running_integral
 from bmr.identification.spans import SATURATION_TOL, evaluation_start
 
 __all__ = ["FORMAT", "RunPrediction", "Prediction", "predict", "single_valued_baseline", "run_cli", "CALIBRATION",
@@ -274,6 +274,14 @@ def _offset_prior(model: Any) -> dict[str, float] | None:
     return {k: float(v) for k, v in values.items()}
 
 
+def _identified_leakage(model: Any) -> float | None:
+    """The leakage rate (output per input·s) least squares fitted with the tables, when the model holds one: the
+    tables alone describe the sample, the measured output also integrates the leakage current."""
+    ident = getattr(model, "meta", {}).get("identification") or {}
+    rate = (ident.get("lstsq_fit") or {}).get("leakage_rate") if ident.get("chosen") == "lstsq" else None
+    return float(rate) if isinstance(rate, (int, float)) and math.isfinite(rate) and rate != 0.0 else None
+
+
 def _run_gain(model: Any, y: np.ndarray, p: np.ndarray, y_lo: float) -> tuple[float, str]:
     """A run's gain on the model output about ``y_lo`` (with a free offset) when the training runs' fitted gains
     spread, shrunk towards 1 by that spread; ``(1, "")`` otherwise."""
@@ -424,7 +432,8 @@ def predict(
     ``runs`` when that is a bundle).
     ``evaluate``: ``"known"`` scores from the sample where the run has been to both saturation ends (all samples
     when it never gets there) or ``"all"``. ``out_of_range``: ``"clamp"`` or ``"extrapolate"`` (see
-    ``Model.simulate``). Friction is added when the model has it and the run has an angle. A model with
+    ``Model.simulate``). Friction is added when the model has it and the run has an angle; the leakage least squares
+    fitted with the tables (open branches) along the run's ``∫u dt`` from its first sample. A model with
     extensions (``bmr diagnose --model-out``) runs whole — its stages, learned term and offset through
     ``bmr.ExtendedSimulation``, from a saturation — unless ``whole_model`` is False (the core tables alone);
     ``Prediction.ran`` names what ran.
@@ -448,6 +457,8 @@ def predict(
     y_lo, y_hi = model.hysteresis.output_range
     span = y_hi - y_lo
     extended = bool(model.extensions) and whole_model
+    # An extended model carries its leakage as a stage; the nominal model adds the one fitted with its tables.
+    leakage = None if extended or not whole_model else _identified_leakage(model)
     tol = SATURATION_TOL * (hi - lo)
     continued: dict[str, _Continued] = {}
     out = []
@@ -518,6 +529,8 @@ def predict(
         else:
             p = model.simulate(u, initial=start, history=history, out_of_range=out_of_range)
         p = y_lo + g * (p - y_lo)
+        if leakage is not None:
+            p = p + leakage * running_integral(u, r.time)
         base = y_lo + g * (single_valued_baseline(model, u) - y_lo)
         dropped: dict[str, int] = {}
         first = k
@@ -597,7 +610,8 @@ def predict(
             dropped=dropped, time=r.time, input=u, measured=measured, predicted=p + friction,
             baseline=base + friction, sigma=sigma, scored=scored))
     return Prediction(out, model.quantities, span, out_of_range, model_source, bundle_source,
-                      ran=parts(model) if extended else ["core tables"])
+                      ran=parts(model) if extended else
+                      ["core tables"] + (["leakage identified with the tables"] if leakage is not None else []))
 
 
 def run_cli(args: Any) -> int:

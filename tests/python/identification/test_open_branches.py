@@ -136,6 +136,9 @@ def test_a_leaky_analyzer_export_goes_through_import_identify_and_diagnose(tmp_p
     assert main(["identify", str(bundle), "-o", str(model)]) == 0
     out = capsys.readouterr().out
     assert "leakage 1.00" in out and "solve converged" in out
+    # Prediction with the nominal model adds the leakage fitted with its tables.
+    assert main(["predict", str(model), str(bundle)]) == 0
+    assert "ran: core tables, leakage identified with the tables" in capsys.readouterr().out
     assert main(["diagnose", str(bundle), "--json", str(tmp_path / "d.json")]) == 0
     out = capsys.readouterr().out
     assert "cause leakage" in out and "accepted leakage" in out
