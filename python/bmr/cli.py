@@ -92,8 +92,9 @@ def _parser() -> argparse.ArgumentParser:
                    help="least-squares table: weight of the density's smoothness (default: chosen by "
                         "cross-validation over time blocks of the training runs)")
     i.add_argument("--grid", choices=GRIDS, default=DEFAULT_GRID,
-                   help="least-squares table: nodes evenly spaced (uniform, the default) or finer where the "
-                        "branches switch and the runs reverse (adaptive; FORC families)")
+                   help="least-squares table: nodes evenly spaced (uniform) or finer where the branches switch "
+                        "and the runs reverse (adaptive); auto (the default): adaptive for a family of "
+                        "first-order reversal curves, uniform otherwise")
     i.add_argument("-o", "--out", required=True,
                    help="model file to write (bmr-model/2 JSON: tables, friction, the bundle's quantities and units)")
 

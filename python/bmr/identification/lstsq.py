@@ -22,15 +22,16 @@ from typing import Any, Iterable, Mapping, Sequence
 import numpy as np
 
 from bmr import _core
-from bmr._core import BmrError
+from bmr._core import BmrError, find_reversals
 from bmr.data.bundle import Run
+from bmr.data.signals import default_deadband
 from bmr.identification.accounting import SampleAccount
 from bmr.identification.forc import Curve
 from bmr.identification.signals import run_input, run_output, running_integral
 from bmr.identification.spans import SATURATION_TOL, evaluation_start, input_range_of
 
 __all__ = ["RunCalibration", "LstsqTables", "fit_tables_lstsq", "row_weights", "INITIAL_STATES", "DRIFTS", "GRIDS",
-           "DEFAULT_GRID", "table_nodes", "saturation_closure", "Conditioning", "OPEN_BRANCH_SHARE", "MAX_ROWS"]
+           "DEFAULT_GRID", "table_nodes", "resolved_grid", "saturation_closure", "Conditioning", "OPEN_BRANCH_SHARE", "MAX_ROWS"]
 
 INITIAL_STATES = ("estimate", "saturation", "negative")
 DRIFTS = ("none", "leakage", "auto")
@@ -42,8 +43,14 @@ MAX_ROWS = 2_000_000
 BEFORE_KNOWN_STATE = "before the run's state is known (initial_state='saturation')"
 THINNED = "thinned to max_rows (every k-th sample kept)"
 HELD_OUT = "held out (cross-validation)"
-GRIDS = ("uniform", "adaptive")
-DEFAULT_GRID = "uniform"
+GRIDS = ("auto", "uniform", "adaptive")
+DEFAULT_GRID = "auto"
+# "auto" takes the adaptive grid for a family of first-order reversal curves: at least this many runs, and at least
+# this share of them one reversal each (the corner their curve starts from).
+FORC_FAMILY_MIN_RUNS = 8
+FORC_FAMILY_SHARE = 0.9
+# ... and their reversal inputs spread over at least this share of the input span.
+FORC_CORNER_SPREAD = 0.25
 # Shares of an adaptive grid's intervals placed by the branches' steepness and by the reversals (the rest even).
 GRID_SLOPE_SHARE = 0.2
 GRID_TURN_SHARE = 0.4
@@ -208,19 +215,43 @@ class LstsqTables:
                 f"{self.samples.used} of {self.samples.total} samples used{solve})")
 
 
+def resolved_grid(grid: str, us: Sequence[np.ndarray]) -> str:
+    """The grid ``"auto"`` stands for on runs with inputs ``us``: ``"adaptive"`` for a family of first-order
+    reversal curves (:data:`FORC_FAMILY_MIN_RUNS` runs or more, :data:`FORC_FAMILY_SHARE` of them one reversal
+    each beyond the inputs' reversal dead-band, at inputs spread over :data:`FORC_CORNER_SPREAD` of the span or
+    more), ``"uniform"`` otherwise (loops, minor loops, free excitation:
+    there the even grid predicted held-out runs better). Other grids are returned as they are."""
+    if grid not in GRIDS:
+        raise BmrError(f"grid must be one of {', '.join(GRIDS)}, got {grid!r}")
+    if grid != "auto":
+        return grid
+    if len(us) < FORC_FAMILY_MIN_RUNS:
+        return "uniform"
+    deadband = default_deadband(list(us))
+    corners = []  # the reversal input of each run that reverses once
+    for u in us:
+        u = np.ascontiguousarray(u, dtype=float)
+        rev = find_reversals(u, deadband)
+        if len(rev) == 1:
+            corners.append(float(u[int(rev[0])]))
+    span = max(float(np.max(u)) for u in us) - min(float(np.min(u)) for u in us)
+    # Repeated loops reverse once each too, all at the same input: a FORC family's corners spread over the range.
+    family = len(corners) >= FORC_FAMILY_SHARE * len(us) and np.ptp(corners) >= FORC_CORNER_SPREAD * span
+    return "adaptive" if family else "uniform"
+
+
 def table_nodes(us: Sequence[np.ndarray], ys: Sequence[np.ndarray], lo: float, hi: float, n_intervals: int,
                 grid: str = DEFAULT_GRID) -> np.ndarray:
     """The ``n_intervals + 1`` input nodes of an Everett table over ``[lo, hi]`` (input units).
 
-    ``grid="uniform"`` (default): evenly spaced. ``"adaptive"``: the intervals are spread by a density over the
+    ``grid="auto"`` (default): :func:`resolved_grid`. ``"uniform"``: evenly spaced. ``"adaptive"``: the intervals are spread by a density over the
     input that is part even, part (:data:`GRID_SLOPE_SHARE`) how steep the measured branches are there (mean
     ``|dy/du|`` in :data:`GRID_BINS_PER_INTERVAL` bins per interval) and part (:data:`GRID_TURN_SHARE`) how many
     reversals the runs make there. A Preisach density lives where the branches switch (its α) and where the
     memory's corners are (its β, the reversal inputs of first-order curves), so those get finer cells for the same
     unknowns, the input range's unvisited stretches coarser ones; no interval is wider than
     ``1 / (1 − GRID_SLOPE_SHARE − GRID_TURN_SHARE)`` times the even spacing."""
-    if grid not in GRIDS:
-        raise BmrError(f"grid must be one of {', '.join(GRIDS)}, got {grid!r}")
+    grid = resolved_grid(grid, us)
     n = int(n_intervals)
     uniform = np.linspace(lo, hi, n + 1)
     if grid == "uniform":
@@ -312,7 +343,8 @@ def fit_tables_lstsq(
     not close (:func:`saturation_closure` above :data:`OPEN_BRANCH_SHARE`) and keeps it only when it closes them
     (halves the closure): an open loop from a changing gain (heating) is not a leakage.
 
-    ``grid``: where the table's nodes lie, ``"uniform"`` (default) or ``"adaptive"`` (:func:`table_nodes`).
+    ``grid``: where the table's nodes lie, ``"auto"`` (default: adaptive for a family of first-order reversal curves), ``"uniform"`` or ``"adaptive"``
+    (:func:`table_nodes`; the one used is in ``settings["grid"]``).
 
     ``per_run_offset`` / ``start_at_saturation``: the former boolean spellings of ``offsets`` / ``initial_state``.
     """
@@ -340,6 +372,7 @@ def fit_tables_lstsq(
     lo, hi = input_range if input_range is not None else input_range_of(us)
     if not hi > lo:
         raise BmrError(f"runs {', '.join(repr(r.name) for r in runs)}: the input never varies; nothing to identify")
+    grid = resolved_grid(grid, us)
     nodes = table_nodes(us, ys, lo, hi, n_intervals, grid)
     tol = SATURATION_TOL * (hi - lo)
     closure = saturation_closure(us, ys, lo, hi, tol)

@@ -247,8 +247,9 @@ def identify(
     per-run calibration (see ``fit_tables_lstsq``); ``drift``: its leakage term (default ``"auto"``: fitted with the
     table when the branches do not close and it closes them; the rate is in ``model.identification.lstsq``).
     ``input_range``: the tables' input range (default: the range the runs not held out measure). ``grid``: where
-    the least-squares table's nodes lie, ``"uniform"`` (default) or ``"adaptive"`` (finer where the branches switch
-    and the runs reverse: :func:`~bmr.identification.lstsq.table_nodes`).
+    the least-squares table's nodes lie: ``"auto"`` (default: adaptive for a family of first-order reversal
+    curves), ``"uniform"`` or ``"adaptive"`` (finer where the branches switch and the runs reverse:
+    :func:`~bmr.identification.lstsq.table_nodes`).
     ``n_intervals``, ``smoothing``: the least-squares table's resolution (grid intervals over the input range) and
     the weight of its density's smoothness; each one not given is chosen by cross-validation over time blocks of
     the training runs, trusted only where whole sweeps held out are predicted from the rest (else the default is

@@ -81,3 +81,17 @@ def test_fit_and_identify_use_the_grid_asked_for():
     np.testing.assert_array_equal(np.asarray(uniform.everett.grid), np.linspace(lo, hi, 25))
     with pytest.raises(BmrError, match="grid must be one of"):
         fit_tables_lstsq(runs, n_intervals=24, grid="fine")
+
+
+def test_auto_grid_is_adaptive_for_a_forc_family_only():
+    from bmr.identification.lstsq import resolved_grid
+
+    # Ascending first-order curves, each led by a point at the calibration (high) input: one reversal per run.
+    forcs = [np.concatenate([[1.0], np.linspace(r, 1.0, 100)]) for r in np.linspace(-1.0, 0.5, 12)]
+    assert resolved_grid("auto", forcs) == "adaptive"
+    assert resolved_grid("auto", forcs[:lstsq.FORC_FAMILY_MIN_RUNS - 1]) == "uniform"  # too few curves to tell
+    u, _ = _square_loop()
+    assert resolved_grid("auto", [u] * 12) == "uniform"  # loops: two reversals each
+    assert resolved_grid("uniform", forcs) == "uniform" and resolved_grid("adaptive", [u]) == "adaptive"
+    with pytest.raises(BmrError, match="grid must be one of"):
+        resolved_grid("log", forcs)

@@ -1,5 +1,6 @@
-"""The least-squares table on an adaptive grid (``bmr identify --grid adaptive``) on a real FORC file: the marine
-sediment MicroMag export, every other curve held out, through the command line. Skipped when the data are absent."""
+"""The least-squares table on an adaptive grid (``bmr identify --grid adaptive``, what ``auto`` takes for a FORC
+family) on a real FORC file: the marine sediment MicroMag export, every other curve held out, through the command
+line. Skipped when the data are absent."""
 from __future__ import annotations
 
 import json
@@ -29,5 +30,5 @@ def test_adaptive_grid_predicts_held_out_sediment_forcs_within_the_noise_floor(t
     assert json.loads(model.read_text())["meta"]["identification"]["lstsq_fit"]["settings"]["grid"] == "adaptive"
     rms = json.loads(pred.read_text())["total"]["rms"]
     floor = sample_noise([np.asarray(r.output, dtype=float) for r in bmr.read_bundle(bundle).runs])
-    # 0.82x the moment's own noise floor (4.94e-10 A·m²); the evenly spaced default table reaches 1.18x.
+    # 0.82x the moment's own noise floor (4.94e-10 A·m²); the evenly spaced grid (--grid uniform) 1.18x.
     assert rms < 1.0 * floor, (rms, floor)
