@@ -10,6 +10,7 @@ from typing import Sequence
 
 from bmr._core import PRESETS, BmrError
 from bmr.data.formats import FORMATS
+from bmr.identification.lstsq import DEFAULT_GRID, GRIDS
 
 BUNDLE_HELP = "bundle folder (manifest.json plus one CSV or Parquet file per run; see `bmr simulate`)"
 
@@ -90,6 +91,10 @@ def _parser() -> argparse.ArgumentParser:
     i.add_argument("--smoothing", type=float, default=None, metavar="S",
                    help="least-squares table: weight of the density's smoothness (default: chosen by "
                         "cross-validation over time blocks of the training runs)")
+    i.add_argument("--grid", choices=GRIDS, default=DEFAULT_GRID,
+                   help="least-squares table: nodes evenly spaced (uniform) or finer where the branches switch "
+                        "and the runs reverse (adaptive); auto (the default): adaptive for a family of "
+                        "first-order reversal curves, uniform otherwise")
     i.add_argument("-o", "--out", required=True,
                    help="model file to write (bmr-model/2 JSON: tables, friction, the bundle's quantities and units)")
 

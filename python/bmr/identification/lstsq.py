@@ -22,15 +22,16 @@ from typing import Any, Iterable, Mapping, Sequence
 import numpy as np
 
 from bmr import _core
-from bmr._core import BmrError
+from bmr._core import BmrError, find_reversals
 from bmr.data.bundle import Run
+from bmr.data.signals import default_deadband
 from bmr.identification.accounting import SampleAccount
 from bmr.identification.forc import Curve
 from bmr.identification.signals import run_input, run_output, running_integral
 from bmr.identification.spans import SATURATION_TOL, evaluation_start, input_range_of
 
-__all__ = ["RunCalibration", "LstsqTables", "fit_tables_lstsq", "row_weights", "INITIAL_STATES", "DRIFTS",
-           "saturation_closure", "Conditioning", "OPEN_BRANCH_SHARE", "MAX_ROWS"]
+__all__ = ["RunCalibration", "LstsqTables", "fit_tables_lstsq", "row_weights", "INITIAL_STATES", "DRIFTS", "GRIDS",
+           "DEFAULT_GRID", "table_nodes", "resolved_grid", "saturation_closure", "Conditioning", "OPEN_BRANCH_SHARE", "MAX_ROWS"]
 
 INITIAL_STATES = ("estimate", "saturation", "negative")
 DRIFTS = ("none", "leakage", "auto")
@@ -42,6 +43,18 @@ MAX_ROWS = 2_000_000
 BEFORE_KNOWN_STATE = "before the run's state is known (initial_state='saturation')"
 THINNED = "thinned to max_rows (every k-th sample kept)"
 HELD_OUT = "held out (cross-validation)"
+GRIDS = ("auto", "uniform", "adaptive")
+DEFAULT_GRID = "auto"
+# "auto" takes the adaptive grid for a family of first-order reversal curves: at least this many runs, and at least
+# this share of them one reversal each (the corner their curve starts from).
+FORC_FAMILY_MIN_RUNS = 8
+FORC_FAMILY_SHARE = 0.9
+# ... and their reversal inputs spread over at least this share of the input span.
+FORC_CORNER_SPREAD = 0.25
+# Shares of an adaptive grid's intervals placed by the branches' steepness and by the reversals (the rest even).
+GRID_SLOPE_SHARE = 0.2
+GRID_TURN_SHARE = 0.4
+GRID_BINS_PER_INTERVAL = 4
 
 
 @dataclass
@@ -202,6 +215,73 @@ class LstsqTables:
                 f"{self.samples.used} of {self.samples.total} samples used{solve})")
 
 
+def resolved_grid(grid: str, us: Sequence[np.ndarray]) -> str:
+    """The grid ``"auto"`` stands for on runs with inputs ``us``: ``"adaptive"`` for a family of first-order
+    reversal curves (:data:`FORC_FAMILY_MIN_RUNS` runs or more, :data:`FORC_FAMILY_SHARE` of them one reversal
+    each beyond the inputs' reversal dead-band, at inputs spread over :data:`FORC_CORNER_SPREAD` of the span or
+    more), ``"uniform"`` otherwise (loops, minor loops, free excitation:
+    there the even grid predicted held-out runs better). Other grids are returned as they are."""
+    if grid not in GRIDS:
+        raise BmrError(f"grid must be one of {', '.join(GRIDS)}, got {grid!r}")
+    if grid != "auto":
+        return grid
+    if len(us) < FORC_FAMILY_MIN_RUNS:
+        return "uniform"
+    deadband = default_deadband(list(us))
+    corners = []  # the reversal input of each run that reverses once
+    for u in us:
+        u = np.ascontiguousarray(u, dtype=float)
+        rev = find_reversals(u, deadband)
+        if len(rev) == 1:
+            corners.append(float(u[int(rev[0])]))
+    span = max(float(np.max(u)) for u in us) - min(float(np.min(u)) for u in us)
+    # Repeated loops reverse once each too, all at the same input: a FORC family's corners spread over the range.
+    family = len(corners) >= FORC_FAMILY_SHARE * len(us) and np.ptp(corners) >= FORC_CORNER_SPREAD * span
+    return "adaptive" if family else "uniform"
+
+
+def table_nodes(us: Sequence[np.ndarray], ys: Sequence[np.ndarray], lo: float, hi: float, n_intervals: int,
+                grid: str = DEFAULT_GRID) -> np.ndarray:
+    """The ``n_intervals + 1`` input nodes of an Everett table over ``[lo, hi]`` (input units).
+
+    ``grid="auto"`` (default): :func:`resolved_grid`. ``"uniform"``: evenly spaced. ``"adaptive"``: the intervals are spread by a density over the
+    input that is part even, part (:data:`GRID_SLOPE_SHARE`) how steep the measured branches are there (mean
+    ``|dy/du|`` in :data:`GRID_BINS_PER_INTERVAL` bins per interval) and part (:data:`GRID_TURN_SHARE`) how many
+    reversals the runs make there. A Preisach density lives where the branches switch (its α) and where the
+    memory's corners are (its β, the reversal inputs of first-order curves), so those get finer cells for the same
+    unknowns, the input range's unvisited stretches coarser ones; no interval is wider than
+    ``1 / (1 − GRID_SLOPE_SHARE − GRID_TURN_SHARE)`` times the even spacing."""
+    grid = resolved_grid(grid, us)
+    n = int(n_intervals)
+    uniform = np.linspace(lo, hi, n + 1)
+    if grid == "uniform":
+        return uniform
+    bins = GRID_BINS_PER_INTERVAL * n
+    edges = np.linspace(lo, hi, bins + 1)
+    rise, run, turns = np.zeros(bins), np.zeros(bins), np.zeros(bins)
+
+    def at(x: np.ndarray) -> np.ndarray:
+        return np.clip(np.searchsorted(edges, x, side="right") - 1, 0, bins - 1)
+
+    for u, y in zip(us, ys):
+        du, dy = np.diff(u), np.diff(y)
+        ok = np.isfinite(du) & np.isfinite(dy) & (du != 0.0)
+        np.add.at(rise, at(0.5 * (u[1:] + u[:-1])[ok]), np.abs(dy[ok]))
+        np.add.at(run, at(0.5 * (u[1:] + u[:-1])[ok]), np.abs(du[ok]))
+        sign = np.sign(du[ok])
+        turn = np.flatnonzero(sign[1:] != sign[:-1]) + 1  # reversal points: where the memory gets a new corner
+        np.add.at(turns, at(u[1:][ok][turn - 1] if turn.size else np.zeros(0)), 1.0)
+    slope = np.divide(rise, run, out=np.zeros(bins), where=run > 0)
+    density = np.full(bins, (1.0 - GRID_SLOPE_SHARE - GRID_TURN_SHARE) / bins)
+    for share, part in ((GRID_SLOPE_SHARE, slope), (GRID_TURN_SHARE, turns)):
+        total = part.sum()
+        density += share * part / total if np.isfinite(total) and total > 0 else share / bins
+    cdf = np.concatenate([[0.0], np.cumsum(density)])
+    nodes = np.interp(np.linspace(0.0, cdf[-1], n + 1), cdf, edges)
+    nodes[0], nodes[-1] = lo, hi
+    return nodes
+
+
 def _fit(grid: np.ndarray, packed: list[tuple], n_offsets: int, smoothing: float, ridge: float,
          drift: list[np.ndarray] | None = None) -> _core.EverettFit:
     return _core.fit_everett(grid, packed, n_offsets, smoothing=smoothing, ridge=ridge, drift=drift)
@@ -238,6 +318,7 @@ def fit_tables_lstsq(
     curve_subdivisions: int = 1,
     exclude: Mapping[str, np.ndarray] | None = None,
     drift: str = "none",
+    grid: str = DEFAULT_GRID,
     per_run_offset: bool | None = None,
     start_at_saturation: bool | None = None,
 ) -> LstsqTables:
@@ -261,6 +342,9 @@ def fit_tables_lstsq(
     start: output unit per input unit · s), ``"none"`` (default) does not, ``"auto"`` does when the branches do
     not close (:func:`saturation_closure` above :data:`OPEN_BRANCH_SHARE`) and keeps it only when it closes them
     (halves the closure): an open loop from a changing gain (heating) is not a leakage.
+
+    ``grid``: where the table's nodes lie, ``"auto"`` (default: adaptive for a family of first-order reversal curves), ``"uniform"`` or ``"adaptive"``
+    (:func:`table_nodes`; the one used is in ``settings["grid"]``).
 
     ``per_run_offset`` / ``start_at_saturation``: the former boolean spellings of ``offsets`` / ``initial_state``.
     """
@@ -288,7 +372,8 @@ def fit_tables_lstsq(
     lo, hi = input_range if input_range is not None else input_range_of(us)
     if not hi > lo:
         raise BmrError(f"runs {', '.join(repr(r.name) for r in runs)}: the input never varies; nothing to identify")
-    grid = np.linspace(lo, hi, int(n_intervals) + 1)
+    grid = resolved_grid(grid, us)
+    nodes = table_nodes(us, ys, lo, hi, n_intervals, grid)
     tol = SATURATION_TOL * (hi - lo)
     closure = saturation_closure(us, ys, lo, hi, tol)
     leakage = drift == "leakage" or (drift == "auto" and closure > OPEN_BRANCH_SHARE)
@@ -341,15 +426,15 @@ def fit_tables_lstsq(
             known.append(k)
         # Runs without a known part sit out the first fit (their offset columns would be empty).
         with_rows = [i for i, k in enumerate(known) if np.count_nonzero(k)]
-        if sum(np.count_nonzero(known[i]) for i in with_rows) >= 4 * grid.size:
+        if sum(np.count_nonzero(known[i]) for i in with_rows) >= 4 * nodes.size:
             first = [(np.ascontiguousarray(us[i]), np.ascontiguousarray(ys[i]), known[i], j if per_run else 0)
                      for j, i in enumerate(with_rows)]
-            res = _fit(grid, first, len(with_rows) if per_run else 1, smoothing, ridge,
+            res = _fit(nodes, first, len(with_rows) if per_run else 1, smoothing, ridge,
                        [integrals[i] for i in with_rows] if integrals is not None else None)
         else:
-            res = _fit(grid, pack(), n_off, smoothing, ridge, integrals)
+            res = _fit(nodes, pack(), n_off, smoothing, ridge, integrals)
     else:
-        res = _fit(grid, pack(), n_off, smoothing, ridge, integrals)
+        res = _fit(nodes, pack(), n_off, smoothing, ridge, integrals)
     if integrals is not None:
         rate = res.drift if res.drift is not None else 0.0
 
@@ -364,7 +449,7 @@ def fit_tables_lstsq(
                 histories[k] = list(h)
         if gains:
             run_gains = _fit_gains(model, us, own, weights, histories, offs, per_run, gain_prior)
-        res = _fit(grid, pack(), n_off, smoothing, ridge, integrals)
+        res = _fit(nodes, pack(), n_off, smoothing, ridge, integrals)
         if integrals is not None:
             rate = res.drift if res.drift is not None else 0.0
 
@@ -398,7 +483,7 @@ def fit_tables_lstsq(
     asc, desc = everett.first_order_curves(subdivisions=curve_subdivisions)
     settings = {"smoothing": smoothing, "ridge": ridge, "offsets": offsets, "gains": gains,
                 "gain_prior": gain_prior, "initial_state": initial_state, "iterations": iterations,
-                "max_rows": max_rows, "curve_subdivisions": curve_subdivisions, "drift": drift}
+                "max_rows": max_rows, "curve_subdivisions": curve_subdivisions, "drift": drift, "grid": grid}
     return LstsqTables(everett=everett, ascending=[(np.asarray(u), np.asarray(y)) for u, y in asc],
                        descending=[(np.asarray(u), np.asarray(y)) for u, y in desc], input_range=(lo, hi),
                        rms=res.rms, n_rows=res.n_rows, iterations=res.iterations,

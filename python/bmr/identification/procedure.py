@@ -27,7 +27,7 @@ from bmr.data.quantities import Quantities
 from bmr.identification.accounting import SampleAccount
 from bmr.identification.forc import FirstOrderCurves, extract_first_order_curves
 from bmr.identification.friction import DEFAULT_MAX_ORDER, fit_friction
-from bmr.identification.lstsq import LstsqTables, fit_tables_lstsq
+from bmr.identification.lstsq import DEFAULT_GRID, LstsqTables, fit_tables_lstsq
 from bmr.identification.model import Model
 from bmr.identification.prediction import Prediction, predict
 from bmr.identification.signals import run_input, run_output
@@ -185,7 +185,7 @@ def _held_curves(curves: FirstOrderCurves, fold: int) -> set[int]:
 
 def _cross_validate(protocol: Sequence[Run], curves: FirstOrderCurves, friction: Any, lo: float, hi: float,
                     n_intervals: int, smoothing: float, offsets: str, subdivisions: int,
-                    deadband: float) -> dict[str, float]:
+                    deadband: float, grid: str) -> dict[str, float]:
     """RMS of each method on curves held out in two folds, both scored on the same samples."""
     sse = {"forc": 0.0, "lstsq": 0.0}
     count = 0
@@ -198,7 +198,7 @@ def _cross_validate(protocol: Sequence[Run], curves: FirstOrderCurves, friction:
                                           exclude_curves=held)
         forc = _forc_model(part, friction, subdivisions, {}, protocol[0].quantities)
         tables = fit_tables_lstsq(protocol, friction, n_intervals=n_intervals, input_range=(lo, hi),
-                                  smoothing=smoothing, offsets=offsets, exclude=masks)
+                                  smoothing=smoothing, offsets=offsets, exclude=masks, grid=grid)
         lst = _lstsq_model(tables, friction, {}, protocol[0].quantities)
         for r in protocol:
             m = masks[r.name]
@@ -234,6 +234,7 @@ def identify(
     n_nodes: int | None = None,
     drift: str = "auto",
     input_range: tuple[float, float] | None = None,
+    grid: str = DEFAULT_GRID,
 ) -> Model:
     """Identify friction and hysteresis from ``bundle`` and return a ``bmr.Model`` whose ``identification``
     (an :class:`IdentificationReport`) says what was done.
@@ -245,7 +246,10 @@ def identify(
     an error when one of them is impossible). ``offsets``, ``gains``, ``initial_state``: the least-squares fit's
     per-run calibration (see ``fit_tables_lstsq``); ``drift``: its leakage term (default ``"auto"``: fitted with the
     table when the branches do not close and it closes them; the rate is in ``model.identification.lstsq``).
-    ``input_range``: the tables' input range (default: the range the runs not held out measure).
+    ``input_range``: the tables' input range (default: the range the runs not held out measure). ``grid``: where
+    the least-squares table's nodes lie: ``"auto"`` (default: adaptive for a family of first-order reversal
+    curves), ``"uniform"`` or ``"adaptive"`` (finer where the branches switch and the runs reverse:
+    :func:`~bmr.identification.lstsq.table_nodes`).
     ``n_intervals``, ``smoothing``: the least-squares table's resolution (grid intervals over the input range) and
     the weight of its density's smoothness; each one not given is chosen by cross-validation over time blocks of
     the training runs, trusted only where whole sweeps held out are predicted from the rest (else the default is
@@ -312,7 +316,7 @@ def identify(
         if n_intervals is None or smoothing is None:
             choice = choose_table_settings(train, friction, input_range=(lo, hi), n_intervals=n_intervals,
                                            smoothing=smoothing, offsets=offsets, gains=gains,
-                                           initial_state=initial_state, drift=drift)
+                                           initial_state=initial_state, drift=drift, grid=grid)
             n_intervals, smoothing = choice.n_intervals, choice.smoothing
             times["table_choice"] = time.perf_counter() - t
         reference = choice.reference if choice is not None else None
@@ -322,7 +326,7 @@ def identify(
         else:
             tables = fit_tables_lstsq(train, friction, n_intervals=n_intervals, smoothing=smoothing,
                                       input_range=(lo, hi), offsets=offsets, gains=gains,
-                                      initial_state=initial_state, drift=drift)
+                                      initial_state=initial_state, drift=drift, grid=grid)
         candidates["lstsq"] = _lstsq_model(tables, friction, limits, q)
         accounts["lstsq"] = tables.samples
         times["lstsq"] = time.perf_counter() - t
@@ -345,7 +349,7 @@ def identify(
         cv = _cross_validate(protocol, curves, friction, lo, hi,
                              DEFAULT_INTERVALS if n_intervals is None else n_intervals,
                              DEFAULT_SMOOTHING if smoothing is None else smoothing, offsets, subdivisions,
-                             curves.deadband)
+                             curves.deadband, grid)
         times["cross_validation"] = time.perf_counter() - t
         if cv:
             chosen = min(cv, key=lambda k: cv[k])
@@ -387,7 +391,8 @@ def run_cli(args: Any) -> int:
     the report."""
     check_output_file(args.out, "model file", error=ModelFileError)
     bundle = read_bundle(args.bundle)
-    model = identify(bundle, method=args.method, n_intervals=args.intervals, smoothing=args.smoothing)
+    model = identify(bundle, method=args.method, n_intervals=args.intervals, smoothing=args.smoothing,
+                     grid=args.grid)
     model.save(args.out)
     report = model.identification
     print(f"bmr identify: {bundle.actuator or args.bundle} ({len(bundle)} runs, {bundle.quantities.describe()}), "

@@ -36,7 +36,8 @@ import numpy as np
 from bmr import _core
 from bmr._core import BmrError
 from bmr.data.bundle import Run
-from bmr.identification.lstsq import MAX_ROWS, LstsqTables, fit_tables_lstsq, row_weights
+from bmr.identification.lstsq import (DEFAULT_GRID, MAX_ROWS, LstsqTables, fit_tables_lstsq, row_weights,
+                                     table_nodes)
 from bmr.identification.signals import run_input, run_output, running_integral
 
 __all__ = ["TableCandidate", "TableChoice", "choose_table_settings", "block_folds", "sweeps", "sweep_folds",
@@ -259,6 +260,7 @@ def choose_table_settings(runs: Sequence[Run], friction: Any = None, *, input_ra
                           fit_options.get("max_rows", MAX_ROWS))
     masks = block_folds([u.size for u in us], folds)
     n_off = len(runs) if fit_options.get("offsets", "per_run") == "per_run" else 1
+    grid = fit_options.get("grid", DEFAULT_GRID)  # the fit's nodes
     rows = sum(int(np.count_nonzero(w)) for w in weights)
     held = sum(1 for fold in masks if any(np.count_nonzero(w[m]) for w, m in zip(weights, fold)))
     # Resolutions the data can carry (finer than the default: enough rows per cell) within the solver's unknowns.
@@ -289,7 +291,7 @@ def choose_table_settings(runs: Sequence[Run], friction: Any = None, *, input_ra
             try:
                 if n not in regressions:
                     regressions.clear()  # one resolution's normal equations at a time (they are large)
-                    regressions[n] = _core.EverettFolds(np.linspace(lo, hi, n + 1), data, n_off, folds,
+                    regressions[n] = _core.EverettFolds(table_nodes(us, ys, lo, hi, n, grid), data, n_off, folds,
                                                         drift=drift)
                 start = reference.passive if n == reference.n_intervals else None
                 parts = regressions[n].score(s, warm_start=None if start is None else [bool(x) for x in start])
@@ -349,7 +351,7 @@ def check_on_sweeps(us: list[np.ndarray], ys: list[np.ndarray], weights: list[np
     data = [(u, y, w, fold_of_each_sample(masks, k), k if n_off > 1 else 0, np.asarray(c.history, dtype=float),
              c.gain) for k, (u, y, w, c) in enumerate(zip(us, ys, weights, reference.runs))]
     try:
-        cv = _core.EverettFolds(np.linspace(lo, hi, reference.n_intervals + 1), data, n_off, len(masks),
+        cv = _core.EverettFolds(np.asarray(reference.everett.grid), data, n_off, len(masks),
                                 drift=drift)
         start = None if reference.passive is None else [bool(x) for x in reference.passive]
         parts = cv.score(reference.settings["smoothing"], warm_start=start)
