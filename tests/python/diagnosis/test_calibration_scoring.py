@@ -4,17 +4,11 @@ hidden effect when one of its names is the hidden one, is a wrong name only when
 ambiguous; a plain wrong name stays wrong."""
 from __future__ import annotations
 
-import importlib.util
-from pathlib import Path
-
-ROOT = Path(__file__).resolve().parents[3]
+from repo_scripts import load_script
 
 
 def _bench():
-    spec = importlib.util.spec_from_file_location("diagnosis_calibration", ROOT / "benches" / "diagnosis_calibration.py")
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
+    return load_script("benches/diagnosis_calibration.py")
 
 
 def _diagnosis(names: list[str], alternatives: list[tuple[str, str]]) -> dict:

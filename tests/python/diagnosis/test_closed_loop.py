@@ -6,7 +6,6 @@ test_thermal_stage.py). The measurement is the README's
 (``benches/closed_loop_ratios.py``), so the figures it prints are the ones checked here."""
 from __future__ import annotations
 
-import importlib.util
 from pathlib import Path
 
 import pytest
@@ -14,14 +13,11 @@ import pytest
 import bmr
 from bmr.identification.model import LOOP_STAGES
 
-ROOT = Path(__file__).resolve().parents[3]
+from repo_scripts import load_script
 
 
 def _bench():
-    spec = importlib.util.spec_from_file_location("closed_loop_ratios", ROOT / "benches" / "closed_loop_ratios.py")
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
+    return load_script("benches/closed_loop_ratios.py")
 
 
 # The creep stage (the exact inverse of the relaxation) makes tracking worse on this plant at medium size: the

@@ -2,18 +2,13 @@
 by the bench scripts), and every figure section names the command that measures it."""
 from __future__ import annotations
 
-import importlib.util
 import re
-from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[3]
+from repo_scripts import load_script
 
 
 def _script():
-    spec = importlib.util.spec_from_file_location("readme_figures", ROOT / "benches" / "readme_figures.py")
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
+    return load_script("benches/readme_figures.py")
 
 
 def test_generated_sections_match_the_measurements():

@@ -2,20 +2,15 @@
 (read from the shared data folder, never copied here)."""
 from __future__ import annotations
 
-import importlib.util
 import json
-from pathlib import Path
 
 import bmr
 
-ROOT = Path(__file__).resolve().parents[3]
+from repo_scripts import load_script
 
 
 def _example():
-    spec = importlib.util.spec_from_file_location("slac_magnet", ROOT / "examples" / "slac_magnet.py")
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
+    return load_script("examples/slac_magnet.py")
 
 
 def test_command_line_walk_through_predicts_held_out_runs(tmp_path, slac_data, capsys):
