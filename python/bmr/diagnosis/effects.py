@@ -424,7 +424,7 @@ class SensorDrift(Effect):
         overall = slope(ok)
         if not (math.isfinite(overall) and overall != 0) or len(data.runs) < 2:
             return ""
-        bounds = np.concatenate([[0], np.cumsum([r.n_eval for r in data.runs])])
+        bounds = _run_bounds(data)
         weak = []
         for j, run in enumerate(data.runs):
             rest = ok.copy()
@@ -444,10 +444,14 @@ class SensorDrift(Effect):
 CREEP_TAUS_S = tuple(float(v) for v in np.geomspace(0.01, 1000.0, 16))
 
 
+def _run_bounds(data: Any) -> np.ndarray:
+    """Where each run's evaluated span starts in the concatenated arrays, then where the last one ends."""
+    return np.concatenate([[0], np.cumsum([r.n_eval for r in data.runs])]).astype(int)
+
+
 def _split(data: Any, y: np.ndarray) -> list[np.ndarray]:
     """``y`` over the evaluated spans, cut run by run."""
-    bounds = np.cumsum([r.n_eval for r in data.runs])[:-1]
-    return np.split(np.asarray(y, dtype=float), bounds)
+    return np.split(np.asarray(y, dtype=float), _run_bounds(data)[1:-1])
 
 
 def _fingerprint(y: np.ndarray) -> tuple:
