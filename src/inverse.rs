@@ -246,7 +246,13 @@ impl<S: AsRef<[f64]>, const N: usize> Hysteresis<S, N> {
 
     /// The reversal `push_reversal` would create at the current point (same arithmetic, no state change).
     fn new_reversal_at(&self, u: f64, y: f64, below: &Reversal, up: bool) -> Reversal {
-        let mut hint = 0;
+        // The search starts from the family's hint (the entry below was reached moving that family's way); a
+        // hint only speeds the search, the cell is the same.
+        let mut hint = if up {
+            self.state.hint_a
+        } else {
+            self.state.hint_d
+        };
         if up {
             let strip: Strip = self.asc.strip(u);
             let e = self.asc.everett(&strip, below.u, &mut hint);
