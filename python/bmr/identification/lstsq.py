@@ -16,7 +16,7 @@ of the running input integral shared by all runs — is identified jointly with 
 
 A nonnegative Preisach density only makes loops that run counter-clockwise in the input-output plane: the output
 lags the input. Loops that run clockwise (an output that leads its input: a damper's force, driven by the rate of
-its displacement) are a finding too: the signed area the runs enclose is measured (:func:`loop_orientation`), and
+its displacement) are a finding too: which way the loops turn is measured (:func:`loop_orientation`), and
 where it says clockwise the table is identified with masses free in sign (``density="auto"``). Such a table
 predicts, but its branches need not be monotone and it has no exact inverse (the model then refuses a
 compensator)."""
@@ -43,10 +43,12 @@ __all__ = ["RunCalibration", "LstsqTables", "fit_tables_lstsq", "row_weights", "
 
 INITIAL_STATES = ("estimate", "saturation", "negative")
 DENSITIES = ("auto", "nonnegative", "signed")
-# Loops count as clockwise when the signed area they enclose is at least this share of the area their input and
-# output spans would enclose over the same travel (:func:`loop_orientation`); a single-valued map with noise
-# encloses next to none, a Preisach system a negative area.
+# Loops count as clockwise when the output while the input rises exceeds the output while it falls, at the same
+# input, by at least this share of the output span (:func:`loop_orientation`); a single-valued map with noise
+# gives next to none, a Preisach system a negative share.
 CLOCKWISE_SHARE = 0.02
+# Input bins in which rising and falling outputs are compared.
+ORIENTATION_BINS = 32
 DRIFTS = ("none", "leakage", "auto")
 # Branches count as open when a run's output at one saturation end moves by more than this share of its output
 # span between visits (a closed Preisach loop repeats its saturation outputs to the noise).
@@ -122,22 +124,41 @@ class Conditioning:
                 "iterations": self.iterations}
 
 
-def loop_orientation(us: Sequence[np.ndarray], ys: Sequence[np.ndarray]) -> float:
-    """The signed area the runs' loops enclose in the input-output plane, ``Σ ∮ y du`` (trapezoids over every
-    run), relative to ``½ · travel · output span`` (``travel``: the summed input path ``Σ|Δu|``; a rectangle of the
-    input and output spans run through once per two spans of travel): positive for loops that run clockwise (the
-    output leads the input), negative for counter-clockwise ones (the output lags, a Preisach system), about 0 for
-    a single-valued map. 0 when the input never moves or the output is constant."""
-    area = travel = 0.0
+def loop_orientation(us: Sequence[np.ndarray], ys: Sequence[np.ndarray], bins: int = ORIENTATION_BINS) -> float:
+    """Which way the runs' loops turn: the output measured while the input rises minus the output measured while it
+    falls, at the same input, relative to the outputs' span. Each sample counts as rising or falling by the step
+    that led to it (a jump counts where it lands, so sparse captures are read right; samples at rest count
+    neither); the difference of the mean rising and falling outputs in each of ``bins`` input bins is averaged,
+    weighted by the fewer of the two counts. Positive: loops that run clockwise (the output leads the input),
+    negative: counter-clockwise (the output lags, a Preisach system), about 0 for a single-valued map; 0 when no
+    bin holds both."""
+    u_all = np.concatenate([np.asarray(u, dtype=float) for u in us]) if us else np.zeros(0)
+    y_all = np.concatenate([np.asarray(y, dtype=float) for y in ys]) if ys else np.zeros(0)
+    ok = np.isfinite(u_all) & np.isfinite(y_all)
+    if not ok.any():
+        return 0.0
+    lo, hi = float(np.min(u_all[ok])), float(np.max(u_all[ok]))
+    span = float(np.ptp(y_all[ok]))
+    if not (hi > lo and span > 0):
+        return 0.0
+    sums = np.zeros((2, bins))
+    counts = np.zeros((2, bins))
     for u, y in zip(us, ys):
         u = np.asarray(u, dtype=float)
         y = np.asarray(y, dtype=float)
-        du = np.diff(u)
-        ok = np.isfinite(du) & np.isfinite(y[1:]) & np.isfinite(y[:-1])
-        area += float(np.sum((0.5 * (y[1:] + y[:-1]) * du)[ok]))
-        travel += float(np.sum(np.abs(du[ok])))
-    span = max((float(np.ptp(y[np.isfinite(y)])) for y in ys if np.isfinite(y).any()), default=0.0)
-    return area / (0.5 * travel * span) if travel > 0 and span > 0 else 0.0
+        step = np.diff(u)
+        at = np.clip(((u[1:] - lo) / (hi - lo) * bins).astype(int, copy=False), 0, bins - 1) \
+            if u.size > 1 else np.zeros(0, dtype=int)
+        good = np.isfinite(step) & np.isfinite(y[1:])
+        for row, moving in ((0, good & (step > 0)), (1, good & (step < 0))):
+            np.add.at(sums[row], at[moving], y[1:][moving])
+            np.add.at(counts[row], at[moving], 1.0)
+    weight = np.minimum(counts[0], counts[1])
+    if not weight.sum() > 0:
+        return 0.0
+    both = weight > 0
+    diff = sums[0][both] / counts[0][both] - sums[1][both] / counts[1][both]
+    return float(np.sum(weight[both] * diff) / weight.sum() / span)
 
 
 def resolved_density(density: str, us: Sequence[np.ndarray], ys: Sequence[np.ndarray]) -> str:
@@ -204,11 +225,11 @@ class LstsqTables:
     def orientation_note(self) -> str:
         """The loops' direction in words, and what was identified for it."""
         if self.signed:
-            return (f"loops run clockwise (signed area {self.orientation:.3g} of the spans' rectangle): output "
-                    f"leads input, a rate-driven output (force from a velocity); a signed density was identified "
-                    f"(no exact inverse)")
+            return (f"loops run clockwise (rising above falling by {100 * self.orientation:.3g} % of the output "
+                    f"span): output leads input, a rate-driven output (force from a velocity); a signed density "
+                    f"was identified (no exact inverse)")
         turn = "clockwise" if self.orientation > 0 else "counter-clockwise"
-        return f"loops run {turn} (signed area {self.orientation:.3g} of the spans' rectangle)"
+        return f"loops run {turn} (rising minus falling output {100 * self.orientation:.3g} % of the output span)"
 
     @property
     def offsets(self) -> np.ndarray:
