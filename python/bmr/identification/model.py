@@ -552,8 +552,11 @@ def _signed_table(value: Any, where: str) -> Any:
     if not (isinstance(value, dict) and _number_list(value.get("nodes")) and _number_list(value.get("masses"))
             and _is_number(value.get("offset"))):
         raise BmrError(f"{where} must hold 'nodes' and 'masses' (number lists) and an 'offset' number")
-    return _core.EverettModel(np.asarray(value["nodes"], dtype=float), np.asarray(value["masses"], dtype=float),
-                              float(value["offset"]), True)
+    try:
+        return _core.EverettModel(np.asarray(value["nodes"], dtype=float),
+                                  np.asarray(value["masses"], dtype=float), float(value["offset"]), True)
+    except BmrError as exc:
+        raise BmrError(f"{where}: {exc}") from None
 
 
 def _build_options(value: Any, where: str) -> dict[str, Any]:

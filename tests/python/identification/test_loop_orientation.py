@@ -100,3 +100,17 @@ def test_identify_on_the_command_line_says_the_loops_run_clockwise(tmp_path, cap
     assert cli_main(["identify", str(folder), "-o", str(tmp_path / "m.json")]) == 0
     out = capsys.readouterr().out
     assert "loops run clockwise" in out and "output leads input" in out and "signed density" in out, out
+
+
+def test_a_damaged_signed_table_in_a_model_file_is_a_model_file_error(tmp_path) -> None:
+    import json
+
+    model = bmr.identify(_damper_bundle(), n_intervals=12, smoothing=1e-3)
+    content = model.to_dict()
+    assert set(content["hysteresis"]["signed_table"]) == {"nodes", "masses", "offset"}
+    for bad in ({"nodes": [0.0, 1.0], "masses": "x", "offset": 0.0}, {"nodes": [0.0, 1.0], "masses": [1.0, 2.0]},
+                {"nodes": [0.0, 1.0], "masses": [1.0, 2.0], "offset": 0.0}, [1, 2]):
+        content["hysteresis"]["signed_table"] = bad
+        (tmp_path / "m.json").write_text(json.dumps(content))
+        with pytest.raises(bmr.ModelFileError, match="signed_table"):
+            bmr.Model.load(tmp_path / "m.json")
