@@ -357,12 +357,17 @@ impl OutputMap {
         })
     }
 
-    /// The vocabulary's map `T = S·n(1 + c|n|)/(1 + c)`, `n = T_core/S`, tabulated on [`MAP_NODES`] even nodes
-    /// over `|T_core| ≤ 2S` (a concave map only up to its turning point `|n| = 1/(2|c|)`).
-    pub fn curvature(curvature: f64, scale_nmm: f64) -> Result<Self, StageError> {
-        if !(curvature.is_finite() && curvature > -1.0) {
+    /// The vocabulary's map `T = S·n(1 + c|n| + k·n²)/(1 + c + k)`, `n = T_core/S` (curvature `c`, cubic term
+    /// `k`), tabulated on [`MAP_NODES`] even nodes over `|T_core| ≤ 2S`, or up to the map's turning point where
+    /// it has one (a concave map: `1 + 2c|n| + 3k·n² = 0`), so the table is monotone and the inverse exact.
+    pub fn polynomial(curvature: f64, cubic: f64, scale_nmm: f64) -> Result<Self, StageError> {
+        if !(curvature.is_finite()
+            && curvature > -1.0
+            && cubic.is_finite()
+            && 1.0 + curvature + cubic > 0.0)
+        {
             return Err(StageError::OutputMap(
-                "curvature must be finite and above -1",
+                "curvature and cubic must be finite with curvature above -1 and 1 + curvature + cubic above 0",
             ));
         }
         if !(scale_nmm.is_finite() && scale_nmm > 0.0) {
@@ -370,17 +375,19 @@ impl OutputMap {
                 "full-scale torque must be positive and finite",
             ));
         }
-        let reach = if curvature < 0.0 {
+        let reach = if cubic == 0.0 && curvature < 0.0 {
             (0.999 / (-2.0 * curvature)).min(2.0)
         } else {
-            2.0
+            turning_point(curvature, cubic).map_or(2.0, |x| (0.999 * x).min(2.0))
         };
         let mut core = [0.0; MAP_NODES];
         let mut field = [0.0; MAP_NODES];
         for i in 0..MAP_NODES {
             let n = reach * (2.0 * i as f64 / (MAP_NODES - 1) as f64 - 1.0);
             core[i] = scale_nmm * n;
-            field[i] = scale_nmm * n * (1.0 + curvature * n.abs()) / (1.0 + curvature);
+            // Written so that `cubic = 0` gives the curvature map's very bits.
+            field[i] = scale_nmm * n * (1.0 + curvature * n.abs() + cubic * n * n)
+                / (1.0 + curvature + cubic);
         }
         Self::from_table(&core, &field)
     }
@@ -409,6 +416,22 @@ impl OutputMap {
         self.field_hint = k;
         core
     }
+}
+
+/// The smallest `x > 0` where the odd map `n(1 + c|n| + k·n²)` stops rising (`1 + 2c·x + 3k·x² = 0`), if any.
+fn turning_point(c: f64, k: f64) -> Option<f64> {
+    if k == 0.0 {
+        return (c < 0.0).then(|| -1.0 / (2.0 * c));
+    }
+    let disc = 4.0 * c * c - 12.0 * k;
+    if disc < 0.0 {
+        return None;
+    }
+    let r = libm::sqrt(disc);
+    [(-2.0 * c - r) / (6.0 * k), (-2.0 * c + r) / (6.0 * k)]
+        .into_iter()
+        .filter(|&x| x > 0.0)
+        .reduce(f64::min)
 }
 
 /// Why a set of extensions could not be built.
@@ -910,8 +933,8 @@ impl Stages {
                     if !(scale.is_finite() && scale > 0.0) {
                         return Err(StageError::Scale("full-scale torque (N·mm)", scale));
                     }
-                    if v[0] != 0.0 {
-                        st.output_map = Some(OutputMap::curvature(v[0], scale)?);
+                    if v[0] != 0.0 || v[2] != 0.0 {
+                        st.output_map = Some(OutputMap::polynomial(v[0], v[2], scale)?);
                     }
                 }
                 EffectKind::FrictionHarmonics => fr.harmonic = Some((v[0] as usize, v[1], v[2])),
@@ -1002,7 +1025,7 @@ mod tests {
     #[test]
     fn output_map_inverse_is_exact_and_cells_are_canonical() {
         for c in [-0.45, -0.2, 0.5, 1.0, 4.5] {
-            let mut m = OutputMap::curvature(c, 300.0).unwrap();
+            let mut m = OutputMap::polynomial(c, 0.0, 300.0).unwrap();
             for i in 0..=2000 {
                 let t = -700.0 + 0.7 * i as f64;
                 let y = m.inverse(t);
@@ -1024,6 +1047,77 @@ mod tests {
             assert_eq!(m.forward(v).to_bits(), b.to_bits());
         }
         assert!(OutputMap::from_table(&[0.0, 1.0], &[1.0, 0.0]).is_err());
+    }
+
+    #[test]
+    fn cubic_output_map_is_the_polynomial_monotone_and_exactly_inverted() {
+        let s = 600.0;
+        for (c, k) in [
+            (0.0, 0.5),
+            (0.0, 3.0),
+            (0.3, 1.0),
+            (0.0, -0.3),
+            (-0.45, -0.3),
+            (1.0, -0.3),
+        ] {
+            let mut m = OutputMap::polynomial(c, k, s).unwrap();
+            let (core, field) = m.nodes();
+            assert!(
+                field.windows(2).all(|w| w[1] > w[0]),
+                "c={c} k={k}: not monotone"
+            );
+            let reach = core[core.len() - 1] / s;
+            let mut last = f64::NEG_INFINITY;
+            for i in 0..=2000 {
+                let y = -1.2 * s + 1.2e-3 * s * i as f64;
+                let t = m.forward(y);
+                assert!(t > last, "c={c} k={k}: {y} -> {t} not rising");
+                last = t;
+                assert!(
+                    (m.inverse(t) - y).abs() < 1e-9 * s,
+                    "c={c} k={k}: inverse of {t}"
+                );
+                let n = y / s;
+                if n.abs() <= reach {
+                    let g = s * (n + c * n * n.abs() + k * n * n * n) / (1.0 + c + k);
+                    assert!((g - t).abs() < 2e-3 * s, "c={c} k={k}: {g} vs {t}");
+                }
+            }
+            if let Some(x) = turning_point(c, k) {
+                // A concave map is tabulated up to (just before) the point where it would turn back.
+                assert!(
+                    reach <= x && reach > 0.99 * x.min(2.0),
+                    "c={c} k={k}: reach {reach}, turn {x}"
+                );
+                let slope = 1.0 + 2.0 * c * x + 3.0 * k * x * x;
+                assert!(
+                    slope.abs() < 1e-12,
+                    "c={c} k={k}: slope {slope} at the turning point"
+                );
+            } else {
+                assert_eq!(reach, 2.0);
+            }
+        }
+        // The cubic term off gives the curvature map's very bits at the nodes.
+        for c in [0.7, -0.3] {
+            let m = OutputMap::polynomial(c, 0.0, s).unwrap();
+            let (core, field) = m.nodes();
+            let reach = if c < 0.0 {
+                (0.999 / (-2.0 * c)).min(2.0)
+            } else {
+                2.0
+            };
+            for (i, (&x, &t)) in core.iter().zip(field).enumerate() {
+                let n = reach * (2.0 * i as f64 / (MAP_NODES - 1) as f64 - 1.0);
+                assert_eq!(x.to_bits(), (s * n).to_bits());
+                assert_eq!(
+                    t.to_bits(),
+                    (s * n * (1.0 + c * n.abs()) / (1.0 + c)).to_bits()
+                );
+            }
+        }
+        assert!(OutputMap::polynomial(0.0, -1.5, s).is_err());
+        assert!(OutputMap::polynomial(0.0, f64::NAN, s).is_err());
     }
 
     #[test]

@@ -218,14 +218,20 @@ vocabulary! {
          Signature: residual proportional to rate, no loop widening with amplitude.",
         [p("delay_s", "s", 0.01, 0.0, 1.0, "command-to-coil delay")];
     NonCongruent = "non_congruent", Field, stage(6, NO_PERIOD, ""), NO_ANGLE,
-        "Extra output nonlinearity after the Preisach core: the field torque T becomes S * n (1 + curvature \
-         |n|) / (1 + curvature) with n = T / S and S the full-scale torque. Signature: error only after \
-         higher-order reversals (minor loops scale with the local slope).",
+        "Extra output nonlinearity after the Preisach core: the field torque T becomes S * n (1 + curvature |n| \
+         + cubic n^2) / (1 + curvature + cubic) with n = T / S and S the full-scale torque, an odd map through \
+         (0, 0) and (S, S): curvature bends it like a square, cubic like the yield stress of an MR fluid that is \
+         a cubic function of the steel's flux. The compensator inverts it exactly on a monotone table (up to the \
+         map's turning point when it is concave). Signature: error only after higher-order reversals (minor \
+         loops scale with the local slope).",
         [p("curvature", "1", 1.0, -0.45, 5.0,
            "output nonlinearity strength (0 = off; >0 convex, <0 concave)"),
          zero_or_at_least(1e-3, p("scale_nmm", "N·mm", 0.0, 0.0, 1e9,
            "full-scale torque S (0: the actuator's own — the plant's full_torque_nmm per rotor, a model's \
-            largest |torque|; else at least 1e-3)"))];
+            largest |torque|; else at least 1e-3)")),
+         p("cubic", "1", 0.0, -0.3, 3.0,
+           "odd cubic term (0 = off; >0 stiffening towards full scale, <0 saturating; in this range the map \
+            rises over |n| <= 1 whenever curvature >= 0)")];
     Creep = "creep", Field, stage(5, PERIOD, "the relaxations' outputs (output units)"), NO_ANGLE,
         "After every change of the output (a reversal, a step, a dwell) a share of the change keeps arriving: the \
          magnetic after-effect of steel, the creep of a piezo stack. The core output v is the equilibrium and \

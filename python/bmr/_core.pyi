@@ -835,10 +835,11 @@ def check_extensions(extensions: _Extensions) -> list[dict[str, object]]:
     """Validate a model's extensions against the vocabulary (names, parameters, ranges); the entries with every
     parameter filled in."""
 
-def output_map(core_nmm: _ArrayLike, curvature: float, scale_nmm: float) -> np.ndarray:
+def output_map(core_nmm: _ArrayLike, curvature: float, scale_nmm: float, cubic: float = 0.0) -> np.ndarray:
     """The non_congruent output map (the compensator's table) of core torques (N·mm)."""
 
-def output_map_inverse(field_nmm: _ArrayLike, curvature: float, scale_nmm: float) -> np.ndarray:
+def output_map_inverse(field_nmm: _ArrayLike, curvature: float, scale_nmm: float, cubic: float = 0.0
+                       ) -> np.ndarray:
     """Core torques (N·mm) giving field torques ``field_nmm`` through :func:`output_map`."""
 
 def export_source(compensator: Compensator, language: str, *, title: str = "bmr compensator",

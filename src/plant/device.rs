@@ -214,6 +214,8 @@ pub struct VirtualDevice {
     core: PreisachSteel,
     creep: Option<Creep>,
     curvature: f64,
+    /// Odd cubic term of the output map (`non_congruent`).
+    cubic: f64,
     accommodation: Option<Accommodation>,
     thermal_loss: f64,
     thermal_tau_s: f64,
@@ -240,7 +242,7 @@ impl VirtualDevice {
         let dt_s = 1.0 / config.sample_rate_hz;
         let half = config.input_half_span;
         let (mut delay, mut lag_tau, mut rate_tau) = (0usize, 0.0, 0.0);
-        let (mut creep, mut curvature, mut accommodation) = (None, 0.0, None);
+        let (mut creep, mut curvature, mut cubic, mut accommodation) = (None, 0.0, 0.0, None);
         let (mut thermal_loss, mut thermal_tau_s, mut drift, mut leak) = (0.0, 0.0, 0.0, 0.0);
         let mut run_gain_offset = None;
         let mut viscous_c = 0.0;
@@ -254,7 +256,11 @@ impl VirtualDevice {
                     tau_min_s,
                     tau_max_s,
                 } => creep = Creep::log_uniform(fraction, tau_min_s, tau_max_s, dt_s, 0.0),
-                Effect::NonCongruent { curvature: c, .. } => curvature = c,
+                Effect::NonCongruent {
+                    curvature: c,
+                    cubic: k,
+                    ..
+                } => (curvature, cubic) = (c, k),
                 Effect::Accommodation { kappa, cycles } => {
                     use crate::accommodation::{DEADBAND_SHARE, SATURATION_SHARE};
                     accommodation = Accommodation::new(
@@ -294,6 +300,7 @@ impl VirtualDevice {
             core: PreisachSteel::new(config.core.clone())?,
             creep,
             curvature,
+            cubic,
             accommodation,
             thermal_loss,
             thermal_tau_s,
@@ -389,7 +396,8 @@ impl VirtualDevice {
             .as_ref()
             .map_or(driven, |r| c + r.core_input() * self.config.input_half_span);
         let cfg = &self.config;
-        let mut y = cfg.output_offset + cfg.output_scale * output_map(b, self.curvature);
+        let mut y =
+            cfg.output_offset + cfg.output_scale * output_map(b, self.curvature, self.cubic);
         // The viscous loss of the input's rate (backward difference over the sample).
         if self.viscous_c > 0.0 {
             y += self.viscous_c * (core_input - self.last_core_input) / self.dt_s;
@@ -429,13 +437,13 @@ impl VirtualDevice {
     }
 }
 
-/// The `non_congruent` output map on a normalised output (identity for curvature 0).
+/// The `non_congruent` output map on a normalised output (identity when both terms are 0).
 #[inline]
-fn output_map(n: f64, curvature: f64) -> f64 {
-    if curvature == 0.0 {
+fn output_map(n: f64, curvature: f64, cubic: f64) -> f64 {
+    if curvature == 0.0 && cubic == 0.0 {
         n
     } else {
-        n * (1.0 + curvature * n.abs()) / (1.0 + curvature)
+        n * (1.0 + curvature * n.abs() + cubic * n * n) / (1.0 + curvature + cubic)
     }
 }
 

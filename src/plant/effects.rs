@@ -48,6 +48,7 @@ pub enum Effect {
     NonCongruent {
         curvature: f64,
         scale_nmm: f64,
+        cubic: f64,
     },
     Creep {
         fraction: f64,
@@ -131,6 +132,7 @@ impl Effect {
             EffectKind::NonCongruent => Effect::NonCongruent {
                 curvature: v[0],
                 scale_nmm: v[1],
+                cubic: v[2],
             },
             EffectKind::Creep => {
                 if v[2] < v[1] {
@@ -176,7 +178,8 @@ impl Effect {
             Effect::NonCongruent {
                 curvature,
                 scale_nmm,
-            } => vec![curvature, scale_nmm],
+                cubic,
+            } => vec![curvature, scale_nmm, cubic],
             Effect::Creep {
                 fraction,
                 tau_min_s,

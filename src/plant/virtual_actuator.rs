@@ -267,6 +267,8 @@ struct ActiveEffects {
     curvature: f64,
     /// Full-scale torque of the output map (0: the configuration's `full_torque_nmm`).
     curvature_scale_nmm: f64,
+    /// Odd cubic term of the output map (`non_congruent`).
+    cubic: f64,
     /// Creep of each circuit's flux density: (fraction, tau_min_s, tau_max_s).
     creep: Option<(f64, f64, f64)>,
     rate_tau_s: f64,
@@ -292,6 +294,7 @@ impl ActiveEffects {
             delay_samples: 0,
             curvature: 0.0,
             curvature_scale_nmm: 0.0,
+            cubic: 0.0,
             creep: None,
             rate_tau_s: 0.0,
             run_gain_offset: None,
@@ -320,9 +323,11 @@ impl ActiveEffects {
                 Effect::NonCongruent {
                     curvature,
                     scale_nmm,
+                    cubic,
                 } => {
                     a.curvature = curvature;
                     a.curvature_scale_nmm = scale_nmm;
+                    a.cubic = cubic;
                 }
                 Effect::Creep {
                     fraction,
@@ -729,8 +734,8 @@ impl VirtualActuator {
     /// Output map of one rotor's field torque (the `non_congruent` effect; identity when off).
     #[inline]
     fn output_map(&self, torque_nmm: f64) -> f64 {
-        let c = self.fx.curvature;
-        if c == 0.0 {
+        let (c, k) = (self.fx.curvature, self.fx.cubic);
+        if c == 0.0 && k == 0.0 {
             return torque_nmm;
         }
         let full = if self.fx.curvature_scale_nmm > 0.0 {
@@ -739,7 +744,7 @@ impl VirtualActuator {
             self.config.full_torque_nmm
         };
         let n = torque_nmm / full;
-        full * n * (1.0 + c * n.abs()) / (1.0 + c)
+        full * n * (1.0 + c * n.abs() + k * n * n) / (1.0 + c + k)
     }
 
     /// Advance one sample with commanded nominal current `current_cmd_a` (A). A non-finite command applies the

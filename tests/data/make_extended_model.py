@@ -18,7 +18,7 @@ from preisach_plant import first_order_curves  # noqa: E402
 EXTENSIONS = [
     {"name": "time_delay", "params": {"delay_s": 0.006}},
     {"name": "coil_lag", "params": {"tau_s": 0.015}},
-    {"name": "non_congruent", "params": {"curvature": 1.2, "scale_nmm": 300.0}},
+    {"name": "non_congruent", "params": {"curvature": 1.2, "scale_nmm": 300.0, "cubic": 0.3}},
     {"name": "thermal_drift", "params": {"gain_loss": 0.08, "tau_s": 20.0}},
     {"name": "torque_ripple", "params": {"eps": 0.04, "phase_rad": 0.6}},
     {"name": "friction_harmonics", "params": {"order": 6.0, "amplitude_nmm": 4.0, "phase_rad": -0.3}},

@@ -203,6 +203,7 @@ struct StageDraw {
     eps: f64,
     ripple_phase: f64,
     curvature: f64,
+    cubic: f64,
     gain_per_a: f64,
     order: u32,
     amplitude: f64,
@@ -215,14 +216,14 @@ struct StageDraw {
 fn stage_draw() -> impl Strategy<Value = StageDraw> {
     (
         (0.0f64..0.1, 0usize..12, -0.5f64..0.9, 0.01f64..100.0),
-        (0.0f64..0.9, -4.0f64..4.0, -0.45f64..5.0),
+        (0.0f64..0.9, -4.0f64..4.0, -0.45f64..5.0, -0.3f64..3.0),
         (-0.5f64..5.0, 4u32..25, -50.0f64..50.0),
         (0.0f64..0.2, 0.0f64..0.02, -0.3f64..0.3, 0.0f64..5.0),
     )
         .prop_map(
             |(
                 (tau_s, delay_samples, gain_loss, heat_tau_s),
-                (eps, ripple_phase, curvature),
+                (eps, ripple_phase, curvature, cubic),
                 (gain_per_a, order, amplitude),
                 (creep_fraction, rate_tau_s, kappa, viscous_c),
             )| StageDraw {
@@ -233,6 +234,7 @@ fn stage_draw() -> impl Strategy<Value = StageDraw> {
                 eps,
                 ripple_phase,
                 curvature,
+                cubic,
                 gain_per_a,
                 order,
                 amplitude,
@@ -262,7 +264,10 @@ fn effects(d: &StageDraw) -> Vec<Params> {
             EffectKind::TorqueRipple,
             &[("eps", d.eps), ("phase_rad", d.ripple_phase)],
         ),
-        p(EffectKind::NonCongruent, &[("curvature", d.curvature)]),
+        p(
+            EffectKind::NonCongruent,
+            &[("curvature", d.curvature), ("cubic", d.cubic)],
+        ),
         p(EffectKind::FrictionCurrent, &[("gain_per_a", d.gain_per_a)]),
         p(
             EffectKind::FrictionHarmonics,
@@ -434,6 +439,7 @@ fn extended_compensator_inverts_the_extended_simulation() {
         eps: 0.05,
         ripple_phase: 0.4,
         curvature: 1.5,
+        cubic: 0.0,
         gain_per_a: 0.3,
         order: 6,
         amplitude: 4.0,
@@ -476,6 +482,15 @@ fn extended_compensator_inverts_the_extended_simulation() {
         },
         StageDraw {
             curvature: 1.5,
+            ..off.clone()
+        },
+        StageDraw {
+            cubic: 0.8,
+            ..off.clone()
+        },
+        StageDraw {
+            curvature: 0.4,
+            cubic: -0.25,
             ..off.clone()
         },
         StageDraw {
@@ -522,6 +537,7 @@ fn the_viscous_stage_damps_reference_noise_instead_of_differencing_it() {
             eps: 0.0,
             ripple_phase: 0.0,
             curvature: 0.0,
+            cubic: 0.0,
             gain_per_a: 0.0,
             order: 5,
             amplitude: 0.0,

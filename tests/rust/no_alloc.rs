@@ -110,7 +110,10 @@ fn extended_compensator_step_does_not_allocate() {
             &[("gain_loss", 0.1), ("tau_s", 30.0)],
         ),
         p(EffectKind::TorqueRipple, &[("eps", 0.05)]),
-        p(EffectKind::NonCongruent, &[("curvature", 1.5)]),
+        p(
+            EffectKind::NonCongruent,
+            &[("curvature", 1.5), ("cubic", 0.5)],
+        ),
         p(EffectKind::FrictionCurrent, &[("gain_per_a", 0.4)]),
         p(EffectKind::FrictionHarmonics, &[("order", 7.0)]),
         p(EffectKind::Creep, &[("fraction", 0.05)]),

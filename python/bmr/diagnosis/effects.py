@@ -40,7 +40,7 @@ import numpy as np
 from bmr import _core
 from bmr._core import BmrError
 from bmr.diagnosis.field import REIDENTIFY_INTERVALS, FieldPath
-from bmr.diagnosis.residuals import EvalData
+from bmr.diagnosis.residuals import EvalData, reversal_order
 from bmr.identification.signals import running_integral
 
 __all__ = ["Effect", "LIBRARY", "PHYSICAL", "ANGLE_EFFECTS", "thermal_state", "CREEP_TAUS_S"]
@@ -57,6 +57,9 @@ class Effect(ABC):
     # it from another effect).
     excitation = "a run with a different excitation"
     needs_reidentify = False  # the effect needs least-squares core tables (compare against those)
+    # A field effect that changes only the output side of the path (the core's input history stays the nominal
+    # one): each of its values re-identifies the tables with one more right-hand side, so every value is scored.
+    output_side = False
     # Order in which fitted effects are removed from the protocol runs before re-identification: additive terms
     # (rank 0) before multiplicative gains (rank 1).
     removal_rank = 0
@@ -105,6 +108,19 @@ class Effect(ABC):
     def refine(self) -> bool:
         """Whether the nonlinear parameter is continuous (refined by a golden-section search)."""
         return False
+
+    def along(self, a: Any, b: Any) -> tuple[float, float, Any] | None:
+        """The line between grid values ``a`` and ``b`` the refinement searches: ``(x_a, x_b, value_of(x))``, or
+        None when no continuous path joins them. Default: plain numbers."""
+        if isinstance(a, (int, float)) and isinstance(b, (int, float)):
+            return float(a), float(b), lambda x: x
+        return None
+
+    def acts_on(self, fitter: Any) -> np.ndarray | None:
+        """The evaluated samples the mechanism acts on, when it acts on part of them only (None: on all): its
+        held-out gain must then be consistent over the folds on those samples (elsewhere it has nothing to
+        explain), and positive on all of them."""
+        return None
 
     def signature_missing(self, fitter: Any, before: Any, after: Any) -> str:
         """Why the residual of the configuration ``before`` (without this effect) does not show the effect's own
@@ -160,22 +176,77 @@ class TimeDelay(Effect):
 
 
 class NonCongruent(Effect):
+    """An output map after a congruent Preisach core, ``T = S·n(1 + c|n| + k·n²)/(1 + c + k)`` (``n`` the core
+    torque over the full scale ``S``): curvature ``c`` (a square-law bend) or an odd cubic ``k`` (an MR fluid's
+    yield stress cubic in the steel's flux). The grid value is ``(curvature, cubic)`` with one of the two
+    nonzero. The core's tables are identified again by least squares on the core's side of the map (one right-hand
+    side per value: the input history is the nominal one), since the measured first-order curves already carry the
+    map and only the higher-order reversals show it."""
+
     name = "non_congruent"
     excitation = "minor loops between the same input extremes at different histories (their size changes)"
     field = True
-    doc = "output nonlinearity after a Preisach core: T = S n (1 + curvature |n|)/(1 + curvature), n = B-torque/S"
+    needs_reidentify = True
+    output_side = True
+    doc = ("output map after a Preisach core: T = S n (1 + curvature |n| + cubic n²)/(1 + curvature + cubic), "
+           "n = core torque/S")
+    CURVATURES = (-0.4, -0.3, -0.2, -0.12, -0.06, 0.06, 0.12, 0.2, 0.35, 0.5, 0.75, 1.0, 1.5, 2.2, 3.2, 4.5)
+    CUBICS = (-0.25, -0.12, 0.06, 0.12, 0.2, 0.3, 0.45, 0.65, 0.9, 1.3, 1.9, 2.8)
+    # The residual's mean square on the higher-order reversal curves (reversal order 2 and above, the curves the
+    # first-order tables do not measure) must exceed that on the major loop and the first-order curves by this
+    # share of the noise floor's square.
+    HIGHER_ORDER_EXCESS = 0.1
 
     def grid(self, data: EvalData) -> list[Any]:
-        return [-0.4, -0.3, -0.2, -0.12, -0.06, 0.06, 0.12, 0.2, 0.35, 0.5, 0.75, 1.0, 1.5, 2.2, 3.2, 4.5]
+        # Two one-parameter families, each in order of its parameter.
+        return [(c, 0.0) for c in self.CURVATURES] + [(0.0, k) for k in self.CUBICS]
 
     def apply(self, path, value, data, train):
-        return path.with_(curvature=float(value))
+        return path.with_(curvature=float(value[0]), cubic=float(value[1]), reidentify=True)
 
     def params(self, value, beta, path):
-        return {"curvature": float(path.curvature), "scale_nmm": float(path.scale_nmm)}
+        return {"curvature": float(path.curvature), "scale_nmm": float(path.scale_nmm), "cubic": float(path.cubic)}
 
     def refine(self) -> bool:
         return True
+
+    def along(self, a: Any, b: Any) -> tuple[float, float, Any] | None:
+        # Between two values of the same family: its nonzero parameter.
+        if a[1] == 0.0 and b[1] == 0.0:
+            return float(a[0]), float(b[0]), lambda x: (x, 0.0)
+        if a[0] == 0.0 and b[0] == 0.0:
+            return float(a[1]), float(b[1]), lambda x: (0.0, x)
+        return None
+
+    def _order(self, fitter: Any) -> np.ndarray:
+        """The reversal order of every evaluated sample (0 major loop, 1 first-order curves, 2 and above the
+        higher-order reversal curves)."""
+        data = fitter.data
+        lo, hi = fitter.model.hysteresis.input_range
+        return data.cache.get("reversal_order", lambda: data.concat(
+            [reversal_order(r.current_a, lo, hi)[r.start:] for r in data.runs]))
+
+    def acts_on(self, fitter: Any) -> np.ndarray | None:
+        # The tables hold the major loop and the first-order curves: the map shows after further reversals only.
+        return self._order(fitter) >= 2
+
+    def signature_missing(self, fitter: Any, before: Any, after: Any) -> str:
+        """A congruent core's tables hold every first-order curve, so an output map shows only after further
+        reversals: the residual of ``before`` must be larger (in mean square, by :attr:`HIGHER_ORDER_EXCESS` of the
+        noise floor's square) on the curves of reversal order 2 and above than on the major loop and the
+        first-order curves."""
+        data = fitter.data
+        residual, _ = fitter.fit(before.path, before.linear)
+        order = self._order(fitter)
+        ok = np.isfinite(residual)
+        low, high = ok & (order <= 1), ok & (order >= 2)
+        if np.count_nonzero(high) < 100 or np.count_nonzero(low) < 100:
+            return "too few samples on first-order and on higher-order reversal curves to compare"
+        ms_low, ms_high = float(np.mean(residual[low] ** 2)), float(np.mean(residual[high] ** 2))
+        if ms_high - ms_low >= self.HIGHER_ORDER_EXCESS * data.noise_floor_nmm ** 2:
+            return ""
+        return (f"the residual is not larger after higher-order reversals (RMS {math.sqrt(ms_high):.3g} on reversal "
+                f"order 2 and above, {math.sqrt(ms_low):.3g} on the major loop and first-order curves)")
 
 
 class TableResolution(Effect):

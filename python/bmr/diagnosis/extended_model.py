@@ -51,7 +51,8 @@ def extensions_from_selection(config: Any, accepted: Sequence[dict[str, Any]]) -
             entry["params_fitted"] = params
         out.append(entry)
     path = config.path
-    if path.tables is not None or path.reidentify or path.lag_tau_s > 0 or path.delay_s > 0 or path.curvature != 0:
+    if (path.tables is not None or path.reidentify or path.lag_tau_s > 0 or path.delay_s > 0 or path.curvature != 0
+            or path.cubic != 0):
         # The Preisach core's own tables (refined, or re-identified under the field effects).
         asc, desc = path.core_curves()
         out.append({"name": "core_tables", "params": {},

@@ -3,8 +3,9 @@ torque (N·mm, friction excluded).
 
 The nominal path is the identified model's CBH operator on the commanded current. Extensions change one stage:
 ``coil_lag`` lags the current (time constant ``lag_tau_s``), ``time_delay`` delays it (``delay_s``),
-``non_congruent`` puts an output map ``g(T) = S·n(1 + c|n|)/(1 + c)`` (``n = T/S``, ``S`` the full-scale
-torque) after a Preisach core whose tables are the measured curves mapped through ``g⁻¹``, and
+``non_congruent`` puts an output map ``g(T) = S·n(1 + c|n| + k·n²)/(1 + c + k)`` (``n = T/S``, ``S`` the
+full-scale torque, curvature ``c``, cubic term ``k``) after a Preisach core whose tables are the measured curves
+mapped through ``g⁻¹`` (or identified again by least squares on the core's side of the map), and
 ``table_resolution`` replaces the tables by least-squares refined ones.
 
 Re-identified tables (``reidentify=True``) come from a :class:`Reidentifier` that belongs to one diagnosis and
@@ -62,20 +63,21 @@ def delay(x: np.ndarray, delay_s: float, dt_s: float) -> np.ndarray:
     return _core.delay(x, delay_s, dt_s)
 
 
-def output_map(y: np.ndarray, curvature: float, scale_nmm: float) -> np.ndarray:
-    """``g(T) = S·n(1 + c|n|)/(1 + c)`` with ``n = T/S`` (identity for ``c = 0``), as the core tabulates it."""
+def output_map(y: np.ndarray, curvature: float, scale_nmm: float, cubic: float = 0.0) -> np.ndarray:
+    """``g(T) = S·n(1 + c|n| + k·n²)/(1 + c + k)`` with ``n = T/S`` (identity for ``c = k = 0``), as the core
+    tabulates it."""
     y = np.asarray(y, dtype=float)
-    if curvature == 0.0:
+    if curvature == 0.0 and cubic == 0.0:
         return y.copy()
-    return _core.output_map(y, curvature, scale_nmm)
+    return _core.output_map(y, curvature, scale_nmm, cubic)
 
 
-def output_map_inverse(t: np.ndarray, curvature: float, scale_nmm: float) -> np.ndarray:
+def output_map_inverse(t: np.ndarray, curvature: float, scale_nmm: float, cubic: float = 0.0) -> np.ndarray:
     """``g⁻¹`` of :func:`output_map` (a concave map only up to its turning point)."""
     t = np.asarray(t, dtype=float)
-    if curvature == 0.0:
+    if curvature == 0.0 and cubic == 0.0:
         return t.copy()
-    return _core.output_map_inverse(t, curvature, scale_nmm)
+    return _core.output_map_inverse(t, curvature, scale_nmm, cubic)
 
 
 def _monotone(u: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -166,7 +168,7 @@ class Reidentifier:
         return math.sqrt(total / count) if count else 0.0
 
     def curves(self, path: "FieldPath") -> Curves:
-        key = (path.lag_tau_s, path.delay_s, path.rate_tau_s, path.curvature, path.corrections)
+        key = (path.lag_tau_s, path.delay_s, path.rate_tau_s, path.curvature, path.cubic, path.corrections)
         if key in self._tables:
             self._tables.move_to_end(key)
             return self._tables[key]
@@ -227,7 +229,7 @@ class Reidentifier:
             y = pr.torque
             for effect, value, beta in corrections:
                 y = effect.remove(y, value, np.asarray(beta), pr)
-            outputs.append(np.ascontiguousarray(output_map_inverse(y, path.curvature, path.scale_nmm)))
+            outputs.append(np.ascontiguousarray(output_map_inverse(y, path.curvature, path.scale_nmm, path.cubic)))
         res = reg.fit(outputs, self._passive)
         self._passive = res.passive
         self.fits += 1
@@ -247,6 +249,7 @@ class FieldPath:
     # rate_dependence: time constant of the core-input lag at the loop's mean slope (s).
     rate_tau_s: float = 0.0
     curvature: float = 0.0
+    cubic: float = 0.0  # non_congruent: the output map's odd cubic term
     tables: Any = None
     scale_nmm: float = 600.0
     protocol: tuple = ()  # identification runs for re-identification: (bmr.Run, start time in the bundle (s))
@@ -265,8 +268,8 @@ class FieldPath:
         return replace(self, **kwargs)
 
     def key(self) -> tuple:
-        return (self.lag_tau_s, self.delay_s, self.rate_tau_s, self.curvature, id(self.tables), self.reidentify,
-                self.corrections)
+        return (self.lag_tau_s, self.delay_s, self.rate_tau_s, self.curvature, self.cubic, id(self.tables),
+                self.reidentify, self.corrections)
 
     def core_curves(self) -> Curves:
         """First-order curves of the Preisach core (the model's, mapped through ``g⁻¹``, or the refined ones)."""
@@ -278,18 +281,19 @@ class FieldPath:
                 reid = Reidentifier(self.model, self.protocol)
             return reid.curves(self)
         asc, desc = self.model.hysteresis.curves()
-        if self.curvature == 0.0:
+        if self.curvature == 0.0 and self.cubic == 0.0:
             return list(asc), list(desc)
 
         def fam(curves: Sequence[Any]) -> list[tuple[np.ndarray, np.ndarray]]:
             return [_monotone(np.asarray(u, float), output_map_inverse(np.asarray(y, float), self.curvature,
-                                                                        self.scale_nmm)) for u, y in curves]
+                                                                        self.scale_nmm, self.cubic))
+                    for u, y in curves]
 
         return fam(asc), fam(desc)
 
     def hysteresis(self) -> Any:
         """A fresh ``bmr.Hysteresis`` of the core."""
-        if self.tables is None and self.curvature == 0.0 and not self.reidentify:
+        if self.tables is None and self.curvature == 0.0 and self.cubic == 0.0 and not self.reidentify:
             # The nominal core is the model's own operator: built once, not rebuilt from its stored curves (which
             # hold derived and added curves a second build need not accept).
             h = copy.copy(self.model.hysteresis)
@@ -299,7 +303,8 @@ class FieldPath:
         try:
             return Hysteresis.from_curves(list(asc), list(desc), initial="negative")
         except BmrError as exc:
-            raise BmrError(f"field path with curvature {self.curvature:g}: tables rejected: {exc}") from None
+            raise BmrError(f"field path with curvature {self.curvature:g}, cubic {self.cubic:g}: tables rejected: "
+                           f"{exc}") from None
 
     def drive_input(self, current_a: np.ndarray, dt_s: float) -> np.ndarray:
         """The input after the delay and the lag (each coil's current lagged on its own: coil 1 carries the
@@ -343,7 +348,7 @@ class FieldPath:
                 core, _ = h.run_rate_dependent(u, tau_s=self.rate_tau_s, dt_s=r.dt_s)
             else:
                 core = h.run(u)
-            out.append(output_map(np.asarray(core, dtype=float), self.curvature, self.scale_nmm))
+            out.append(output_map(np.asarray(core, dtype=float), self.curvature, self.scale_nmm, self.cubic))
         return out
 
     def with_correction(self, effect: Any, value: Any, beta: Sequence[float]) -> "FieldPath":
@@ -355,4 +360,4 @@ class FieldPath:
 
     def params(self) -> dict[str, float]:
         return {"lag_tau_s": self.lag_tau_s, "delay_s": self.delay_s, "rate_tau_s": self.rate_tau_s,
-                "curvature": self.curvature, "scale_nmm": self.scale_nmm}
+                "curvature": self.curvature, "cubic": self.cubic, "scale_nmm": self.scale_nmm}

@@ -26,6 +26,13 @@ follows the session's time) is rejected the same way, and is no alternative to a
 gains differ by less than their 95 % interval) and is no longer needed once the chosen one is in, the two are
 reported as indistinguishable on this excitation (:class:`Alternative`), with what would separate them.
 
+An effect that acts on part of the samples only (:meth:`bmr.diagnosis.effects.Effect.acts_on`: an output map
+after a congruent core shows only on the higher-order reversal curves, the first-order ones are in the tables) is
+judged there: its held-out gain over all samples must still be positive in most folds and at least
+:data:`MIN_GAIN`, and over those samples it must be positive in most folds, its t interval must exclude zero and it
+must explain :data:`MIN_EXCESS` of their excess over the noise floor (the folds whose blocks hold few such curves
+have little to gain, so the interval over all samples would judge the excitation, not the effect).
+
 Recording-level effects are recording-level: a drive-scaled effect (``beyond_run_calibration``: seal friction
 growing with current) is judged on what it explains beyond a per-run gain and offset when the
 configuration has none, so a calibration that differs between recordings is named ``run_gain_offset`` and not
@@ -318,6 +325,9 @@ class Candidate:
     unphysical: str = ""
     # Why the residual does not show the effect's mechanism signature (empty: shown or not checked).
     no_signature: str = ""
+    # An effect that acts on part of the samples only (``Effect.acts_on``): the same held-out comparison over
+    # those samples, on which its consistency over the folds and its share of the excess are judged.
+    local: "Candidate | None" = None
 
     @property
     def mean_gain(self) -> float:
@@ -344,9 +354,11 @@ class Candidate:
 
     @property
     def accepted(self) -> bool:
-        lo, _ = self.interval
-        return (self.folds_positive * 2 > self.fold_gains.size and lo > 0 and self.mean_gain >= MIN_GAIN
-                and self.excess_explained >= MIN_EXCESS)
+        judged = self.local if self.local is not None else self
+        lo, _ = judged.interval
+        return (self.folds_positive * 2 > self.fold_gains.size and self.mean_gain >= MIN_GAIN
+                and judged.folds_positive * 2 > judged.fold_gains.size and lo > 0
+                and judged.excess_explained >= MIN_EXCESS)
 
     def row(self) -> dict[str, Any]:
         lo, hi = self.interval
@@ -394,8 +406,9 @@ def _fit_with(fitter: Fitter, config: Configuration, eff: Effect, value: Any, fo
 
 def _input_side(eff: Effect) -> bool:
     """An effect on the core's input: every grid value is a new input history, a least-squares re-identification
-    of the core tables (the costly part of a diagnosis), so its grid is scanned coarse to fine."""
-    return bool(eff.field and eff.needs_reidentify)
+    of the core tables (the costly part of a diagnosis), so its grid is scanned coarse to fine (an output-side
+    one costs a right-hand side per value and is scanned whole)."""
+    return bool(eff.field and eff.needs_reidentify and not eff.output_side)
 
 
 def coarse_to_fine(n: int, score: Callable[[int], np.ndarray], stride: int = COARSE_STRIDE) -> dict[int, np.ndarray]:
@@ -500,9 +513,11 @@ def evaluate(fitter: Fitter, config: Configuration, eff: Effect, before: Heldout
         # What the effect explains beyond a per-run gain and offset (the evidence of a recording-level effect).
         config = Configuration(config.path, list(config.linear) + [(calibration, calibration.grid(data)[-1])])
         before = heldout(fitter, config)
+    compared = config
     if eff.needs_reidentify and not config.path.reidentify:
         # Compare at equal table method: the gain is the effect's, not the least-squares tables'.
-        before = heldout(fitter, Configuration(config.path.with_(reidentify=True), config.linear))
+        compared = Configuration(config.path.with_(reidentify=True), config.linear)
+        before = heldout(fitter, compared)
     grid = eff.grid(data)
     fits = _grid_fits(fitter, config, eff, grid, slice(0, data.folds))
     done = [f for f in fits if f is not None]
@@ -516,13 +531,20 @@ def evaluate(fitter: Fitter, config: Configuration, eff: Effect, before: Heldout
     with np.errstate(divide="ignore", invalid="ignore"):
         train_sse = n_train * np.log(np.maximum(train_sse, 1e-300) / n_train) + widths[:, None] * np.log(n_train)
     reidentifies = type(eff).update_path is not Effect.update_path
+    mask = eff.acts_on(fitter)
+    local_before = _masked_test_sse(fitter, compared.path, compared.linear, mask) if mask is not None else None
+    local_after = np.zeros(data.folds)
     gains, sse_after, sse_before, n_test, values = [], [], [], [], []
     for k in range(data.folds):
         i = int(np.argmin(train_sse[:, k]))
         ff = fits[i]
         assert ff is not None  # the best of each fold was evaluated
         if reidentifies:
-            ff = _fit_with(fitter, config, eff, grid[i], k)[0]
+            ff, _, path, linear = _fit_with(fitter, config, eff, grid[i], k)
+        else:
+            path, linear = _with(config, eff, grid[i], data)
+        if mask is not None:
+            local_after[k] = _masked_test_sse(fitter, path, linear, mask, fold=k)[k]
         b, a = before.rms(k), ff.test_rms(k)
         gains.append((b - a) / b if b > 0 else 0.0)
         sse_after.append(ff.sse_test[k])
@@ -530,8 +552,41 @@ def evaluate(fitter: Fitter, config: Configuration, eff: Effect, before: Heldout
         n_test.append(before.n[k])
         values.append(grid[i])
     n = float(np.sum(n_test))
-    return Candidate(eff, np.asarray(gains), math.sqrt(float(np.sum(sse_before)) / n),
+    cand = Candidate(eff, np.asarray(gains), math.sqrt(float(np.sum(sse_before)) / n),
                      math.sqrt(float(np.sum(sse_after)) / n), values, data.noise_floor_nmm)
+    if mask is not None and local_before is not None:
+        counts = _masked_counts(data, mask)
+        if np.all(counts > 0) and np.all(local_before > 0):
+            rb, ra = np.sqrt(local_before / counts), np.sqrt(local_after / counts)
+            cand.local = Candidate(eff, (rb - ra) / rb, math.sqrt(float(np.sum(local_before) / np.sum(counts))),
+                                   math.sqrt(float(np.sum(local_after) / np.sum(counts))), values,
+                                   data.noise_floor_nmm)
+        else:
+            cand.local = Candidate(eff, np.zeros(data.folds), 0.0, 0.0, values, data.noise_floor_nmm)
+    return cand
+
+
+def _masked_counts(data: EvalData, mask: np.ndarray) -> np.ndarray:
+    """Held-out rows of each fold inside ``mask``."""
+    b, rows = data.fold_bounds, data.fit_rows
+    return np.array([np.count_nonzero(mask[rows[b[k]:b[k + 1]]]) for k in range(data.folds)], dtype=float)
+
+
+def _masked_test_sse(fitter: Fitter, path: FieldPath, linear: Sequence[tuple[Effect, Any]], mask: np.ndarray,
+                     fold: int | None = None) -> np.ndarray:
+    """Held-out sums of squares of each fold (or only ``fold``; the others 0) over its rows inside ``mask``, each
+    fold with the parameters fitted on its training blocks."""
+    data = fitter.data
+    ff = fitter.solve(path, linear)
+    x, y = fitter.design(path, linear)
+    b, rows = data.fold_bounds, data.fit_rows
+    out = np.zeros(data.folds)
+    for k in range(data.folds) if fold is None else [fold]:
+        sel = rows[b[k]:b[k + 1]]
+        sel = sel[mask[sel]]
+        r = fitter.measured[sel] - y[sel] - x[sel] @ ff.beta[k]
+        out[k] = float(np.dot(r, r)) if np.all(np.isfinite(r)) else np.inf
+    return out
 
 
 def heldout(fitter: Fitter, config: Configuration) -> Heldout:
@@ -581,15 +636,13 @@ def refit(fitter: Fitter, config: Configuration, eff: Effect) -> tuple[Configura
         scores = [sse(v) for v in grid]
     i = int(np.argmin(scores))
     best = grid[i]
-    if eff.refine() and len(grid) > 2:
-        lo_v = grid[max(i - 1, 0)]
-        hi_v = grid[min(i + 1, len(grid) - 1)]
-        log = all(isinstance(v, float) and v > 0 for v in (lo_v, hi_v))
-        if log:
-            x = _golden(lambda z: sse(math.exp(z)), math.log(lo_v), math.log(hi_v))
-            cand = math.exp(x)
+    line = eff.along(grid[max(i - 1, 0)], grid[min(i + 1, len(grid) - 1)]) if len(grid) > 2 else None
+    if eff.refine() and line is not None:
+        lo_x, hi_x, value_of = line
+        if lo_x > 0 and hi_x > 0:
+            cand = value_of(math.exp(_golden(lambda z: sse(value_of(math.exp(z))), math.log(lo_x), math.log(hi_x))))
         else:
-            cand = _golden(sse, float(lo_v), float(hi_v))
+            cand = value_of(_golden(lambda x: sse(value_of(x)), lo_x, hi_x))
         if sse(cand) < scores[i]:
             best = cand
     ff, beta, path, linear = _fit_with(fitter, config, eff, best, None)

@@ -261,14 +261,15 @@ class Model:
             except (KeyError, TypeError) as exc:
                 raise BmrError(f"core_tables entry: expected 'ascending' and 'descending' curves ({exc})") from None
         p = self.extension_params("non_congruent")
-        if not p or p["curvature"] == 0.0:
+        cubic = p.get("cubic", 0.0) if p else 0.0
+        if not p or (p["curvature"] == 0.0 and cubic == 0.0):
             return copy.copy(self.hysteresis)
         scale = p["scale_nmm"] or self.full_torque_nmm
 
         def fam(curves: Any) -> list[tuple[np.ndarray, np.ndarray]]:
             out = []
             for u, y in curves:
-                core = _core.output_map_inverse(np.asarray(y, float), p["curvature"], scale)
+                core = _core.output_map_inverse(np.asarray(y, float), p["curvature"], scale, cubic)
                 # The mapped curves stay monotone up to round-off; clamp the round-off.
                 core = np.maximum.accumulate(core) if core[-1] >= core[0] else np.minimum.accumulate(core)
                 out.append((np.asarray(u, float), core))

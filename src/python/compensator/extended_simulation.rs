@@ -127,32 +127,36 @@ impl PySimulation {
     }
 }
 
-pub(super) fn output_map_of(curvature: f64, scale_nmm: f64) -> PyResult<OutputMap> {
-    OutputMap::curvature(curvature, scale_nmm).map_err(bmr_err)
+pub(super) fn output_map_of(curvature: f64, scale_nmm: f64, cubic: f64) -> PyResult<OutputMap> {
+    OutputMap::polynomial(curvature, cubic, scale_nmm).map_err(bmr_err)
 }
 
 /// The `non_congruent` output map (the compensator's own table) applied to core torques (N·mm).
 #[pyfunction]
+#[pyo3(signature = (core_nmm, curvature, scale_nmm, cubic = 0.0))]
 pub(super) fn output_map<'py>(
     py: Python<'py>,
     core_nmm: &Bound<'py, PyAny>,
     curvature: f64,
     scale_nmm: f64,
+    cubic: f64,
 ) -> PyResult<Bound<'py, PyArray1<f64>>> {
-    let mut m = output_map_of(curvature, scale_nmm)?;
+    let mut m = output_map_of(curvature, scale_nmm, cubic)?;
     let x = extract_f64_array(core_nmm, "core_nmm")?;
     Ok(to_numpy(py, x.iter().map(|&v| m.forward(v)).collect()))
 }
 
 /// The inverse of `output_map`: the core torques (N·mm) giving field torques `field_nmm`.
 #[pyfunction]
+#[pyo3(signature = (field_nmm, curvature, scale_nmm, cubic = 0.0))]
 pub(super) fn output_map_inverse<'py>(
     py: Python<'py>,
     field_nmm: &Bound<'py, PyAny>,
     curvature: f64,
     scale_nmm: f64,
+    cubic: f64,
 ) -> PyResult<Bound<'py, PyArray1<f64>>> {
-    let mut m = output_map_of(curvature, scale_nmm)?;
+    let mut m = output_map_of(curvature, scale_nmm, cubic)?;
     let x = extract_f64_array(field_nmm, "field_nmm")?;
     Ok(to_numpy(py, x.iter().map(|&v| m.inverse(v)).collect()))
 }

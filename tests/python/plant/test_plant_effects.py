@@ -41,7 +41,7 @@ def test_vocabulary_and_parameter_listing():
     expected = {"coil_lag": {"tau_s"}, "thermal_drift": {"gain_loss", "tau_s"}, "friction_current": {"gain_per_a"},
                 "friction_harmonics": {"order", "amplitude_nmm", "phase_rad"},
                 "torque_ripple": {"eps", "phase_rad"}, "sensor_drift": {"rate_nmm_per_s"},
-                "time_delay": {"delay_s"}, "non_congruent": {"curvature", "scale_nmm"},
+                "time_delay": {"delay_s"}, "non_congruent": {"curvature", "scale_nmm", "cubic"},
                 "creep": {"fraction", "tau_min_s", "tau_max_s"}, "rate_dependence": {"tau_s"},
                 "run_gain_offset": {"gain_sd", "offset_sd"}, "leakage": {"rate_per_s"},
                 "accommodation": {"kappa", "cycles"}, "viscous": {"c"}}
@@ -203,3 +203,30 @@ def test_non_congruent_keeps_the_range_and_changes_only_the_output_map():
     # The output map is a single-valued monotone function of each rotor's torque: same B → same T.
     i = np.argsort(a["field_torque_nmm"])
     assert np.all(np.diff(b["field_torque_nmm"][i]) >= -1e-9)
+
+
+def test_non_congruent_cubic_term_is_an_odd_stiffening_map_of_each_rotor_torque():
+    # The yield stress of an MR fluid cubic in the steel's flux: T = S (n + k n^3)/(1 + k), n = T_core/S.
+    cur = ex.ramp_path(0.0, [FULL, -FULL, 0.5, -0.2, 0.3], 0.5 / FS)
+    a, b, _ = _pair(cur, {"non_congruent": {"curvature": 0.0, "cubic": 1.0}}, preset="ideal")
+    _assert_same(a, b, UNCHANGED + ("coil1_a", "coil2_a", "b1_t", "b2_t", "friction_nmm"))
+    ta, tb = a["field_torque_nmm"], b["field_torque_nmm"]
+    assert np.max(np.abs(tb - ta)) > 20.0
+    i = np.argsort(ta)
+    assert np.all(np.diff(tb[i]) >= -1e-9)
+    # Stiffening: small torques shrink (to half at k = 1), the full scale stays.
+    small = (np.abs(ta) > 5.0) & (np.abs(ta) < 0.1 * np.max(np.abs(ta)))
+    assert np.any(small)
+    assert np.all(np.abs(tb[small]) < 0.6 * np.abs(ta[small]))
+    assert np.max(tb) == pytest.approx(np.max(ta), rel=0.15)
+
+
+def test_non_congruent_map_is_inverted_exactly_by_the_core_table():
+    core = np.linspace(-900.0, 900.0, 1001)
+    for curvature, cubic in [(0.0, 0.5), (0.3, 1.0), (0.0, -0.3), (-0.45, 0.0)]:
+        field = bmr._core.output_map(core, curvature, 600.0, cubic)
+        assert np.all(np.diff(field) > 0), (curvature, cubic)
+        back = bmr._core.output_map_inverse(field, curvature, 600.0, cubic)
+        np.testing.assert_allclose(back, core, atol=1e-9)
+    with pytest.raises(bmr.BmrError, match="cubic"):
+        bmr._core.output_map(core, 0.0, 600.0, -2.0)

@@ -1,0 +1,42 @@
+"""An effect that acts on part of the samples only (an output map after a congruent core: the higher-order
+reversal curves) is judged on those samples: consistent there, and still a gain over all samples."""
+from __future__ import annotations
+
+import numpy as np
+
+from bmr.diagnosis.effects import LIBRARY
+from bmr.diagnosis.selection import Candidate
+
+EFFECT = next(e for e in LIBRARY if e.name == "non_congruent")
+NOISE = 1.5
+
+
+def _candidate(gains, before=2.0, after=1.7, local=None):
+    c = Candidate(EFFECT, np.asarray(gains, dtype=float), before, after, [None] * len(gains), NOISE)
+    c.local = local
+    return c
+
+
+# Folds whose blocks hold few higher-order curves gain little: positive everywhere, not consistent overall.
+UNEVEN = [0.04, 0.035, 0.19, 0.2, 0.02]
+
+
+def test_uneven_gains_over_all_samples_are_not_enough():
+    assert not _candidate(UNEVEN).accepted
+
+
+def test_a_consistent_gain_where_the_effect_acts_is_accepted():
+    local = _candidate([0.18, 0.12, 0.25, 0.3, 0.1], before=2.5, after=1.9)
+    assert _candidate(UNEVEN, local=local).accepted
+
+
+def test_where_it_acts_the_gain_must_be_consistent_and_explain_the_excess():
+    assert not _candidate(UNEVEN, local=_candidate([0.3, -0.05, 0.25, -0.02, 0.01], 2.5, 2.2)).accepted
+    # Consistent but a sliver of the excess over the noise floor.
+    assert not _candidate(UNEVEN, local=_candidate([0.011, 0.012, 0.01, 0.011, 0.012], 2.5, 2.47)).accepted
+
+
+def test_it_must_still_gain_over_all_samples():
+    local = _candidate([0.18, 0.12, 0.25, 0.3, 0.1], before=2.5, after=1.9)
+    assert not _candidate([0.01, -0.02, 0.03, -0.01, 0.0], after=1.99, local=local).accepted
+    assert not _candidate([0.01, 0.01, 0.01, 0.01, 0.01], after=1.98, local=local).accepted  # below MIN_GAIN
