@@ -1,6 +1,7 @@
 """What the diagnosis computes once and reads again: the fold alternation of fit and re-identification stops once
-the correction has converged (and only then), the configuration's regression and field stay cached while other
-candidates pass, and the learned discrepancy's stacked fold solves equal one solve per fold."""
+the correction has converged (and only then; before the first pass too), the configuration's regression and field
+stay cached while other candidates pass, a candidate's folds stop once it cannot be accepted or is clearly below
+the minimum gain, and the learned discrepancy's stacked fold solves equal one solve per fold."""
 from __future__ import annotations
 
 import numpy as np
@@ -10,7 +11,7 @@ from bmr.diagnosis import discrepancy, selection
 from bmr.diagnosis.effects import LIBRARY
 from bmr.diagnosis.procedure import nominal_model
 from bmr.diagnosis.residuals import prepare
-from bmr.diagnosis.selection import Configuration, Fitter
+from bmr.diagnosis.selection import Configuration, Fitter, evaluate, heldout
 from bmr.simulation.excitation import diagnosis_bundle
 
 HARMONIC = {"order": 6.0, "amplitude_nmm": 6.0, "phase_rad": 0.5}
@@ -54,6 +55,55 @@ def test_the_second_reidentification_runs_only_while_the_correction_moves(fitter
     rms_forced, extra = _fold_fit(fitter, "friction_harmonics", 11, 1)
     assert extra == 1
     assert abs(rms_forced - rms_absent) <= 1e-3 * rms_forced
+
+
+def test_a_correction_below_the_noise_keeps_the_configurations_tables(fitter, monkeypatch) -> None:
+    # A 4th friction harmonic, which the data do not hold: in this fold its fitted correction changes the protocol
+    # runs by less than 1 % of the noise, so the fold is fitted on the configuration's own least-squares tables
+    # without re-identifying them.
+    rms_kept, passes = _fold_fit(fitter, "friction_harmonics", 4, 2)
+    assert passes == 0
+    monkeypatch.setattr(selection, "CONVERGED_CORRECTION", 0.0)
+    rms_forced, forced = _fold_fit(fitter, "friction_harmonics", 4, 2)
+    assert forced >= 1
+    assert abs(rms_forced - rms_kept) <= 1e-3 * rms_forced
+
+
+def _evaluate(fitter: Fitter, name: str):
+    """The candidate ``name`` against the configuration with least-squares tables, and the re-identifications
+    its folds took."""
+    config = Configuration(fitter.nominal_path().with_(reidentify=True))
+    before = heldout(fitter, config)
+    start = fitter.reidentifier.fits
+    cand = evaluate(fitter, config, _effect(name), before)
+    return cand, fitter.reidentifier.fits - start
+
+
+def test_folds_stop_once_most_of_them_cannot_be_positive(fitter, monkeypatch) -> None:
+    # Ripple the data do not hold: its first two folds (of three) lose, so it can no longer gain in most folds.
+    monkeypatch.setattr(selection, "_clearly_below", lambda *args: False)
+    cand, _ = _evaluate(fitter, "torque_ripple")
+    assert cand.fold_gains.size == 2 < fitter.data.folds
+    assert cand.folds_positive == 0 and not cand.accepted
+    assert cand.row()["folds_evaluated"] == 2
+
+
+def test_folds_stop_once_the_gain_is_clearly_below_the_minimum(fitter, monkeypatch) -> None:
+    # Seal friction growing with current, which the data do not hold: tiny positive gains on its first folds.
+    stopped, fits_stopped = _evaluate(fitter, "friction_current")
+    assert stopped.fold_gains.size == 2 and np.all(stopped.fold_gains > 0)
+    monkeypatch.setattr(selection, "_clearly_below", lambda *args: False)
+    full, fits_full = _evaluate(fitter, "friction_current")
+    assert full.fold_gains.size == fitter.data.folds
+    assert fits_stopped >= 1 and fits_full >= 1  # the fold skipped is a re-identification (the others are kept)
+    # The same decision, and the folds evaluated gained the same.
+    assert not stopped.accepted and not full.accepted and full.mean_gain < selection.MIN_GAIN
+    assert set(np.round(stopped.fold_gains, 12)) <= set(np.round(full.fold_gains, 12))
+
+
+def test_a_present_effect_evaluates_every_fold(fitter) -> None:
+    cand, _ = _evaluate(fitter, "friction_harmonics")
+    assert cand.fold_gains.size == fitter.data.folds and cand.accepted
 
 
 def test_the_history_asked_for_again_keeps_its_regression_and_field(fitter) -> None:
