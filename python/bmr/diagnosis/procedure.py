@@ -17,13 +17,14 @@ JSON (``bmr-diagnosis/2``, every value in the bundle's declared output unit, nam
 accepted physical effect that removed the most held-out RMS; ``table_resolution`` when only the tables were at
 fault; ``"none"``), ``effects`` (accepted in order: ``name``, ``params``, ``heldout_rms_before``,
 ``heldout_rms_after``, ``gain``, ``folds_positive``), ``rejected`` (the same; ``folds_evaluated`` below the
-number of folds when the candidate was clearly not accepted on its first folds), ``noise_floor``, ``residual_rms`` (held-out RMS
-of the extended model), ``unexplained`` (``signal``, ``strength`` RMS), ``alternatives`` (pairs of effects the
-excitation could not tell apart, with what would separate them), ``identification_drift`` (the leakage the nominal
-identification fitted with its tables when their branches did not close), ``history`` (per measurement history of
-the bundle, what the model run through it cannot explain: the level at each run's start, repeated loops that do not
-retrace, the candidate effects that explain them and which were accepted; :mod:`bmr.diagnosis.history`) and more
-detail (per-run RMS, nominal held-out RMS, closed loop, timing). Version 1 named the same fields with an ``_nmm`` suffix whatever the unit.
+number of folds when the candidate was clearly not accepted on its first folds), ``noise_floor``,
+``residual_rms`` (held-out RMS of the extended model), ``unexplained`` (``signal``, ``strength`` RMS),
+``alternatives`` (pairs of effects the excitation could not tell apart, with what would separate them),
+``identification_drift`` (the leakage the nominal identification fitted with its tables when their branches did
+not close), ``history`` (per measurement history of the bundle, what the model run through it cannot explain: the
+level at each run's start, repeated loops that do not retrace, the candidate effects that explain them and which
+were accepted; :mod:`bmr.diagnosis.history`) and more detail (per-run RMS, nominal held-out RMS, closed loop,
+timing). Version 1 named the same fields with an ``_nmm`` suffix whatever the unit.
 """
 from __future__ import annotations
 

@@ -546,26 +546,26 @@ def evaluate(fitter: Fitter, config: Configuration, eff: Effect, before: Heldout
         # go first, so that a candidate without a majority of positive folds is found out early.
         order.sort(key=lambda k: gain(k, fits[best[k]]))  # type: ignore[arg-type]
     allowed = data.folds - (data.folds // 2 + 1)  # non-positive folds a majority of positive ones tolerates
-    done: dict[int, FoldFit] = {}
+    evaluated: dict[int, FoldFit] = {}
     for k in order:
         ff = fits[best[k]]
         assert ff is not None
         if reidentifies:
             ff = _fit_with(fitter, config, eff, grid[best[k]], k)[0]
-        done[k] = ff
+        evaluated[k] = ff
         if not reidentifies:
             continue
-        if sum(gain(j, f) <= 0 for j, f in done.items()) > allowed:
+        if sum(gain(j, f) <= 0 for j, f in evaluated.items()) > allowed:
             # Acceptance needs positive gains in most folds: no later fold can change the decision.
             break
-        if len(done) >= 2 and _clearly_below(gain, fits, best, done, data.folds):
+        if len(evaluated) >= 2 and _clearly_below(gain, fits, best, evaluated, data.folds):
             break
-    folds = sorted(done)
+    folds = sorted(evaluated)
     n = float(np.sum(before.n[folds]))
-    return Candidate(eff, np.array([gain(k, done[k]) for k in folds]),
-                     math.sqrt(float(np.sum(before.sse[folds])) / n),
-                     math.sqrt(float(sum(done[k].sse_test[k] for k in folds)) / n), [grid[best[k]] for k in folds],
-                     data.noise_floor_nmm)
+    sse_after = float(sum(evaluated[k].sse_test[k] for k in folds))
+    return Candidate(eff, np.array([gain(k, evaluated[k]) for k in folds]),
+                     math.sqrt(float(np.sum(before.sse[folds])) / n), math.sqrt(sse_after / n),
+                     [grid[best[k]] for k in folds], data.noise_floor_nmm)
 
 
 def _clearly_below(gain: Callable[[int, FoldFit], float], fits: Sequence[FoldFit | None], best: Sequence[int],
