@@ -388,19 +388,19 @@ def _fit_with(fitter: Fitter, config: Configuration, eff: Effect, value: Any, fo
         start = 1 + sum(ff.widths[:-1])
         applied = None
         for _ in range(2):
+            new = eff.update_path(path, value, beta[start:], data)
+            if new is None:
+                break
             # Converged: the refitted parameters would change the corrected protocol runs by a small share of
             # the noise, and the tables identified from them by as little. Before the first pass, against no
             # correction: the tables are then the configuration's own least-squares ones (already identified).
             if fitter.reidentifier.correction_change(
                     eff, value, np.zeros(len(beta) - start) if applied is None else applied,
                     beta[start:]) < CONVERGED_CORRECTION * data.noise_floor_nmm:
-                if applied is None and eff.update_path(path, value, beta[start:], data) is not None:
+                if applied is None:
                     path = path.with_(reidentify=True)
                     ff = fitter.solve(path, linear)
                     beta = ff.beta[index]
-                break
-            new = eff.update_path(path, value, beta[start:], data)
-            if new is None:
                 break
             applied = beta[start:]
             path = new

@@ -69,6 +69,16 @@ def test_a_correction_below_the_noise_keeps_the_configurations_tables(fitter, mo
     assert abs(rms_forced - rms_kept) <= 1e-3 * rms_forced
 
 
+def test_effects_that_leave_the_tables_alone_are_refitted_without_reidentifying(fitter) -> None:
+    # A per-run gain and offset does not bend the protocol runs: its fit on all data re-identifies nothing.
+    config = Configuration(fitter.nominal_path().with_(reidentify=True))
+    fitter.solve(config.path, config.linear)
+    calibration = _effect("run_gain_offset")
+    before = fitter.reidentifier.fits
+    ff, _, path, _ = selection._fit_with(fitter, config, calibration, calibration.grid(fitter.data)[-1], None)
+    assert fitter.reidentifier.fits == before and path == config.path and np.isfinite(ff.sse_train).all()
+
+
 def _evaluate(fitter: Fitter, name: str):
     """The candidate ``name`` against the configuration with least-squares tables, and the re-identifications
     its folds took."""
