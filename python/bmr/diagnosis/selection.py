@@ -572,13 +572,16 @@ def _clearly_below(gain: Callable[[int, FoldFit], float], fits: Sequence[FoldFit
                    done: dict[int, FoldFit], folds: int) -> bool:
     """Whether a candidate's mean held-out gain stays below :data:`MIN_GAIN` even if every fold not yet
     re-identified (``done``: those that are) gains what its fit on the configuration's tables gained, plus the most
-    any re-identified fold gained from its re-identification, plus :data:`EARLY_EXIT_MARGIN`: its remaining folds
-    are then not re-identified (each would be a least-squares identification of the core tables)."""
+    any re-identified fold gained from its re-identification, plus :data:`EARLY_EXIT_MARGIN`, and the folds
+    re-identified stay below it too (a candidate stopped early is never accepted): its remaining folds are then not
+    re-identified (each would be a least-squares identification of the core tables)."""
     def grid_gain(k: int) -> float:
         ff = fits[best[k]]
         assert ff is not None
         return gain(k, ff)
 
+    if sum(gain(k, f) for k, f in done.items()) >= MIN_GAIN * len(done):
+        return False
     shift = max(gain(k, f) - grid_gain(k) for k, f in done.items())
     bound = sum(gain(k, f) for k, f in done.items()) + sum(
         grid_gain(k) + max(shift, 0.0) + EARLY_EXIT_MARGIN for k in range(folds) if k not in done)

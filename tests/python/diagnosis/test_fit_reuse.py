@@ -146,3 +146,22 @@ def test_stacked_fold_solves_equal_one_solve_per_fold() -> None:
         blocks = np.arange(folds) if trial % 2 else np.array([0, 2, 3])
         want = [m.sse(np.array([k]), discrepancy._solve(*m.train(blocks[blocks != k]), support)) for k in blocks]
         np.testing.assert_allclose(discrepancy._heldout_sse(m, blocks, support), want, rtol=1e-12)
+
+
+def test_a_candidate_stopped_early_is_never_one_its_folds_would_accept() -> None:
+    def below(grid_gains: list[float], reidentified: dict[int, float]) -> bool:
+        # Gains stand in for the fits: ``grid_gains`` on the configuration's tables, ``reidentified`` the folds
+        # re-identified so far.
+        def gain(k: int, ff: object) -> float:
+            return float(ff)  # type: ignore[arg-type]
+
+        return selection._clearly_below(gain, grid_gains, list(range(len(grid_gains))), dict(reidentified),
+                                        len(grid_gains))
+
+    # Re-identification changed nothing and the gains are negative: clearly below the minimum.
+    assert below([-0.30, -0.25, -0.20, -0.20, -0.20], {0: -0.30, 1: -0.25})
+    # The remaining folds' fits are far below the minimum, but the folds re-identified gain more than it: their
+    # mean alone would accept, so the remaining folds run.
+    assert not below([0.03, 0.03, -0.5, -0.5, -0.5], {0: 0.03, 1: 0.03})
+    # Small gains, but the re-identification raised them by 0.3: the remaining folds could reach the minimum.
+    assert not below([-0.30, -0.25, -0.20, -0.20, -0.20], {0: 0.0, 1: 0.01})
