@@ -243,8 +243,17 @@ impl<S: AsRef<[f64]>, const N: usize> Hysteresis<S, N> {
     pub(crate) fn advance(&mut self, u: f64, made: Option<&Turn>) {
         let h = &self.state.history;
         let cur = self.state.u;
-        if (h.rising() && u < cur) || (!h.rising() && u > cur) {
-            self.turn(made);
+        let rising = h.rising();
+        if (rising && u < cur) || (!rising && u > cur) {
+            let top = h.top().u;
+            // A turn whose input passes the newest entry at once (a dither back over the last reversal): the new
+            // reversal would be pushed and wiped out with that entry in the same step, so only the entry goes. A
+            // full memory merges before it pushes, so it takes the long way.
+            if h.len() >= 2 && !h.is_full() && (if rising { u <= top } else { u >= top }) {
+                self.state.history.pop(1);
+            } else {
+                self.turn(made);
+            }
         }
         self.wipe_out(u);
     }
@@ -751,4 +760,56 @@ fn fingerprint<S: AsRef<[f64]>>(asc: &Family<S>, desc: &Family<S>, y_lo: f64, y_
     h = (h ^ (h >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
     h = (h ^ (h >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
     h ^ (h >> 31)
+}
+
+#[cfg(test)]
+mod tests {
+    use crate::{BuildOptions, Hysteresis, Initial};
+    use preisach_plant::{Rng, measure_first_order};
+
+    /// A turn back over the newest reversal drops that entry instead of pushing the turn and wiping both out: the
+    /// memory and output are those of the long way to the bit. Inputs dither around a slow sweep (a turn nearly
+    /// every sample, many of them back over the last reversal), through merges of a full memory.
+    #[test]
+    fn a_turn_back_over_the_newest_reversal_is_the_long_way_to_the_bit() {
+        let (a, d) = measure_first_order(40, 9);
+        let mut short = Hysteresis::<Vec<f64>, 8>::from_curve_data(
+            &a,
+            &d,
+            &BuildOptions::default(),
+            Initial::Negative,
+        )
+        .unwrap();
+        let mut long = short.clone();
+        let (lo, hi) = short.input_range();
+        let mut rng = Rng(11);
+        let mut dropped = 0;
+        for i in 0..20_000 {
+            let slow = 0.8 * libm::sin(i as f64 * 0.002);
+            let u = lo + (hi - lo) * (0.5 + 0.5 * slow + 0.01 * (rng.uniform() - 0.5));
+            let before = short.state().history().len();
+            let y = short.step(u);
+            // The long way: `step` with the turn always pushed, then the wipe-out.
+            let h = long.state.history;
+            let cur = long.state.u;
+            if (h.rising() && u < cur) || (!h.rising() && u > cur) {
+                long.turn(None);
+            }
+            long.wipe_out(u);
+            let y_long = long.branch_output(u);
+            long.state.u = u;
+            long.state.y = y_long;
+            dropped += usize::from(short.state().history().len() + 1 == before);
+            assert_eq!(y.to_bits(), y_long.to_bits(), "sample {i}");
+            assert_eq!(
+                short.snapshot().to_words(),
+                long.snapshot().to_words(),
+                "sample {i}"
+            );
+        }
+        assert!(
+            dropped > 3_000,
+            "only {dropped} turns back over the newest reversal: the test does not exercise them"
+        );
+    }
 }

@@ -161,13 +161,21 @@ impl<S: AsRef<[f64]>, const N: usize> Hysteresis<S, N> {
         let len = h.len();
         let mut turn = None;
         let virtual_entry;
+        // Where the answer may start: the current input on the first level, the input of the entry wiped out to
+        // reach each deeper one.
+        let mut from_u = u_c;
+        let top = h.top();
         let (mut level, mut below): (&Reversal, usize) = if up == h.rising() {
-            (h.top(), len - 1)
-        } else if u_c == h.top().u && len > 1 {
+            (top, len - 1)
+        } else if u_c == top.u && len > 1 {
             // Never left the newest reversal: turning back just continues the branch below it.
             (h.get(len - 2), len - 2)
+        } else if len >= 2 && (if up { target > top.y } else { target < top.y }) {
+            // A turn back over the newest entry (a dither): the new reversal's branch ends at that entry's output
+            // short of the target, so the search starts on the branch below without building the reversal.
+            from_u = top.u;
+            (h.get(len - 2), len - 2)
         } else {
-            let top = h.top();
             virtual_entry = self.new_reversal_at(u_c, y_c, top, up);
             turn = Some(Turn {
                 reversal: virtual_entry,
@@ -177,9 +185,6 @@ impl<S: AsRef<[f64]>, const N: usize> Hysteresis<S, N> {
             });
             (&virtual_entry, len)
         };
-        // Where the answer may start: the current input on the first level, the input of the entry wiped out to
-        // reach each deeper one.
-        let mut from_u = u_c;
         loop {
             // Closure target of `level`: the entry below it, or positive saturation for the anchor.
             let (end_u, end_y) = if below >= 1 {
@@ -191,10 +196,11 @@ impl<S: AsRef<[f64]>, const N: usize> Hysteresis<S, N> {
             let inside = if up { target <= end_y } else { target >= end_y };
             if inside {
                 let (input, hit) = self.invert_branch(level, target, up, (end_u, end_y));
-                // The shortcut holds for the newest reversal's branch when moving its way (no turn, no wipe-out).
+                // The shortcut holds for the branch of a remembered entry, which the commit's wipe-outs make the
+                // newest (its closure target unchanged); not for a reversal the commit has yet to push.
                 let fast = match hit {
                     Some((hit, t_tri, r_next))
-                        if !turning && below == len - 1 && level.via.is_none() && level.k > 0.0 =>
+                        if below < len && level.via.is_none() && level.k > 0.0 =>
                     {
                         let g = if up {
                             self.asc.grid()
@@ -203,7 +209,7 @@ impl<S: AsRef<[f64]>, const N: usize> Hysteresis<S, N> {
                         };
                         Shortcut::New(FastBranch {
                             up,
-                            len,
+                            len: below + 1,
                             r_y: level.y,
                             r_k: level.k,
                             end_u,
@@ -240,7 +246,13 @@ impl<S: AsRef<[f64]>, const N: usize> Hysteresis<S, N> {
 
     /// The reversal `push_reversal` would create at the current point (same arithmetic, no state change).
     fn new_reversal_at(&self, u: f64, y: f64, below: &Reversal, up: bool) -> Reversal {
-        let mut hint = 0;
+        // The search starts from the family's hint (the entry below was reached moving that family's way); a
+        // hint only speeds the search, the cell is the same.
+        let mut hint = if up {
+            self.state.hint_a
+        } else {
+            self.state.hint_d
+        };
         if up {
             let strip: Strip = self.asc.strip(u);
             let e = self.asc.everett(&strip, below.u, &mut hint);

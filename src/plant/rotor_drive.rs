@@ -46,6 +46,10 @@ pub struct RotorDrive {
 /// `theta` in [0, 2π) (`rem_euclid` rounds tiny negative angles up to exactly 2π).
 #[inline]
 fn wrap(theta: f64) -> f64 {
+    // Already inside: `rem_euclid` would return it unchanged (the remainder is exact), without its `fmod`.
+    if (0.0..TAU).contains(&theta) {
+        return theta;
+    }
     let t = theta.rem_euclid(TAU);
     if t >= TAU { 0.0 } else { t }
 }
@@ -103,5 +107,35 @@ impl RotorDrive {
     pub fn advance_at(&mut self, speed_rad_s: f64) {
         let next = self.theta_rad + speed_rad_s * self.dt_s;
         self.theta_rad = wrap(next);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The shortcut for an angle already inside [0, 2π) gives `rem_euclid`'s bits, at the ends and across turns.
+    #[test]
+    fn wrap_is_rem_euclid_to_the_bit() {
+        let long_way = |x: f64| {
+            let t = x.rem_euclid(TAU);
+            if t >= TAU { 0.0 } else { t }
+        };
+        let mut x = -3.0 * TAU;
+        let mut probes = vec![
+            0.0,
+            -0.0,
+            TAU,
+            -1e-300,
+            f64::from_bits(TAU.to_bits() - 1),
+            1e5,
+        ];
+        while x < 3.0 * TAU {
+            probes.push(x);
+            x += 0.001_234_567;
+        }
+        for p in probes {
+            assert_eq!(wrap(p).to_bits(), long_way(p).to_bits(), "{p}");
+        }
     }
 }

@@ -52,6 +52,15 @@ impl Default for SteelParams {
 }
 
 impl SteelParams {
+    /// Whether `other` describes the same hysteron density on the same grid (its Everett table is this one's,
+    /// bit for bit): every parameter but `saturation_t`.
+    fn same_density(&self, other: &SteelParams) -> bool {
+        SteelParams {
+            saturation_t: other.saturation_t,
+            ..self.clone()
+        } == *other
+    }
+
     pub fn validate(&self, name: &str) -> Result<(), PlantError> {
         check_range(
             &format!("{name}.saturation_t"),
@@ -214,8 +223,21 @@ pub struct PreisachSteel {
 impl PreisachSteel {
     /// Build the table and start from the thermally demagnetised state (B = 0 at zero current).
     pub fn new(params: SteelParams) -> Result<Self, PlantError> {
+        Self::new_beside(params, None)
+    }
+
+    /// [`Self::new`], taking the Everett table of `other` when its density is the same (every parameter but the
+    /// saturation flux, which scales the output only): a second circuit of the same steel costs a copy of the
+    /// table instead of its integration (a quarter of a million `exp` on the default grid).
+    pub fn new_beside(
+        params: SteelParams,
+        other: Option<&PreisachSteel>,
+    ) -> Result<Self, PlantError> {
         params.validate("steel")?;
-        let everett = Everett::from_params(&params);
+        let everett = match other {
+            Some(o) if o.params.same_density(&params) => o.everett.clone(),
+            _ => Everett::from_params(&params),
+        };
         let mut s = PreisachSteel {
             params,
             everett,
@@ -282,11 +304,25 @@ impl PreisachSteel {
         let mut n = self.extrema.len() - 1;
         let mut rising = n.is_multiple_of(2);
         if (rising && u < self.input_a) || (!rising && u > self.input_a) {
-            // Reversal at the previous input: it becomes a new extremum.
-            let contribution = self.segment(self.extrema[n], self.input_a, rising);
-            self.prefix.push(self.prefix[n] + contribution);
-            self.extrema.push(self.input_a);
-            n += 1;
+            if n >= 1
+                && (if rising {
+                    u <= self.extrema[n]
+                } else {
+                    u >= self.extrema[n]
+                })
+            {
+                // Back over the newest extremum at once (a dither): the reversal at the previous input would be
+                // pushed and wiped out with that extremum in this step, so only the extremum goes.
+                self.extrema.truncate(n);
+                self.prefix.truncate(n);
+                n -= 1;
+            } else {
+                // Reversal at the previous input: it becomes a new extremum.
+                let contribution = self.segment(self.extrema[n], self.input_a, rising);
+                self.prefix.push(self.prefix[n] + contribution);
+                self.extrema.push(self.input_a);
+                n += 1;
+            }
             rising = !rising;
         }
         // Wiping-out: passing the previous extremum of the same kind removes that max/min pair.
@@ -427,6 +463,97 @@ mod tests {
         for (x, y) in a.iter().zip(&b) {
             assert!((x - y).abs() < 1e-12, "{x} vs {y}");
         }
+    }
+
+    /// A circuit built beside another takes its table only for the same density: the same outputs as one built
+    /// alone, also after a different saturation flux, and a different coercivity still integrates its own.
+    #[test]
+    fn a_table_taken_from_a_circuit_beside_is_the_one_it_would_build() {
+        let path: Vec<f64> = (0..400)
+            .map(|k| 1.4 * libm::sin(0.05 * k as f64) * (1.0 - k as f64 / 500.0))
+            .collect();
+        let outputs = |mut s: PreisachSteel| {
+            path.iter()
+                .map(|&u| s.apply(u).to_bits())
+                .collect::<Vec<u64>>()
+        };
+        let first = steel();
+        for p in [
+            SteelParams::default(),
+            SteelParams {
+                saturation_t: 0.55,
+                ..SteelParams::default()
+            },
+            SteelParams {
+                coercivity_a: 0.08,
+                ..SteelParams::default()
+            },
+        ] {
+            let alone = PreisachSteel::new(p.clone()).unwrap();
+            let beside = PreisachSteel::new_beside(p.clone(), Some(&first)).unwrap();
+            assert_eq!(alone.everett.table, beside.everett.table);
+            assert_eq!(outputs(alone), outputs(beside));
+        }
+        assert!(!first.params.same_density(&SteelParams {
+            coercivity_a: 0.08,
+            ..SteelParams::default()
+        }));
+    }
+
+    /// `apply_normalised` with every reversal pushed before the wipe-out (no shortcut for a dither back over the
+    /// newest extremum).
+    fn apply_long(s: &mut PreisachSteel, current_a: f64) -> f64 {
+        let r = s.params.range_a;
+        let u = current_a.clamp(-r, r);
+        if u == s.input_a {
+            return s.output;
+        }
+        let mut n = s.extrema.len() - 1;
+        let mut rising = n.is_multiple_of(2);
+        if (rising && u < s.input_a) || (!rising && u > s.input_a) {
+            let contribution = s.segment(s.extrema[n], s.input_a, rising);
+            s.prefix.push(s.prefix[n] + contribution);
+            s.extrema.push(s.input_a);
+            n += 1;
+            rising = !rising;
+        }
+        while n >= 2 && ((rising && u >= s.extrema[n - 1]) || (!rising && u <= s.extrema[n - 1])) {
+            s.extrema.truncate(n - 1);
+            s.prefix.truncate(n - 1);
+            n -= 2;
+        }
+        if !rising && n == 1 && u <= -r {
+            s.extrema.truncate(1);
+            s.prefix.truncate(1);
+            n = 0;
+            rising = true;
+        }
+        s.input_a = u;
+        s.output = 2.0 * (s.prefix[n] + s.segment(s.extrema[n], u, rising)) - 1.0;
+        s.output
+    }
+
+    /// A dither back over the newest extremum drops it without pushing the reversal first: outputs and memory
+    /// are the long way's to the bit, through saturation both ways.
+    #[test]
+    fn a_dither_back_over_the_newest_extremum_is_the_long_way_to_the_bit() {
+        let mut short = steel();
+        let mut long = short.clone();
+        let mut rng = crate::plant::rng::Rng::new(5);
+        let mut dropped = 0;
+        for k in 0..20_000 {
+            let u = 3.4 * libm::sin(0.003 * k as f64) + 0.02 * rng.normal();
+            let depth = short.memory_depth();
+            let (a, b) = (short.apply_normalised(u), apply_long(&mut long, u));
+            assert_eq!(a.to_bits(), b.to_bits(), "sample {k}");
+            assert_eq!(short.extrema, long.extrema, "sample {k}");
+            assert_eq!(short.prefix, long.prefix, "sample {k}");
+            dropped += usize::from(short.memory_depth() + 1 == depth);
+        }
+        assert!(
+            dropped > 1_000,
+            "only {dropped} dithers back: the test does not exercise them"
+        );
     }
 
     #[test]

@@ -395,7 +395,7 @@ impl VirtualActuator {
         let dt_s = 1.0 / config.sample_rate_hz;
         let fx = ActiveEffects::from_set(&config.effects, dt_s);
         let steel1 = PreisachSteel::new(config.steel1.clone())?;
-        let steel2 = PreisachSteel::new(config.steel2.clone())?;
+        let steel2 = PreisachSteel::new_beside(config.steel2.clone(), Some(&steel1))?;
         let creep = || {
             fx.creep
                 .and_then(|(f, lo, hi)| Creep::log_uniform(f, lo, hi, dt_s, 0.0))

@@ -633,6 +633,31 @@ proptest! {
             prop_assert_eq!(a.to_bits(), b.to_bits(), "sample {}", i);
         }
     }
+
+    /// The same under sensor-like noise on the reference (a turn nearly every sample, many back over the last
+    /// reversal, where the shortcut is taken from the branch below): the commands and the memory are the full
+    /// search's to the bit.
+    #[test]
+    fn the_inverse_shortcut_under_a_dithered_reference_gives_the_bits_of_the_full_search(
+        seed in 0u64..1000, extended_stages in any::<bool>(), d in stage_draw()) {
+        let make = || if extended_stages { extended(false, 1.25, &d) } else {
+            let f = Friction::from_amplitude_phase(12.0, &[25.0, 8.0, 4.0], &[0.3, 1.1, -0.7]).unwrap();
+            Comp24::new(forward(), InverseKind::Exact, f, 0.125, 1.25).unwrap()
+        };
+        let mut fast = make();
+        let mut slow = make();
+        let mut rng = common::Rng(seed);
+        for i in 0..3000 {
+            let r = 250.0 * (0.004 * i as f64).sin() + 3.0 * (rng.uniform() - 0.5);
+            let th = 0.002 * i as f64;
+            let a = fast.step(r, th).current_a;
+            let snap = slow.snapshot();
+            slow.restore(&snap).unwrap();
+            let b = slow.step(r, th).current_a;
+            prop_assert_eq!(a.to_bits(), b.to_bits(), "sample {}", i);
+            prop_assert_eq!(fast.snapshot().to_words(), slow.snapshot().to_words(), "sample {}", i);
+        }
+    }
 }
 
 #[test]
