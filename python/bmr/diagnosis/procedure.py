@@ -16,13 +16,15 @@ held-out gain; ``bmr diagnose`` on the command line.
 JSON (``bmr-diagnosis/2``, every value in the bundle's declared output unit, named in ``units``): ``cause`` (the
 accepted physical effect that removed the most held-out RMS; ``table_resolution`` when only the tables were at
 fault; ``"none"``), ``effects`` (accepted in order: ``name``, ``params``, ``heldout_rms_before``,
-``heldout_rms_after``, ``gain``, ``folds_positive``), ``rejected``, ``noise_floor``, ``residual_rms`` (held-out RMS
-of the extended model), ``unexplained`` (``signal``, ``strength`` RMS), ``alternatives`` (pairs of effects the
-excitation could not tell apart, with what would separate them), ``identification_drift`` (the leakage the nominal
-identification fitted with its tables when their branches did not close), ``history`` (per measurement history of
-the bundle, what the model run through it cannot explain: the level at each run's start, repeated loops that do not
-retrace, the candidate effects that explain them and which were accepted; :mod:`bmr.diagnosis.history`) and more
-detail (per-run RMS, nominal held-out RMS, closed loop, timing). Version 1 named the same fields with an ``_nmm`` suffix whatever the unit.
+``heldout_rms_after``, ``gain``, ``folds_positive``), ``rejected`` (the same; ``folds_evaluated`` below the
+number of folds when the candidate was clearly not accepted on its first folds), ``noise_floor``,
+``residual_rms`` (held-out RMS of the extended model), ``unexplained`` (``signal``, ``strength`` RMS),
+``alternatives`` (pairs of effects the excitation could not tell apart, with what would separate them),
+``identification_drift`` (the leakage the nominal identification fitted with its tables when their branches did
+not close), ``history`` (per measurement history of the bundle, what the model run through it cannot explain: the
+level at each run's start, repeated loops that do not retrace, the candidate effects that explain them and which
+were accepted; :mod:`bmr.diagnosis.history`) and more detail (per-run RMS, nominal held-out RMS, closed loop,
+timing). Version 1 named the same fields with an ``_nmm`` suffix whatever the unit.
 """
 from __future__ import annotations
 
@@ -67,8 +69,8 @@ NOMINAL_FRICTION_ORDER = 3
 _ROW_KEYS = {"name": "name", "params": "params", "heldout_rms_before": "heldout_rms_before_nmm",
              "heldout_rms_after": "heldout_rms_after_nmm", "gain": "gain", "folds_positive": "folds_positive",
              "gain_interval": "gain_interval", "gain_interval_bootstrap": "gain_interval_bootstrap",
-             "fold_gains": "fold_gains", "excess_explained": "excess_explained", "round": "round",
-             "reason": "reason"}
+             "fold_gains": "fold_gains", "folds_evaluated": "folds_evaluated",
+             "excess_explained": "excess_explained", "round": "round", "reason": "reason"}
 
 
 @dataclass(eq=False, repr=False)
@@ -534,7 +536,8 @@ def run_cli(args: Any) -> int:
               f"{params}")
     for r in d.rejected:
         why = f"; {r['reason']}" if r.get("reason", "").startswith("parameters outside") else ""
-        print(f"  rejected {r['name']}: gain {100 * r['gain']:.1f} % ({r['folds_positive']}/{d.folds} folds){why}")
+        print(f"  rejected {r['name']}: gain {100 * r['gain']:.1f} % ({r['folds_positive']}/"
+              f"{r.get('folds_evaluated', d.folds)} folds){why}")
     for a in d.alternatives:
         print(f"  {a.message}")
     if d.identification_drift:

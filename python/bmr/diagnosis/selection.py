@@ -45,6 +45,13 @@ which every fold's training fit (all blocks but one), its training and held-out 
 all data follow (:class:`FoldFit`) without touching the samples again. The fits solve the column-scaled normal
 equations with a pseudo-inverse (eigenvalues below 1e-13 of the largest dropped), the same least-squares
 solution as a QR/SVD of the design for every design that is not rank deficient.
+
+A linear effect that also bends the identification data re-identifies the core tables in every fold (its fitted
+correction removed from the protocol runs). Those folds run worst first (by the gain of the fit on the
+configuration's tables) and stop once the candidate cannot have positive gains in most folds, or once it is
+clearly below :data:`MIN_GAIN` (:func:`_clearly_below`); a rejected candidate's row then holds the folds evaluated
+(``folds_evaluated``). A correction that changes the protocol runs by less than :data:`CONVERGED_CORRECTION` of
+the noise floor is not re-identified at all: the configuration's own least-squares tables stand.
 """
 from __future__ import annotations
 
@@ -75,6 +82,9 @@ _RCOND = 1e-13
 CONVERGED_CORRECTION = 0.01
 # Grid step of the first pass of an input-side effect's coarse-to-fine scan (grid values, see coarse_to_fine).
 COARSE_STRIDE = 4
+# Held-out gain added to each fold not yet re-identified when judging whether a candidate is clearly below
+# MIN_GAIN on its first folds (see _clearly_below).
+EARLY_EXIT_MARGIN = 0.01
 
 
 def t975(df: int) -> float:
@@ -365,6 +375,7 @@ class Candidate:
         return {"name": self.effect.name, "gain": self.mean_gain, "folds_positive": self.folds_positive,
                 "gain_interval": [lo, hi], "heldout_rms_before_nmm": self.rms_before,
                 "heldout_rms_after_nmm": self.rms_after, "fold_gains": [float(v) for v in self.fold_gains],
+                "folds_evaluated": int(self.fold_gains.size),
                 "excess_explained": self.excess_explained}
 
 
@@ -378,8 +389,9 @@ def _with(config: Configuration, eff: Effect, value: Any, data: EvalData
 def _fit_with(fitter: Fitter, config: Configuration, eff: Effect, value: Any, fold: int | None
               ) -> tuple[FoldFit, np.ndarray, FieldPath, list[tuple[Effect, Any]]]:
     """Fit ``config`` plus ``eff`` at ``value`` on the training blocks of ``fold`` (None: all data); effects that
-    also bend the identification data alternate fit and re-identification twice, or once when the second would
-    change the corrected protocol runs by less than :data:`CONVERGED_CORRECTION` of the noise floor."""
+    also bend the identification data alternate fit and re-identification twice, or fewer times when a pass would
+    change the corrected protocol runs by less than :data:`CONVERGED_CORRECTION` of the noise floor (none: the
+    configuration's least-squares tables stand)."""
     data = fitter.data
     index = data.folds if fold is None else fold
     path, linear = _with(config, eff, value, data)
@@ -389,13 +401,19 @@ def _fit_with(fitter: Fitter, config: Configuration, eff: Effect, value: Any, fo
         start = 1 + sum(ff.widths[:-1])
         applied = None
         for _ in range(2):
-            # Converged: the refitted parameters would change the corrected protocol runs by a small share of
-            # the noise, and the tables identified from them by as little.
-            if applied is not None and fitter.reidentifier.correction_change(
-                    eff, value, applied, beta[start:]) < CONVERGED_CORRECTION * data.noise_floor_nmm:
-                break
             new = eff.update_path(path, value, beta[start:], data)
             if new is None:
+                break
+            # Converged: the refitted parameters would change the corrected protocol runs by a small share of
+            # the noise, and the tables identified from them by as little. Before the first pass, against no
+            # correction: the tables are then the configuration's own least-squares ones (already identified).
+            if fitter.reidentifier.correction_change(
+                    eff, value, np.zeros(len(beta) - start) if applied is None else applied,
+                    beta[start:]) < CONVERGED_CORRECTION * data.noise_floor_nmm:
+                if applied is None:
+                    path = path.with_(reidentify=True)
+                    ff = fitter.solve(path, linear)
+                    beta = ff.beta[index]
                 break
             applied = beta[start:]
             path = new
@@ -534,36 +552,74 @@ def evaluate(fitter: Fitter, config: Configuration, eff: Effect, before: Heldout
     mask = eff.acts_on(fitter)
     local_before = _masked_test_sse(fitter, compared.path, compared.linear, mask) if mask is not None else None
     local_after = np.zeros(data.folds)
-    gains, sse_after, sse_before, n_test, values = [], [], [], [], []
-    for k in range(data.folds):
-        i = int(np.argmin(train_sse[:, k]))
-        ff = fits[i]
-        assert ff is not None  # the best of each fold was evaluated
+    best = [int(np.argmin(train_sse[:, k])) for k in range(data.folds)]
+    assert all(fits[i] is not None for i in best)  # the best of each fold was evaluated
+
+    def gain(k: int, ff: FoldFit) -> float:
+        b, a = before.rms(k), ff.test_rms(k)
+        return (b - a) / b if b > 0 else 0.0
+
+    order = list(range(data.folds))
+    if reidentifies:
+        # Each fold re-identifies the tables: the folds the grid fits (tables not yet re-identified) score worst
+        # go first, so that a candidate without a majority of positive folds is found out early.
+        order.sort(key=lambda k: gain(k, fits[best[k]]))  # type: ignore[arg-type]
+    allowed = data.folds - (data.folds // 2 + 1)  # non-positive folds a majority of positive ones tolerates
+    evaluated: dict[int, FoldFit] = {}
+    for k in order:
+        ff = fits[best[k]]
+        assert ff is not None
         if reidentifies:
-            ff, _, path, linear = _fit_with(fitter, config, eff, grid[i], k)
-        else:
-            path, linear = _with(config, eff, grid[i], data)
+            ff, _, path, linear = _fit_with(fitter, config, eff, grid[best[k]], k)
+        elif mask is not None:
+            path, linear = _with(config, eff, grid[best[k]], data)
         if mask is not None:
             local_after[k] = _masked_test_sse(fitter, path, linear, mask, fold=k)[k]
-        b, a = before.rms(k), ff.test_rms(k)
-        gains.append((b - a) / b if b > 0 else 0.0)
-        sse_after.append(ff.sse_test[k])
-        sse_before.append(before.sse[k])
-        n_test.append(before.n[k])
-        values.append(grid[i])
-    n = float(np.sum(n_test))
-    cand = Candidate(eff, np.asarray(gains), math.sqrt(float(np.sum(sse_before)) / n),
-                     math.sqrt(float(np.sum(sse_after)) / n), values, data.noise_floor_nmm)
+        evaluated[k] = ff
+        if not reidentifies:
+            continue
+        if sum(gain(j, f) <= 0 for j, f in evaluated.items()) > allowed:
+            # Acceptance needs positive gains in most folds: no later fold can change the decision.
+            break
+        if len(evaluated) >= 2 and _clearly_below(gain, fits, best, evaluated, data.folds):
+            break
+    folds = sorted(evaluated)
+    n = float(np.sum(before.n[folds]))
+    sse_after = float(sum(evaluated[k].sse_test[k] for k in folds))
+    values = [grid[best[k]] for k in folds]
+    cand = Candidate(eff, np.array([gain(k, evaluated[k]) for k in folds]),
+                     math.sqrt(float(np.sum(before.sse[folds])) / n), math.sqrt(sse_after / n),
+                     values, data.noise_floor_nmm)
     if mask is not None and local_before is not None:
-        counts = _masked_counts(data, mask)
-        if np.all(counts > 0) and np.all(local_before > 0):
-            rb, ra = np.sqrt(local_before / counts), np.sqrt(local_after / counts)
-            cand.local = Candidate(eff, (rb - ra) / rb, math.sqrt(float(np.sum(local_before) / np.sum(counts))),
-                                   math.sqrt(float(np.sum(local_after) / np.sum(counts))), values,
-                                   data.noise_floor_nmm)
+        counts = _masked_counts(data, mask)[folds]
+        lb, la = local_before[folds], local_after[folds]
+        if np.all(counts > 0) and np.all(lb > 0):
+            rb, ra = np.sqrt(lb / counts), np.sqrt(la / counts)
+            cand.local = Candidate(eff, (rb - ra) / rb, math.sqrt(float(np.sum(lb) / np.sum(counts))),
+                                   math.sqrt(float(np.sum(la) / np.sum(counts))), values, data.noise_floor_nmm)
         else:
-            cand.local = Candidate(eff, np.zeros(data.folds), 0.0, 0.0, values, data.noise_floor_nmm)
+            cand.local = Candidate(eff, np.zeros(len(folds)), 0.0, 0.0, values, data.noise_floor_nmm)
     return cand
+
+
+def _clearly_below(gain: Callable[[int, FoldFit], float], fits: Sequence[FoldFit | None], best: Sequence[int],
+                   done: dict[int, FoldFit], folds: int) -> bool:
+    """Whether a candidate's mean held-out gain stays below :data:`MIN_GAIN` even if every fold not yet
+    re-identified (``done``: those that are) gains what its fit on the configuration's tables gained, plus the most
+    any re-identified fold gained from its re-identification, plus :data:`EARLY_EXIT_MARGIN`, and the folds
+    re-identified stay below it too (a candidate stopped early is never accepted): its remaining folds are then not
+    re-identified (each would be a least-squares identification of the core tables)."""
+    def grid_gain(k: int) -> float:
+        ff = fits[best[k]]
+        assert ff is not None
+        return gain(k, ff)
+
+    if sum(gain(k, f) for k, f in done.items()) >= MIN_GAIN * len(done):
+        return False
+    shift = max(gain(k, f) - grid_gain(k) for k, f in done.items())
+    bound = sum(gain(k, f) for k, f in done.items()) + sum(
+        grid_gain(k) + max(shift, 0.0) + EARLY_EXIT_MARGIN for k in range(folds) if k not in done)
+    return bound < MIN_GAIN * folds
 
 
 def _masked_counts(data: EvalData, mask: np.ndarray) -> np.ndarray:

@@ -116,7 +116,8 @@ def html_section(d: Any) -> str:
     rows = [[e["name"], "accepted", f"{e['gain'] * 100:.1f} %", f"{e['folds_positive']}/{d.folds}",
              f"{e['heldout_rms_before_nmm']:.4g} → {e['heldout_rms_after_nmm']:.4g}", _fmt_params(e["params"])]
             for e in d.effects]
-    rows += [[r["name"], "rejected", f"{r['gain'] * 100:.1f} %", f"{r['folds_positive']}/{d.folds}",
+    rows += [[r["name"], "rejected", f"{r['gain'] * 100:.1f} %",
+              f"{r['folds_positive']}/{r.get('folds_evaluated', d.folds)}",
               f"{r['heldout_rms_before_nmm']:.4g} → {r['heldout_rms_after_nmm']:.4g}",
               r["reason"] if r.get("reason", "").startswith("parameters outside") else ""] for r in d.rejected]
     parts.append("<h3>Selection</h3>" + _table(rows, ["effect", "decision", "held-out gain", "folds positive",

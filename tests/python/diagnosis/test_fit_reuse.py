@@ -1,6 +1,7 @@
 """What the diagnosis computes once and reads again: the fold alternation of fit and re-identification stops once
-the correction has converged (and only then), the configuration's regression and field stay cached while other
-candidates pass, and the learned discrepancy's stacked fold solves equal one solve per fold."""
+the correction has converged (and only then; before the first pass too), the configuration's regression and field
+stay cached while other candidates pass, a candidate's folds stop once it cannot be accepted or is clearly below
+the minimum gain, and the learned discrepancy's stacked fold solves equal one solve per fold."""
 from __future__ import annotations
 
 import numpy as np
@@ -10,7 +11,7 @@ from bmr.diagnosis import discrepancy, selection
 from bmr.diagnosis.effects import LIBRARY
 from bmr.diagnosis.procedure import nominal_model
 from bmr.diagnosis.residuals import prepare
-from bmr.diagnosis.selection import Configuration, Fitter
+from bmr.diagnosis.selection import Configuration, Fitter, evaluate, heldout
 from bmr.simulation.excitation import diagnosis_bundle
 
 HARMONIC = {"order": 6.0, "amplitude_nmm": 6.0, "phase_rad": 0.5}
@@ -56,6 +57,65 @@ def test_the_second_reidentification_runs_only_while_the_correction_moves(fitter
     assert abs(rms_forced - rms_absent) <= 1e-3 * rms_forced
 
 
+def test_a_correction_below_the_noise_keeps_the_configurations_tables(fitter, monkeypatch) -> None:
+    # A 4th friction harmonic, which the data do not hold: in this fold its fitted correction changes the protocol
+    # runs by less than 1 % of the noise, so the fold is fitted on the configuration's own least-squares tables
+    # without re-identifying them.
+    rms_kept, passes = _fold_fit(fitter, "friction_harmonics", 4, 2)
+    assert passes == 0
+    monkeypatch.setattr(selection, "CONVERGED_CORRECTION", 0.0)
+    rms_forced, forced = _fold_fit(fitter, "friction_harmonics", 4, 2)
+    assert forced >= 1
+    assert abs(rms_forced - rms_kept) <= 1e-3 * rms_forced
+
+
+def test_effects_that_leave_the_tables_alone_are_refitted_without_reidentifying(fitter) -> None:
+    # A per-run gain and offset does not bend the protocol runs: its fit on all data re-identifies nothing.
+    config = Configuration(fitter.nominal_path().with_(reidentify=True))
+    fitter.solve(config.path, config.linear)
+    calibration = _effect("run_gain_offset")
+    before = fitter.reidentifier.fits
+    ff, _, path, _ = selection._fit_with(fitter, config, calibration, calibration.grid(fitter.data)[-1], None)
+    assert fitter.reidentifier.fits == before and path == config.path and np.isfinite(ff.sse_train).all()
+
+
+def _evaluate(fitter: Fitter, name: str):
+    """The candidate ``name`` against the configuration with least-squares tables, and the re-identifications
+    its folds took."""
+    config = Configuration(fitter.nominal_path().with_(reidentify=True))
+    before = heldout(fitter, config)
+    start = fitter.reidentifier.fits
+    cand = evaluate(fitter, config, _effect(name), before)
+    return cand, fitter.reidentifier.fits - start
+
+
+def test_folds_stop_once_most_of_them_cannot_be_positive(fitter, monkeypatch) -> None:
+    # Ripple the data do not hold: its first two folds (of three) lose, so it can no longer gain in most folds.
+    monkeypatch.setattr(selection, "_clearly_below", lambda *args: False)
+    cand, _ = _evaluate(fitter, "torque_ripple")
+    assert cand.fold_gains.size == 2 < fitter.data.folds
+    assert cand.folds_positive == 0 and not cand.accepted
+    assert cand.row()["folds_evaluated"] == 2
+
+
+def test_folds_stop_once_the_gain_is_clearly_below_the_minimum(fitter, monkeypatch) -> None:
+    # Seal friction growing with current, which the data do not hold: tiny positive gains on its first folds.
+    stopped, fits_stopped = _evaluate(fitter, "friction_current")
+    assert stopped.fold_gains.size == 2 and np.all(stopped.fold_gains > 0)
+    monkeypatch.setattr(selection, "_clearly_below", lambda *args: False)
+    full, fits_full = _evaluate(fitter, "friction_current")
+    assert full.fold_gains.size == fitter.data.folds
+    assert fits_stopped >= 1 and fits_full >= 1  # the fold skipped is a re-identification (the others are kept)
+    # The same decision, and the folds evaluated gained the same.
+    assert not stopped.accepted and not full.accepted and full.mean_gain < selection.MIN_GAIN
+    assert set(np.round(stopped.fold_gains, 12)) <= set(np.round(full.fold_gains, 12))
+
+
+def test_a_present_effect_evaluates_every_fold(fitter) -> None:
+    cand, _ = _evaluate(fitter, "friction_harmonics")
+    assert cand.fold_gains.size == fitter.data.folds and cand.accepted
+
+
 def test_the_history_asked_for_again_keeps_its_regression_and_field(fitter) -> None:
     reid = fitter.reidentifier
     base = fitter.nominal_path().with_(reidentify=True, corrections=())
@@ -86,3 +146,22 @@ def test_stacked_fold_solves_equal_one_solve_per_fold() -> None:
         blocks = np.arange(folds) if trial % 2 else np.array([0, 2, 3])
         want = [m.sse(np.array([k]), discrepancy._solve(*m.train(blocks[blocks != k]), support)) for k in blocks]
         np.testing.assert_allclose(discrepancy._heldout_sse(m, blocks, support), want, rtol=1e-12)
+
+
+def test_a_candidate_stopped_early_is_never_one_its_folds_would_accept() -> None:
+    def below(grid_gains: list[float], reidentified: dict[int, float]) -> bool:
+        # Gains stand in for the fits: ``grid_gains`` on the configuration's tables, ``reidentified`` the folds
+        # re-identified so far.
+        def gain(k: int, ff: object) -> float:
+            return float(ff)  # type: ignore[arg-type]
+
+        return selection._clearly_below(gain, grid_gains, list(range(len(grid_gains))), dict(reidentified),
+                                        len(grid_gains))
+
+    # Re-identification changed nothing and the gains are negative: clearly below the minimum.
+    assert below([-0.30, -0.25, -0.20, -0.20, -0.20], {0: -0.30, 1: -0.25})
+    # The remaining folds' fits are far below the minimum, but the folds re-identified gain more than it: their
+    # mean alone would accept, so the remaining folds run.
+    assert not below([0.03, 0.03, -0.5, -0.5, -0.5], {0: 0.03, 1: 0.03})
+    # Small gains, but the re-identification raised them by 0.3: the remaining folds could reach the minimum.
+    assert not below([-0.30, -0.25, -0.20, -0.20, -0.20], {0: 0.0, 1: 0.01})
