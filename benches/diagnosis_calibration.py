@@ -4,8 +4,8 @@ error and held-out gain per effect, size and plant, for single effects and pairs
 Plants (so that detection is not tuned to one generator):
 
 * ``rig_preisach``: the virtual actuator with an exactly Preisach field path, the rig's seal friction and sensor
-  (1.5 N·mm noise); the quick experiment set plus a minor-loop and a repeated-loop run, 500 Hz, 11 first-order
-  curves per family (``bmr.simulation.excitation.diagnosis_bundle``);
+  (1.5 N·mm noise); the quick experiment set plus a minor-loop run and a repeated-loop run at two drive speeds
+  (1 and 4 A/s), 500 Hz, 11 first-order curves per family (``bmr.simulation.excitation.diagnosis_bundle``);
 * ``rig_soft``: the same actuator structure with another Preisach density (harder, narrower steel with less
   reversible share) and protocol: 7 first-order curves per family at 250 Hz;
 * ``piezo``: the virtual hysteretic device (``bmr.VirtualDevice``: voltage → displacement, no angle) with its own

@@ -345,10 +345,14 @@ def fit_friction_order(theta_rad: _ArrayLike, torque_nmm: _ArrayLike, order: int
 
 @final
 class EverettModel:
-    """Preisach model with a tabulated Everett function E(β, α) on an input grid (nonnegative cell masses)."""
+    """Preisach model with a tabulated Everett function E(β, α) on an input grid (nonnegative cell masses, or
+    masses free in sign when built ``signed``)."""
     def __copy__(self) -> EverettModel: ...
     def __deepcopy__(self, memo: dict[int, object]) -> EverettModel: ...
-    def __new__(cls, grid: np.ndarray, masses: np.ndarray, offset: float) -> Self: ...
+    def __new__(cls, grid: np.ndarray, masses: np.ndarray, offset: float, signed: bool = False) -> Self: ...
+    @property
+    def monotone(self) -> bool:
+        """Every cell mass nonnegative (monotone branches, an exact inverse)."""
     @property
     def grid(self) -> np.ndarray: ...
     @property
@@ -386,9 +390,10 @@ def fit_everett(
     ridge: float = 1e-9,
     max_iter: int = 500,
     drift: Sequence[np.ndarray] | None = None,
+    signed: bool = False,
 ) -> EverettFit:
     """Regularised NNLS Everett table from runs ``(u, y, weight, offset_col[, history[, gain]])``, with one
-    shared coefficient of a per-run ``drift`` regressor when given."""
+    shared coefficient of a per-run ``drift`` regressor when given; ``signed``: masses free in sign."""
 
 @final
 class EverettFit:
@@ -457,6 +462,7 @@ class EverettFolds:
         ridge: float = 1e-9,
         max_iter: int = 500,
         warm_start: Sequence[bool] | np.ndarray | None = None,
+        signed: bool = False,
     ) -> list[tuple[float, float]]: ...
 
 EFFECTS: tuple[str, ...]

@@ -10,7 +10,7 @@ from typing import Sequence
 
 from bmr._core import PRESETS, BmrError
 from bmr.data.formats import FORMATS
-from bmr.identification.lstsq import DEFAULT_GRID, GRIDS
+from bmr.identification.lstsq import DEFAULT_GRID, DENSITIES, GRIDS
 
 BUNDLE_HELP = "bundle folder (manifest.json plus one CSV or Parquet file per run; see `bmr simulate`)"
 
@@ -95,6 +95,10 @@ def _parser() -> argparse.ArgumentParser:
                    help="least-squares table: nodes evenly spaced (uniform) or finer where the branches switch "
                         "and the runs reverse (adaptive); auto (the default): adaptive for a family of "
                         "first-order reversal curves, uniform otherwise")
+    i.add_argument("--density", choices=DENSITIES, default="auto",
+                   help="least-squares table: a Preisach density (nonnegative: loops run counter-clockwise, exact "
+                        "inverse) or masses free in sign (signed: loops run clockwise, the output leads the input; "
+                        "no compensator); auto (the default): signed when the training loops run clockwise")
     i.add_argument("-o", "--out", required=True,
                    help="model file to write (bmr-model/2 JSON: tables, friction, the bundle's quantities and units)")
 

@@ -94,6 +94,8 @@ pub enum IdentificationError {
     },
     /// A negative (or non-finite) cell mass.
     NegativeMass { index: usize, value: f64 },
+    /// A table with a negative cell mass asked for what needs monotone branches (its CBH operator, an inverse).
+    SignedTable { index: usize, value: f64 },
     /// A regularisation weight that is negative or NaN.
     BadParameter { name: &'static str, value: f64 },
     /// An Everett fit without offset columns.
@@ -196,6 +198,11 @@ impl fmt::Display for IdentificationError {
             E::NegativeMass { index, value } => write!(
                 f,
                 "cell mass {index} must be finite and nonnegative, got {value}"
+            ),
+            E::SignedTable { index, value } => write!(
+                f,
+                "the table is signed (cell mass {index} is {value}): its branches need not be monotone, so it \
+                 has no CBH operator and no exact inverse; it only predicts"
             ),
             E::BadParameter { name, value } => {
                 write!(f, "{name} must be finite and nonnegative, got {value}")

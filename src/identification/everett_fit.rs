@@ -1,6 +1,11 @@
 //! Regularised nonnegative least-squares identification of a tabulated Everett function (a Preisach model) from
 //! any excitation, and the identified model itself (simulation, first-order curves).
 //!
+//! A nonnegative density gives loops that run counter-clockwise in the input-output plane (the output lags the
+//! input). With [`EverettFitOptions::signed`] the masses are free in sign: the same regularised least squares
+//! without the bound, for loops that run clockwise (an output that leads its input, e.g. a force driven by the
+//! rate of a displacement). Such a table predicts, but its branches need not be monotone: no exact inverse.
+//!
 //! The output of the model is linear in the cell masses given the input history
 //! ([`super::everett_regressors`]); the masses are found by minimising
 //! `Σ (y − ŷ)² + λ_s ‖D ρ‖² + λ_r ‖w‖²` subject to `w ≥ 0` (monotone tables), where `ρ` is the density
@@ -15,7 +20,8 @@ use super::nnls::nnls_gram_warm;
 use crate::from_curves::CurveData;
 use crate::limits::{self, MAX_CURVE_POINTS, MAX_SOLVER_ITERATIONS};
 
-/// A Preisach model: Everett table on a grid (from nonnegative cell masses) and the output at negative saturation.
+/// A Preisach model: Everett table on a grid (from cell masses, nonnegative unless built signed) and the output at
+/// negative saturation.
 #[derive(Clone, Debug, PartialEq)]
 pub struct EverettModel {
     grid: EverettGrid,
@@ -52,6 +58,37 @@ impl EverettModel {
                 value: offset,
             });
         }
+        Self::with_signed_masses(grid, masses, offset)
+    }
+
+    /// Build from cell masses of either sign (finite): a signed density, whose loops may run clockwise and whose
+    /// branches need not be monotone. [`Self::is_monotone`] says whether the masses happen to be nonnegative.
+    pub fn with_signed_masses(
+        grid: EverettGrid,
+        masses: Vec<f64>,
+        offset: f64,
+    ) -> Result<Self, IdentificationError> {
+        if masses.len() != grid.n_cells() {
+            return Err(IdentificationError::MassCount {
+                intervals: grid.n_intervals(),
+                expected: grid.n_cells(),
+                got: masses.len(),
+            });
+        }
+        if let Some(i) = masses.iter().position(|m| !m.is_finite()) {
+            return Err(IdentificationError::NonFinite {
+                what: "mass",
+                index: i,
+                value: masses[i],
+            });
+        }
+        if !offset.is_finite() {
+            return Err(IdentificationError::NonFinite {
+                what: "offset",
+                index: 0,
+                value: offset,
+            });
+        }
         let node_values = grid.masses_to_nodes(&masses);
         Ok(Self {
             grid,
@@ -59,6 +96,12 @@ impl EverettModel {
             node_values,
             offset,
         })
+    }
+
+    /// Whether every cell mass is nonnegative: a Preisach density, whose branches are monotone and which has an
+    /// exact inverse.
+    pub fn is_monotone(&self) -> bool {
+        self.masses.iter().all(|&m| m >= 0.0)
     }
 
     /// The input grid.
@@ -168,13 +211,20 @@ impl EverettModel {
     }
 
     /// The CBH operator of this Everett table (its first-order curves with `subdivisions` reversals per grid
-    /// interval, see [`Self::first_order_curves_subdivided`]), built without leaving Rust.
+    /// interval, see [`Self::first_order_curves_subdivided`]), built without leaving Rust. A signed table has
+    /// none (its branches need not be monotone): [`IdentificationError::SignedTable`].
     pub fn hysteresis<const N: usize>(
         &self,
         subdivisions: usize,
         opts: &crate::table_builder::BuildOptions,
         initial: crate::cbh::Initial,
     ) -> Result<crate::cbh::Hysteresis<Vec<f64>, N>, IdentificationError> {
+        if let Some(index) = self.masses.iter().position(|&m| m < 0.0) {
+            return Err(IdentificationError::SignedTable {
+                index,
+                value: self.masses[index],
+            });
+        }
         let (asc, desc) = self.first_order_curves_subdivided(subdivisions)?;
         Ok(crate::cbh::Hysteresis::from_curve_data(
             &asc, &desc, opts, initial,
@@ -256,6 +306,9 @@ pub struct EverettFitOptions {
     pub ridge: f64,
     /// Pivoting iterations allowed in the NNLS solve (then it continues by projected coordinate descent).
     pub max_iter: usize,
+    /// Masses free in sign (loops that run clockwise: an output leading its input); false keeps them
+    /// nonnegative (a Preisach density).
+    pub signed: bool,
 }
 
 impl Default for EverettFitOptions {
@@ -264,6 +317,7 @@ impl Default for EverettFitOptions {
             smoothing: 1e-4,
             ridge: 1e-9,
             max_iter: 500,
+            signed: false,
         }
     }
 }
@@ -487,11 +541,15 @@ pub(super) fn solve(
     let m = data.rhs.len();
     let mut c = grid.nodes_to_masses_adjoint(&data.rhs[..nn]);
     c.extend_from_slice(&data.rhs[nn..]);
-    let constrained: Vec<bool> = (0..m).map(|i| i < nn).collect();
+    let constrained: Vec<bool> = (0..m).map(|i| i < nn && !options.signed).collect();
     let sol = nnls_gram_warm(q, &c, &constrained, options.max_iter, warm_start)?;
-    let masses: Vec<f64> = sol.x[..nn].iter().map(|&v| v.max(0.0)).collect();
     let offsets = sol.x[nn..].to_vec();
-    let model = EverettModel::new(grid.clone(), masses, offsets[0])?;
+    let model = if options.signed {
+        EverettModel::with_signed_masses(grid.clone(), sol.x[..nn].to_vec(), offsets[0])?
+    } else {
+        let masses: Vec<f64> = sol.x[..nn].iter().map(|&v| v.max(0.0)).collect();
+        EverettModel::new(grid.clone(), masses, offsets[0])?
+    };
     // Data-term RSS from the unregularised normal equations: yy − 2 zᵀ r + zᵀ G z, z = [C w, offsets].
     let mut z = model.node_values().to_vec();
     z.extend_from_slice(&offsets);
@@ -802,6 +860,75 @@ mod tests {
             .map(|(x, y)| (x - y).abs())
             .fold(0.0, f64::max);
         assert!(err < 1e-4, "held-out error {err}");
+    }
+
+    #[test]
+    fn a_signed_table_fits_loops_that_run_clockwise() {
+        // Negative hysteretic masses on a positive reversible diagonal: every loop runs clockwise (the output
+        // leads the input), which no nonnegative density can produce.
+        let grid = EverettGrid::uniform(-1.0, 1.0, 10).unwrap();
+        let masses: Vec<f64> = (0..grid.n_cells())
+            .map(|k| {
+                let m = 0.02 + 0.01 * ((k * 37) % 7) as f64;
+                if (0..grid.n_intervals()).any(|i| grid.cell_index(i, i) == k) {
+                    m + 0.3
+                } else {
+                    -m
+                }
+            })
+            .collect();
+        let truth = EverettModel::with_signed_masses(grid.clone(), masses, -2.0).unwrap();
+        assert!(!truth.is_monotone());
+        assert!(matches!(
+            EverettModel::new(grid.clone(), truth.masses().to_vec(), -2.0),
+            Err(IdentificationError::NegativeMass { .. })
+        ));
+        let mut u = triangle(200, &[1.0]);
+        u.extend(triangle(97, &[0.9, 0.7, 0.5, 0.3, 0.8, 0.2, 0.6]));
+        let y = truth.simulate(&u, None);
+        let w = alloc::vec![1.0; u.len()];
+        let fit_with = |signed| {
+            let opts = EverettFitOptions {
+                smoothing: 0.0,
+                signed,
+                ..Default::default()
+            };
+            let run = EverettRun {
+                u: &u,
+                y: &y,
+                weight: &w,
+                offset_col: 0,
+                history: &[],
+                gain: 1.0,
+                drift: &[],
+            };
+            fit_everett(&grid, &[run], 1, opts).unwrap()
+        };
+        let signed = fit_with(true);
+        assert!(signed.rms < 1e-6, "signed rms {}", signed.rms);
+        assert!(!signed.model.is_monotone());
+        let test = triangle(50, &[0.95, 0.45, 0.65]);
+        let a = truth.simulate(&test, None);
+        let b = signed.model.simulate(&test, None);
+        let err = a
+            .iter()
+            .zip(&b)
+            .map(|(x, y)| (x - y).abs())
+            .fold(0.0, f64::max);
+        assert!(err < 1e-4, "held-out error {err}");
+        assert!(matches!(
+            signed
+                .model
+                .hysteresis::<16>(1, &Default::default(), crate::cbh::Initial::Negative),
+            Err(IdentificationError::SignedTable { .. })
+        ));
+        let bounded = fit_with(false);
+        assert!(bounded.model.is_monotone());
+        assert!(
+            bounded.rms > 1e3 * signed.rms.max(1e-9),
+            "nonnegative rms {}",
+            bounded.rms
+        );
     }
 
     #[test]

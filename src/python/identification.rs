@@ -149,15 +149,20 @@ pub struct PyEverettModel {
 
 #[pymethods]
 impl PyEverettModel {
-    /// Build from grid nodes (strictly increasing), packed nonnegative cell masses and the negative-saturation
-    /// output `offset`.
+    /// Build from grid nodes (strictly increasing), packed cell masses (nonnegative unless `signed`) and the
+    /// negative-saturation output `offset`.
     #[new]
-    #[pyo3(signature = (grid, masses, offset))]
-    fn new(grid: Array<'_>, masses: Array<'_>, offset: f64) -> PyResult<Self> {
+    #[pyo3(signature = (grid, masses, offset, signed=false))]
+    fn new(grid: Array<'_>, masses: Array<'_>, offset: f64, signed: bool) -> PyResult<Self> {
         let grid = EverettGrid::new(extract_f64_array(&grid, "grid")?)
             .map_err(|e| identification_err("EverettModel", e))?;
-        let inner = EverettModel::new(grid, extract_f64_array(&masses, "masses")?, offset)
-            .map_err(|e| identification_err("EverettModel", e))?;
+        let masses = extract_f64_array(&masses, "masses")?;
+        let inner = if signed {
+            EverettModel::with_signed_masses(grid, masses, offset)
+        } else {
+            EverettModel::new(grid, masses, offset)
+        }
+        .map_err(|e| identification_err("EverettModel", e))?;
         Ok(Self { inner })
     }
 
@@ -175,7 +180,12 @@ impl PyEverettModel {
         slf: &Bound<'py, Self>,
     ) -> PyResult<(
         Bound<'py, PyAny>,
-        (Bound<'py, PyArray1<f64>>, Bound<'py, PyArray1<f64>>, f64),
+        (
+            Bound<'py, PyArray1<f64>>,
+            Bound<'py, PyArray1<f64>>,
+            f64,
+            bool,
+        ),
     )> {
         let py = slf.py();
         let me = slf.get();
@@ -185,8 +195,16 @@ impl PyEverettModel {
                 PyArray1::from_slice(py, me.inner.grid().nodes()),
                 PyArray1::from_slice(py, me.inner.masses()),
                 me.inner.offset(),
+                !me.inner.is_monotone(),
             ),
         ))
+    }
+
+    /// Whether every cell mass is nonnegative (a Preisach density: monotone branches, an exact inverse); false
+    /// for a signed table (loops that may run clockwise).
+    #[getter]
+    fn monotone(&self) -> bool {
+        self.inner.is_monotone()
     }
 
     /// Input grid nodes.
@@ -374,7 +392,7 @@ fn drift_columns(drift: Option<Vec<Array<'_>>>, runs: usize) -> PyResult<Vec<Vec
 /// regressor whose single coefficient is fitted with the table (e.g. the running integral of the input for a
 /// leakage), reported as `EverettFit.drift`. Returns an `EverettFit`.
 #[pyfunction]
-#[pyo3(signature = (grid, runs, n_offsets=1, *, smoothing=1e-4, ridge=1e-9, max_iter=500, drift=None))]
+#[pyo3(signature = (grid, runs, n_offsets=1, *, smoothing=1e-4, ridge=1e-9, max_iter=500, drift=None, signed=false))]
 #[allow(clippy::too_many_arguments)]
 fn fit_everett<'py>(
     py: Python<'py>,
@@ -385,6 +403,7 @@ fn fit_everett<'py>(
     ridge: f64,
     max_iter: usize,
     drift: Option<Vec<Array<'py>>>,
+    signed: bool,
 ) -> PyResult<PyEverettFit> {
     let grid = EverettGrid::new(extract_f64_array(&grid, "grid")?)
         .map_err(|e| identification_err("Everett table fit", e))?;
@@ -398,6 +417,7 @@ fn fit_everett<'py>(
         smoothing,
         ridge,
         max_iter,
+        signed,
     };
     let fit = py
         .detach(|| {
@@ -611,7 +631,7 @@ impl PyEverettFolds {
     /// Every fold's held-out `(sse, weight)` (output units², row weights) of the table fitted on the rest with
     /// this `smoothing` and `ridge`; each fold's solve is warm-started from its solve at the nearest smoothing,
     /// its first one from `warm_start` (a passive set of `n_unknowns` entries, e.g. a fit of the whole).
-    #[pyo3(signature = (smoothing=1e-4, *, ridge=1e-9, max_iter=500, warm_start=None))]
+    #[pyo3(signature = (smoothing=1e-4, *, ridge=1e-9, max_iter=500, warm_start=None, signed=false))]
     fn score(
         &mut self,
         py: Python<'_>,
@@ -619,11 +639,13 @@ impl PyEverettFolds {
         ridge: f64,
         max_iter: usize,
         warm_start: Option<Vec<bool>>,
+        signed: bool,
     ) -> PyResult<Vec<(f64, f64)>> {
         let options = EverettFitOptions {
             smoothing,
             ridge,
             max_iter,
+            signed,
         };
         let inner = &mut self.inner;
         let scores = py
@@ -673,6 +695,7 @@ impl PyEverettRegression {
             smoothing,
             ridge,
             max_iter,
+            ..EverettFitOptions::default()
         };
         let inner = py
             .detach(|| {

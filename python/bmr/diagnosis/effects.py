@@ -106,9 +106,11 @@ class Effect(ABC):
         """Whether the nonlinear parameter is continuous (refined by a golden-section search)."""
         return False
 
-    def signature_missing(self, fitter: Any, before: Any) -> str:
+    def signature_missing(self, fitter: Any, before: Any, after: Any) -> str:
         """Why the residual of the configuration ``before`` (without this effect) does not show the effect's own
-        mechanism signature ("" when it does, or when the effect checks none beyond its held-out gain and range)."""
+        mechanism signature, or the configuration ``after`` (``before`` plus this effect fitted on all data: its
+        columns last in ``after.linear``, their coefficients last in ``after.beta``) contradicts it ("" when it
+        does, or when the effect checks none beyond its held-out gain and range)."""
         return ""
 
 
@@ -299,6 +301,28 @@ class ThermalDrift(Effect):
     def detail(self, value, beta) -> dict[str, float]:
         return {"carried_share": self.carried_share(np.asarray(beta))}
 
+    # How far outside [0, 1] the fitted share of the heat carried over between runs may fall (estimation error)
+    # before the runs' gains are judged not to follow the heating history.
+    CARRIED_SHARE_TOLERANCE = 0.5
+
+    def signature_missing(self, fitter: Any, before: Any, after: Any) -> str:
+        """The gain follows the coils' heating: one state driven by ``(I/I_full)^2`` through the whole session, so
+        each run starts with at most the heat the runs before it left (a share in [0, 1]: 1 back to back, 0 after
+        long rests) and heats further with its own current. Fitted freely (``after``: the heating of each run from
+        cold and the heat carried over as separate columns), a share far outside [0, 1]
+        (:attr:`CARRIED_SHARE_TOLERANCE`) means the carried-over column fits something else: gains that change
+        from recording to recording (a calibration per run) and not with the current's history."""
+        beta = np.asarray(after.beta, dtype=float)[-3:]
+        if beta.size < 3 or not beta[0] != 0:
+            return ""
+        share = float(beta[2] / beta[0])
+        tol = self.CARRIED_SHARE_TOLERANCE
+        if -tol <= share <= 1.0 + tol:
+            return ""
+        return (f"the heat each run would carry over from the runs before is {share:.2f} times what the coils' "
+                "current history leaves (a share in [0, 1]): the gain changes between recordings, not with the "
+                "heating")
+
     def refine(self) -> bool:
         return True
 
@@ -404,7 +428,7 @@ class SensorDrift(Effect):
     # Every run left out, the trend of the others must keep at least this share of the trend over all runs.
     LEAVE_ONE_OUT_SHARE = 0.25
 
-    def signature_missing(self, fitter: Any, before: Any) -> str:
+    def signature_missing(self, fitter: Any, before: Any, after: Any) -> str:
         """A sensor's zero moves with time all through the session: the residual of ``before``, fitted on a straight
         line in time over all runs, keeps at least :attr:`LEAVE_ONE_OUT_SHARE` of that slope, in the same
         direction, with any one run left out. A step between one recording and the others (the tables identified
@@ -603,9 +627,10 @@ class RunGainOffset(Effect):
     # than WITHIN_RUN_TREND of the change it predicts between each run's halves.
     UNTRENDED_SHARE = 0.25
     WITHIN_RUN_TREND = 0.5
+    WITHIN_RUN_EXPLAINED = 0.2
     TREND_RUNS = 5
 
-    def signature_missing(self, fitter: Any, before: Any) -> str:
+    def signature_missing(self, fitter: Any, before: Any, after: Any) -> str:
         """A calibration differs between recordings and holds along each. The residual of ``before`` is fitted in
         each run as an offset plus a gain on the sensed output (field output and friction), on the whole run and
         separately on its two halves; the runs' corrections (RMS over the samples, around their mean) must
@@ -616,7 +641,8 @@ class RunGainOffset(Effect):
           halves of one run (a drift, a leakage or a heating moves the output along a recording), and
         * not follow a straight line in the runs' times (at least :attr:`TREND_RUNS` runs; explaining more than
           ``1 -`` :attr:`UNTRENDED_SHARE` of their spread) along which each run also moves from its first half to its second (at least
-          :attr:`WITHIN_RUN_TREND` of the change the line predicts): what a drift along the session leaves."""
+          :attr:`WITHIN_RUN_TREND` of the change the line predicts, the line explaining at least
+          :attr:`WITHIN_RUN_EXPLAINED` of the change between the halves): what a drift along the session leaves."""
         data = fitter.data
         if len(data.runs) < 2:
             return ""
@@ -666,12 +692,18 @@ class RunGainOffset(Effect):
         predicted = [x @ (line[1] * dt) for x, (_, dt) in zip(designs, halves)]
         measured = [x @ d for x, (d, _) in zip(designs, halves)]
         norm = sum(float(np.sum(p * p)) for p in predicted)
-        along = sum(float(np.sum(m * p)) for m, p in zip(measured, predicted)) / norm if norm > 0 else 0.0
-        if along < self.WITHIN_RUN_TREND:
+        changes = sum(float(np.sum(m * m)) for m in measured)
+        dot = sum(float(np.sum(m * p)) for m, p in zip(measured, predicted))
+        along = dot / norm if norm > 0 else 0.0
+        # The runs' halves also differ where the tables err differently over the input range each half covers:
+        # a drift explains most of that change, not a small part that happens to line up.
+        explained = dot * dot / (norm * changes) if norm > 0 and changes > 0 else 0.0
+        if along < self.WITHIN_RUN_TREND or explained < self.WITHIN_RUN_EXPLAINED:
             return ""
         return (f"the per-run corrections follow a trend in time ({100 * (1 - detrended / between):.0f} % of their "
                 f"spread between runs) that moves each run along it too ({100 * along:.0f} % of the trend's change "
-                "between its halves): a drift along the session, not a calibration per recording")
+                f"between its halves, {100 * explained:.0f} % of their change): a drift along the session, not a "
+                "calibration per recording")
 
     def params(self, value, beta, path):
         beta = np.asarray(beta, dtype=float)
@@ -790,28 +822,57 @@ class Viscous(Effect):
     def params(self, value, beta, path):
         return {"c": float(beta[0])}
 
-    def signature_missing(self, fitter: Any, before: Any) -> str:
-        """A loss in every run that moves: each run whose input rate (RMS) is at least a tenth of the fastest run's,
-        its residual under ``before`` fitted alone on the rate (with a constant), must give ``c > 0`` — the
-        residual grows with the rate, in the direction of the motion, in runs of every speed."""
+    # Share of a run's rate (RMS) that its direction of motion and a constant must leave unexplained for the run
+    # to move at more than one speed: below it, a loss in proportion to the rate is a wider loop at that speed.
+    SECOND_SPEED_SHARE = 0.1
+
+    def signature_missing(self, fitter: Any, before: Any, after: Any) -> str:
+        """Loop width growing with the input's rate across speeds. Tables identified at one drive speed absorb the
+        loss at that speed as a wider loop, so the residual of ``before`` is that width change ``±w`` (the sign of
+        the motion, the same in every run) plus the loss's growth with the rate beyond it: fitted on all runs as
+        ``[each run's constant, sign(du/dt), du/dt]``, the rate's coefficient ``c`` (N·mm per A/s) must be
+        positive, and so must it be, fitted the same way, in every run that moves at more than one speed itself
+        (its rate not a constant times its direction, :attr:`SECOND_SPEED_SHARE`). A time shift (``time_delay``,
+        ``coil_lag``, ``rate_dependence``) lowers the output where it rises and gives ``c < 0``; when every sample
+        moves at one speed a loss cannot be told from a wider loop."""
         data = fitter.data
         residual, _ = fitter.fit(before.path, before.linear)
         rate = self.columns(data, None, residual, fitter.model)[:, 0]
-        parts = list(zip(_split(data, residual), _split(data, rate), data.runs))
-        speeds = [float(np.sqrt(np.mean(q * q))) if q.size else 0.0 for _, q, _ in parts]
-        fastest = max(speeds, default=0.0)
-        if not fastest > 0:
+        ok = np.isfinite(residual)
+        if not np.any(rate[ok]):
             return "the input never moves"
         against = []
-        for (r, q, run), speed in zip(parts, speeds):
-            ok = np.isfinite(r)
-            if speed < 0.1 * fastest or np.count_nonzero(ok) < 3:
+        bounds = _run_bounds(data)
+        constants = np.zeros((rate.size, len(data.runs)))
+        for j, run in enumerate(data.runs):
+            lo, hi = bounds[j], bounds[j + 1]
+            constants[lo:hi, j] = 1.0
+            keep = ok[lo:hi]
+            q, r = rate[lo:hi][keep], residual[lo:hi][keep]
+            if r.size < 3 or not np.any(q):
                 continue
-            x = np.column_stack([np.ones(np.count_nonzero(ok)), q[ok]])
-            coef = np.linalg.lstsq(x, r[ok], rcond=None)[0]
-            if not coef[1] > 0:
-                against.append(f"{run.name}: c = {coef[1]:.3g}")
-        return ("the residual opposes the motion in " + ", ".join(against)) if against else ""
+            c, speeds = self._rate_beyond_width(np.ones((q.size, 1)), q, r)
+            if speeds >= self.SECOND_SPEED_SHARE and not c > 0:
+                against.append(f"{run.name}: c = {c:.3g}")
+        used = np.any(constants[ok], axis=0)
+        c, speeds = self._rate_beyond_width(constants[ok][:, used], rate[ok], residual[ok])
+        if speeds < self.SECOND_SPEED_SHARE:
+            return ("the input moves at one speed: a loss in proportion to the rate is a wider loop there (record "
+                    "the same loop at a second drive speed)")
+        if not c > 0:
+            return f"the residual does not grow with the rate beyond the loop's width (c = {c:.3g})"
+        return ("the residual opposes the motion beyond the loop width in " + ", ".join(against)) if against else ""
+
+    @staticmethod
+    def _rate_beyond_width(constants: np.ndarray, rate: np.ndarray, residual: np.ndarray) -> tuple[float, float]:
+        """The coefficient of ``rate`` in the least-squares fit of ``residual`` on ``[constants, sign(rate),
+        rate]`` and the share (RMS) of the rate the other columns leave unexplained (0: one speed)."""
+        x = np.column_stack([constants, np.sign(rate), rate])
+        beyond = rate - x[:, :-1] @ np.linalg.lstsq(x[:, :-1], rate, rcond=None)[0]
+        share = float(np.sqrt(np.sum(beyond ** 2) / np.sum(rate ** 2)))
+        if share < 1e-9:
+            return math.nan, share
+        return float(np.linalg.lstsq(x, residual, rcond=None)[0][-1]), share
 
 
 LIBRARY: tuple[Effect, ...] = (CoilLag(), ThermalDrift(), FrictionCurrent(), FrictionHarmonics(), TorqueRipple(),

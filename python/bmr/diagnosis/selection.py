@@ -19,9 +19,10 @@ A named effect is physical: a candidate whose parameters, refitted on all data, 
 of the effect vocabulary (``bmr.effect_parameters()``) — or that pushes an effect already accepted outside its
 range — is not that effect and is rejected (the next best candidate is tried; the structure may still be learned
 by the sparse regression). A candidate whose mechanism signature the residual does not show
-(:meth:`bmr.diagnosis.effects.Effect.signature_missing`: a ``viscous`` loss that opposes the motion in some run, a
-``sensor_drift`` whose trend one recording makes, a ``run_gain_offset`` that changes along a recording or follows
-the session's time) is rejected the same way, and is no alternative to another either. When another accepted candidate of the same round explains as much (the paired fold
+(:meth:`bmr.diagnosis.effects.Effect.signature_missing`: a ``viscous`` loss whose loop width does not grow with the
+rate across drive speeds, a ``thermal_drift`` that would carry more heat into a run than the current's history
+leaves, a ``sensor_drift`` whose trend one recording makes, a ``run_gain_offset`` that changes along a recording or
+follows the session's time) is rejected the same way, and is no alternative to another either. When another accepted candidate of the same round explains as much (the paired fold
 gains differ by less than their 95 % interval) and is no longer needed once the chosen one is in, the two are
 reported as indistinguishable on this excitation (:class:`Alternative`), with what would separate them.
 
@@ -670,7 +671,7 @@ def forward_selection(fitter: Fitter, *, library: Sequence[Effect] = LIBRARY, ma
             if bad:
                 c.unphysical = "; ".join(f"{name}: {', '.join(v)}" for name, v in bad.items())
                 continue
-            missing = c.effect.signature_missing(fitter, config)
+            missing = c.effect.signature_missing(fitter, config, trial)
             if missing:
                 c.no_signature = missing
                 continue
@@ -760,7 +761,7 @@ def _alternatives(fitter: Fitter, config: Configuration, best: Candidate, others
         if _unphysical(fitter, trial, list(field_effects) + ([c.effect] if c.effect.field else [])):
             continue
         # An alternative is a name too: its mechanism signature must be in the residual.
-        missing = c.effect.signature_missing(fitter, config)
+        missing = c.effect.signature_missing(fitter, config, trial)
         if missing:
             c.no_signature = missing
             continue

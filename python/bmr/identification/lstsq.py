@@ -12,7 +12,14 @@ others were not.
 Branches that do not close are a finding, not an error: when the output at a saturation end moves from one visit
 to the next within a run (a charge measurement integrating a leakage current), the leakage rate — one coefficient
 of the running input integral shared by all runs — is identified jointly with the table and reported
-(``drift="auto"``). The nonnegative solve always terminates; its conditioning is reported."""
+(``drift="auto"``). The nonnegative solve always terminates; its conditioning is reported.
+
+A nonnegative Preisach density only makes loops that run counter-clockwise in the input-output plane: the output
+lags the input. Loops that run clockwise (an output that leads its input: a damper's force, driven by the rate of
+its displacement) are a finding too: which way the loops turn is measured (:func:`loop_orientation`), and
+where it says clockwise the table is identified with masses free in sign (``density="auto"``). Such a table
+predicts, but its branches need not be monotone and it has no exact inverse (the model then refuses a
+compensator)."""
 from __future__ import annotations
 
 import math
@@ -31,9 +38,17 @@ from bmr.identification.signals import run_input, run_output, running_integral
 from bmr.identification.spans import SATURATION_TOL, evaluation_start, input_range_of
 
 __all__ = ["RunCalibration", "LstsqTables", "fit_tables_lstsq", "row_weights", "INITIAL_STATES", "DRIFTS", "GRIDS",
+           "DENSITIES", "CLOCKWISE_SHARE", "loop_orientation", "resolved_density",
            "DEFAULT_GRID", "table_nodes", "resolved_grid", "saturation_closure", "Conditioning", "OPEN_BRANCH_SHARE", "MAX_ROWS"]
 
 INITIAL_STATES = ("estimate", "saturation", "negative")
+DENSITIES = ("auto", "nonnegative", "signed")
+# Loops count as clockwise when the output while the input rises exceeds the output while it falls, at the same
+# input, by at least this share of the output span (:func:`loop_orientation`); a single-valued map with noise
+# gives next to none, a Preisach system a negative share.
+CLOCKWISE_SHARE = 0.02
+# Input bins in which rising and falling outputs are compared.
+ORIENTATION_BINS = 32
 DRIFTS = ("none", "leakage", "auto")
 # Branches count as open when a run's output at one saturation end moves by more than this share of its output
 # span between visits (a closed Preisach loop repeats its saturation outputs to the noise).
@@ -109,6 +124,54 @@ class Conditioning:
                 "iterations": self.iterations}
 
 
+def loop_orientation(us: Sequence[np.ndarray], ys: Sequence[np.ndarray], bins: int = ORIENTATION_BINS) -> float:
+    """Which way the runs' loops turn: the output measured while the input rises minus the output measured while it
+    falls, at the same input, relative to the outputs' span. Each sample counts as rising or falling by the step
+    that led to it (a jump counts where it lands, so sparse captures are read right; samples at rest count
+    neither); the difference of the mean rising and falling outputs in each of ``bins`` input bins is averaged,
+    weighted by the fewer of the two counts. Positive: loops that run clockwise (the output leads the input),
+    negative: counter-clockwise (the output lags, a Preisach system), about 0 for a single-valued map; 0 when no
+    bin holds both."""
+    u_all = np.concatenate([np.asarray(u, dtype=float) for u in us]) if us else np.zeros(0)
+    y_all = np.concatenate([np.asarray(y, dtype=float) for y in ys]) if ys else np.zeros(0)
+    ok = np.isfinite(u_all) & np.isfinite(y_all)
+    if not ok.any():
+        return 0.0
+    lo, hi = float(np.min(u_all[ok])), float(np.max(u_all[ok]))
+    span = float(np.ptp(y_all[ok]))
+    if not (hi > lo and span > 0):
+        return 0.0
+    sums = np.zeros((2, bins))
+    counts = np.zeros((2, bins))
+    for u, y in zip(us, ys):
+        u = np.asarray(u, dtype=float)
+        y = np.asarray(y, dtype=float)
+        step = np.diff(u)
+        at = np.clip(((u[1:] - lo) / (hi - lo) * bins).astype(int, copy=False), 0, bins - 1) \
+            if u.size > 1 else np.zeros(0, dtype=int)
+        good = np.isfinite(step) & np.isfinite(y[1:])
+        for row, moving in ((0, good & (step > 0)), (1, good & (step < 0))):
+            np.add.at(sums[row], at[moving], y[1:][moving])
+            np.add.at(counts[row], at[moving], 1.0)
+    weight = np.minimum(counts[0], counts[1])
+    if not weight.sum() > 0:
+        return 0.0
+    both = weight > 0
+    diff = sums[0][both] / counts[0][both] - sums[1][both] / counts[1][both]
+    return float(np.sum(weight[both] * diff) / weight.sum() / span)
+
+
+def resolved_density(density: str, us: Sequence[np.ndarray], ys: Sequence[np.ndarray]) -> str:
+    """The density ``"auto"`` stands for on runs with inputs ``us`` and outputs ``ys``: ``"signed"`` when their
+    loops run clockwise (:func:`loop_orientation` at least :data:`CLOCKWISE_SHARE`), else ``"nonnegative"``.
+    Other values are returned as they are."""
+    if density not in DENSITIES:
+        raise BmrError(f"density must be one of {', '.join(DENSITIES)}, got {density!r}")
+    if density != "auto":
+        return density
+    return "signed" if loop_orientation(us, ys) >= CLOCKWISE_SHARE else "nonnegative"
+
+
 def saturation_closure(us: Sequence[np.ndarray], ys: Sequence[np.ndarray], lo: float, hi: float,
                        tol: float) -> float:
     """The largest change of a run's output between its visits to one saturation end (each visit: the mean
@@ -132,7 +195,9 @@ def saturation_closure(us: Sequence[np.ndarray], ys: Sequence[np.ndarray], lo: f
 class LstsqTables:
     """Result of the least-squares table identification: the Everett model (its offset is the common offset, the
     mean over runs), its first-order curves, each run's calibration and the sample account. ``rms``: RMS residual
-    over the regression rows (output units)."""
+    over the regression rows (output units). ``orientation``: the training loops' :func:`loop_orientation`
+    (positive: clockwise); ``density``: ``"nonnegative"`` (a Preisach density) or ``"signed"`` (masses free in
+    sign, identified because the loops run clockwise)."""
 
     everett: Any
     ascending: list[Curve]
@@ -150,6 +215,21 @@ class LstsqTables:
     conditioning: Conditioning | None = None
     # The final solve's passive set (unknowns off their bound): a warm start for neighbouring problems.
     passive: np.ndarray | None = None
+    orientation: float = 0.0
+    density: str = "nonnegative"
+
+    @property
+    def signed(self) -> bool:
+        return self.density == "signed"
+
+    def orientation_note(self) -> str:
+        """The loops' direction in words, and what was identified for it."""
+        if self.signed:
+            return (f"loops run clockwise (rising above falling by {100 * self.orientation:.3g} % of the output "
+                    f"span): output leads input, a rate-driven output (force from a velocity); a signed density "
+                    f"was identified (no exact inverse)")
+        turn = "clockwise" if self.orientation > 0 else "counter-clockwise"
+        return f"loops run {turn} (rising minus falling output {100 * self.orientation:.3g} % of the output span)"
 
     @property
     def offsets(self) -> np.ndarray:
@@ -198,6 +278,7 @@ class LstsqTables:
                 "input_range": list(self.input_range), "offset": self.offset, "offset_prior": self.offset_prior(),
                 "runs": [r.to_dict() for r in self.runs], "samples": self.samples.to_dict(),
                 "settings": dict(self.settings), "leakage_rate": self.leakage_rate, "closure": self.closure,
+                "orientation": self.orientation, "density": self.density, "loops": self.orientation_note(),
                 "conditioning": self.conditioning.to_dict() if self.conditioning is not None else None}
 
     def __repr__(self) -> str:
@@ -212,7 +293,7 @@ class LstsqTables:
                  f"condition {cond.condition:.3g}")
         return (f"LstsqTables({self.n_intervals} intervals over {lo:.6g}..{hi:.6g}, {len(self.runs)} runs "
                 f"({est} initial states estimated{gains}){leak}, RMS {self.rms:.4g} on {self.n_rows} rows; "
-                f"{self.samples.used} of {self.samples.total} samples used{solve})")
+                f"{self.samples.used} of {self.samples.total} samples used{solve}; {self.orientation_note()})")
 
 
 def resolved_grid(grid: str, us: Sequence[np.ndarray]) -> str:
@@ -283,8 +364,8 @@ def table_nodes(us: Sequence[np.ndarray], ys: Sequence[np.ndarray], lo: float, h
 
 
 def _fit(grid: np.ndarray, packed: list[tuple], n_offsets: int, smoothing: float, ridge: float,
-         drift: list[np.ndarray] | None = None) -> _core.EverettFit:
-    return _core.fit_everett(grid, packed, n_offsets, smoothing=smoothing, ridge=ridge, drift=drift)
+         drift: list[np.ndarray] | None = None, signed: bool = False) -> _core.EverettFit:
+    return _core.fit_everett(grid, packed, n_offsets, smoothing=smoothing, ridge=ridge, drift=drift, signed=signed)
 
 
 def row_weights(us: Sequence[np.ndarray], lo: float, hi: float, initial_state: str,
@@ -319,6 +400,7 @@ def fit_tables_lstsq(
     exclude: Mapping[str, np.ndarray] | None = None,
     drift: str = "none",
     grid: str = DEFAULT_GRID,
+    density: str = "nonnegative",
     per_run_offset: bool | None = None,
     start_at_saturation: bool | None = None,
 ) -> LstsqTables:
@@ -345,6 +427,10 @@ def fit_tables_lstsq(
 
     ``grid``: where the table's nodes lie, ``"auto"`` (default: adaptive for a family of first-order reversal curves), ``"uniform"`` or ``"adaptive"``
     (:func:`table_nodes`; the one used is in ``settings["grid"]``).
+
+    ``density``: ``"nonnegative"`` (default: a Preisach density, monotone branches, an exact inverse), ``"signed"``
+    (cell masses free in sign: loops that run clockwise) or ``"auto"`` (signed when the runs' loops run clockwise,
+    :func:`resolved_density`; the one used is ``density`` of the result and ``settings["density"]``).
 
     ``per_run_offset`` / ``start_at_saturation``: the former boolean spellings of ``offsets`` / ``initial_state``.
     """
@@ -373,6 +459,9 @@ def fit_tables_lstsq(
     if not hi > lo:
         raise BmrError(f"runs {', '.join(repr(r.name) for r in runs)}: the input never varies; nothing to identify")
     grid = resolved_grid(grid, us)
+    orientation = loop_orientation(us, ys)
+    density = resolved_density(density, us, ys)
+    signed = density == "signed"
     nodes = table_nodes(us, ys, lo, hi, n_intervals, grid)
     tol = SATURATION_TOL * (hi - lo)
     closure = saturation_closure(us, ys, lo, hi, tol)
@@ -430,11 +519,11 @@ def fit_tables_lstsq(
             first = [(np.ascontiguousarray(us[i]), np.ascontiguousarray(ys[i]), known[i], j if per_run else 0)
                      for j, i in enumerate(with_rows)]
             res = _fit(nodes, first, len(with_rows) if per_run else 1, smoothing, ridge,
-                       [integrals[i] for i in with_rows] if integrals is not None else None)
+                       [integrals[i] for i in with_rows] if integrals is not None else None, signed)
         else:
-            res = _fit(nodes, pack(), n_off, smoothing, ridge, integrals)
+            res = _fit(nodes, pack(), n_off, smoothing, ridge, integrals, signed)
     else:
-        res = _fit(nodes, pack(), n_off, smoothing, ridge, integrals)
+        res = _fit(nodes, pack(), n_off, smoothing, ridge, integrals, signed)
     if integrals is not None:
         rate = res.drift if res.drift is not None else 0.0
 
@@ -449,7 +538,7 @@ def fit_tables_lstsq(
                 histories[k] = list(h)
         if gains:
             run_gains = _fit_gains(model, us, own, weights, histories, offs, per_run, gain_prior)
-        res = _fit(nodes, pack(), n_off, smoothing, ridge, integrals)
+        res = _fit(nodes, pack(), n_off, smoothing, ridge, integrals, signed)
         if integrals is not None:
             rate = res.drift if res.drift is not None else 0.0
 
@@ -457,7 +546,7 @@ def fit_tables_lstsq(
     offs = res.offsets
     run_offsets = offs if per_run else np.full(len(runs), offs[0])
     common = float(np.mean(run_offsets))
-    everett = _core.EverettModel(model.grid, model.masses, common)
+    everett = _core.EverettModel(model.grid, model.masses, common, signed)
     calib = []
     for k, (r, u, y, w) in enumerate(zip(runs, us, ys, weights)):
         part = run_gains[k] * everett.simulate(u, 0.0, histories[k])
@@ -479,17 +568,19 @@ def fit_tables_lstsq(
                                     smoothing=smoothing, ridge=ridge, offsets=offsets, gains=gains,
                                     gain_prior=gain_prior, initial_state=initial_state, iterations=iterations,
                                     max_rows=max_rows, curve_subdivisions=curve_subdivisions, exclude=exclude,
-                                    drift="none")
+                                    drift="none", grid=grid, density=density)
     asc, desc = everett.first_order_curves(subdivisions=curve_subdivisions)
     settings = {"smoothing": smoothing, "ridge": ridge, "offsets": offsets, "gains": gains,
                 "gain_prior": gain_prior, "initial_state": initial_state, "iterations": iterations,
-                "max_rows": max_rows, "curve_subdivisions": curve_subdivisions, "drift": drift, "grid": grid}
+                "max_rows": max_rows, "curve_subdivisions": curve_subdivisions, "drift": drift, "grid": grid,
+                "density": density}
     return LstsqTables(everett=everett, ascending=[(np.asarray(u), np.asarray(y)) for u, y in asc],
                        descending=[(np.asarray(u), np.asarray(y)) for u, y in desc], input_range=(lo, hi),
                        rms=res.rms, n_rows=res.n_rows, iterations=res.iterations,
                        runs=calib, samples=account, n_intervals=int(n_intervals), settings=settings,
                        leakage_rate=rate if integrals is not None else None, closure=closure,
-                       conditioning=Conditioning.of(res), passive=np.asarray(res.passive))
+                       conditioning=Conditioning.of(res), passive=np.asarray(res.passive),
+                       orientation=orientation, density=density)
 
 
 def _fit_gains(model: Any, us: Sequence[np.ndarray], ys: Sequence[np.ndarray], weights: Sequence[np.ndarray],

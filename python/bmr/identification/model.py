@@ -8,7 +8,8 @@ File layout (JSON)::
                     "angle": {"name": "angle", "unit": "rad", "column": "theta_rad"} | null},
      "friction": {"c0": ..., "a": [...], "b": [...], "order": K, "stderr": {...}} | null,
      "hysteresis": {"ascending": [[[u...], [y...]], ...], "descending": [[[u...], [y...]], ...],
-                    "initial": "negative", "build": {"subdivisions": 4, "node_tolerance": 1e-4}},
+                    "initial": "negative", "build": {"subdivisions": 4, "node_tolerance": 1e-4},
+                    "signed_table": {"nodes": [...], "masses": [...], "offset": y0}},
      "limits": {"<input column>": [lo, hi], "<output column>": [lo, hi]},
      "converter_gain_a_per_v": 0.125,
      "extensions": [{"name": ..., "params": {...}, "tracking": {...}, "in_loop": true}, ...],
@@ -23,6 +24,12 @@ found; every other problem is a ``bmr.ModelFileError`` naming the field. Non-fin
 (a friction score that could not be computed reads back as infinity). Files are written atomically, and a model
 that cannot be read back is refused before anything is written: every model that saves, loads, and saves again to
 the same bytes.
+
+``hysteresis.signed_table`` (optional) is a Preisach table whose cell masses are free in sign, identified where the
+loops run clockwise (the output leads the input; ``bmr.identification.lstsq``): the forward core of
+:meth:`Model.simulate`, on its grid ``nodes`` (input unit), from negative saturation at output ``offset``. The
+curves beside it are the nonnegative table's (the monotone operator the stages and the diagnosis run). A signed
+table has no exact inverse: such a model refuses a compensator and a firmware export.
 
 ``extensions`` are the effects a diagnosis added (names and parameters from the effect vocabulary,
 ``bmr.effect_parameters(model_entries=True)``; an unknown name or an out-of-range parameter is an error at load
@@ -74,7 +81,9 @@ class Model:
     or None; ``quantities``: what the input and output are (default: the BMR actuator's current A → torque N·mm);
     ``limits``: ``{input column: [lo, hi], output column: [lo, hi]}`` (e.g. ``current_a``, ``torque_nmm``);
     ``converter_gain_a_per_v``: the voltage-to-current converter gain (paper: 0.125 A/V); ``extensions``:
-    discovered effects ``[{"name": ..., "params": {...}}]``; ``meta``: free information (identification report).
+    discovered effects ``[{"name": ..., "params": {...}}]``; ``meta``: free information (identification report);
+    ``signed_table``: a ``bmr._core.EverettModel`` with masses free in sign (loops that run clockwise), the forward
+    core of :meth:`simulate` when given (no compensator then).
     """
 
     def __init__(
@@ -88,6 +97,7 @@ class Model:
         meta: dict[str, Any] | None = None,
         curves: tuple[list[tuple[np.ndarray, np.ndarray]], list[tuple[np.ndarray, np.ndarray]]] | None = None,
         quantities: Quantities = ACTUATOR,
+        signed_table: Any = None,
     ) -> None:
         if not isinstance(quantities, Quantities):
             raise TypeError(f"quantities must be a bmr.data.quantities.Quantities, got {type(quantities).__name__}")
@@ -95,6 +105,7 @@ class Model:
                 and converter_gain_a_per_v > 0):
             raise BmrError(f"converter_gain_a_per_v must be positive and finite (A/V), got {converter_gain_a_per_v!r}")
         self.hysteresis = hysteresis
+        self.signed_table = signed_table
         self.friction = friction
         # The first-order curves the hysteresis was built from (saved instead of its resampled tables: the build
         # is deterministic, and the source curves are usually far smaller).
@@ -167,17 +178,22 @@ class Model:
             raise BmrError(f"current sample {int(bad[0])} is not finite ({i_a[bad[0]]!r})")
         if out_of_range not in ("clamp", "extrapolate"):
             raise BmrError(f"out_of_range must be 'clamp' or 'extrapolate', got {out_of_range!r}")
-        # A copy: simulating never changes the model (its operator may be shared with a compensator).
-        h = copy.copy(self.hysteresis)
-        h.reset(initial=initial)
+        hist = np.zeros(0)
         if history is not None and len(history):
             hist = np.asarray(history, dtype=float)
             if hist.ndim != 1 or not np.all(np.isfinite(hist)):
                 raise BmrError("history must be a one-dimensional sequence of finite inputs")
-            h.run(hist)
-        y = np.asarray(h.run(i_a), dtype=float)
+        lo, hi = self.hysteresis.input_range
+        if self.signed_table is not None:
+            y = np.asarray(self.signed_table.simulate(i_a, None, self._table_history(initial, hist)), dtype=float)
+        else:
+            # A copy: simulating never changes the model (its operator may be shared with a compensator).
+            h = copy.copy(self.hysteresis)
+            h.reset(initial=initial)
+            if hist.size:
+                h.run(hist)
+            y = np.asarray(h.run(i_a), dtype=float)
         if out_of_range == "extrapolate":
-            lo, hi = h.input_range
             s_lo, s_hi = self.end_slopes()
             y = y + s_hi * np.maximum(i_a - hi, 0.0) + s_lo * np.minimum(i_a - lo, 0.0)
         if theta is not None:
@@ -186,6 +202,26 @@ class Model:
                 raise BmrError(f"theta has shape {th.shape} but current has {i_a.shape}")
             y = y + self.friction_torque(th)
         return y
+
+    def _table_history(self, initial: Any, history: np.ndarray) -> np.ndarray:
+        """The inputs after negative saturation that give the signed table the ``initial`` state of
+        :meth:`simulate`, followed by ``history``."""
+        hi = float(self.signed_table.grid[-1])
+        if isinstance(initial, str) and initial in ("negative", "positive"):
+            start = [] if initial == "negative" else [hi]
+        elif isinstance(initial, (tuple, list)) and len(initial) == 2 and initial[0] in ("ascending", "descending") \
+                and _is_number(initial[1]) and math.isfinite(initial[1]):
+            start = [float(initial[1])] if initial[0] == "ascending" else [hi, float(initial[1])]
+        else:
+            raise BmrError(f"initial must be 'negative', 'positive', ('ascending', u) or ('descending', u), "
+                           f"got {initial!r}")
+        return np.concatenate([np.asarray(start, dtype=float), history])
+
+    def _refuse_signed(self, what: str) -> None:
+        if self.signed_table is not None:
+            raise BmrError(f"no {what}: this model's core is a signed Preisach table (its loops run clockwise: the "
+                           "output leads the input, a rate-driven output); exact inversion needs a nonnegative "
+                           "density, whose branches are monotone")
 
     def extension(self, name: str) -> dict[str, Any] | None:
         """The extension entry ``name`` (None if the model has none)."""
@@ -297,7 +333,9 @@ class Model:
         extensions made into stages at control period ``dt_s`` (s; needed when the model has extensions).
         ``stages``: see :meth:`stage_plan` (default: every extension the closed-loop check did not find
         harmful; the ones left off, or asked for although they hurt, are named in a warning). ``kwargs`` pass
-        through to ``bmr.Compensator`` (e.g. ``inverse="paper"``, ``initial``)."""
+        through to ``bmr.Compensator`` (e.g. ``inverse="paper"``, ``initial``). A model with a signed table
+        (loops that run clockwise) has no exact inverse: a ``BmrError`` says so."""
+        self._refuse_signed("compensator")
         friction = self.friction.to_friction() if self.friction is not None else None
         kwargs.setdefault("converter_gain", self.converter_gain_a_per_v)
         lo, hi = self.input_limits
@@ -353,6 +391,10 @@ class Model:
         hyst: dict[str, Any] = {"ascending": fam(asc), "descending": fam(desc), "initial": "negative"}
         if self._source_curves is not None and self._build:
             hyst["build"] = dict(self._build)
+        if self.signed_table is not None:
+            t = self.signed_table
+            hyst["signed_table"] = {"nodes": [float(v) for v in t.grid], "masses": [float(v) for v in t.masses],
+                                    "offset": float(t.offset)}
         return {
             "format": FORMAT,
             "quantities": self.quantities.to_dict(),
@@ -460,7 +502,8 @@ class Model:
         except BmrError as exc:
             raise err(f"{source}: hysteresis tables rejected: {exc}") from None
         model = cls(h, friction, limits=limits, converter_gain_a_per_v=gain, extensions=ext, meta=meta,
-                    curves=(asc, desc), quantities=quantities)
+                    curves=(asc, desc), quantities=quantities,
+                    signed_table=_signed_table(hyst.get("signed_table"), f"{source}: hysteresis.signed_table"))
         model._build = build
         return model
 
@@ -500,6 +543,20 @@ def run_export_cli(args: Any) -> int:
 # Options of ``Hysteresis.from_curves`` a model file may carry, with their types.
 _BUILD_OPTIONS = {"monotone_tolerance": float, "reach_tolerance": float, "closure_tolerance": float,
                   "node_tolerance": float, "max_nodes": int, "subdivisions": int}
+
+
+def _signed_table(value: Any, where: str) -> Any:
+    """The ``signed_table`` entry as a ``bmr._core.EverettModel`` (None when absent)."""
+    if value is None:
+        return None
+    if not (isinstance(value, dict) and _number_list(value.get("nodes")) and _number_list(value.get("masses"))
+            and _is_number(value.get("offset"))):
+        raise BmrError(f"{where} must hold 'nodes' and 'masses' (number lists) and an 'offset' number")
+    try:
+        return _core.EverettModel(np.asarray(value["nodes"], dtype=float),
+                                  np.asarray(value["masses"], dtype=float), float(value["offset"]), True)
+    except BmrError as exc:
+        raise BmrError(f"{where}: {exc}") from None
 
 
 def _build_options(value: Any, where: str) -> dict[str, Any]:

@@ -611,7 +611,8 @@ def predict(
             baseline=base + friction, sigma=sigma, scored=scored))
     return Prediction(out, model.quantities, span, out_of_range, model_source, bundle_source,
                       ran=parts(model) if extended else
-                      ["core tables"] + (["leakage identified with the tables"] if leakage is not None else []))
+                      [("signed table (loops run clockwise)" if model.signed_table is not None else "core tables")]
+                      + (["leakage identified with the tables"] if leakage is not None else []))
 
 
 def run_cli(args: Any) -> int:

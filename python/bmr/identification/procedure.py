@@ -235,6 +235,7 @@ def identify(
     drift: str = "auto",
     input_range: tuple[float, float] | None = None,
     grid: str = DEFAULT_GRID,
+    density: str = "auto",
 ) -> Model:
     """Identify friction and hysteresis from ``bundle`` and return a ``bmr.Model`` whose ``identification``
     (an :class:`IdentificationReport`) says what was done.
@@ -249,7 +250,12 @@ def identify(
     ``input_range``: the tables' input range (default: the range the runs not held out measure). ``grid``: where
     the least-squares table's nodes lie: ``"auto"`` (default: adaptive for a family of first-order reversal
     curves), ``"uniform"`` or ``"adaptive"`` (finer where the branches switch and the runs reverse:
-    :func:`~bmr.identification.lstsq.table_nodes`).
+    :func:`~bmr.identification.lstsq.table_nodes`). ``density``: the least-squares table's cell masses,
+    ``"auto"`` (default: free in sign when the training loops run clockwise, the output leading the input;
+    nonnegative otherwise), ``"nonnegative"`` or ``"signed"``. A signed table is the model's forward core
+    (``model.signed_table``); the model's CBH tables are then the nonnegative fit at the same setting, and the
+    model refuses a compensator (no exact inverse). The loops' orientation and the density are in
+    ``model.identification.lstsq``.
     ``n_intervals``, ``smoothing``: the least-squares table's resolution (grid intervals over the input range) and
     the weight of its density's smoothness; each one not given is chosen by cross-validation over time blocks of
     the training runs, trusted only where whole sweeps held out are predicted from the rest (else the default is
@@ -316,7 +322,7 @@ def identify(
         if n_intervals is None or smoothing is None:
             choice = choose_table_settings(train, friction, input_range=(lo, hi), n_intervals=n_intervals,
                                            smoothing=smoothing, offsets=offsets, gains=gains,
-                                           initial_state=initial_state, drift=drift, grid=grid)
+                                           initial_state=initial_state, drift=drift, grid=grid, density=density)
             n_intervals, smoothing = choice.n_intervals, choice.smoothing
             times["table_choice"] = time.perf_counter() - t
         reference = choice.reference if choice is not None else None
@@ -326,8 +332,17 @@ def identify(
         else:
             tables = fit_tables_lstsq(train, friction, n_intervals=n_intervals, smoothing=smoothing,
                                       input_range=(lo, hi), offsets=offsets, gains=gains,
-                                      initial_state=initial_state, drift=drift, grid=grid)
-        candidates["lstsq"] = _lstsq_model(tables, friction, limits, q)
+                                      initial_state=initial_state, drift=drift, grid=grid, density=density)
+        if tables.signed:
+            # The CBH tables (what the stages and the diagnosis run) come from the nonnegative fit at this setting;
+            # the signed table is the forward core.
+            monotone = fit_tables_lstsq(train, friction, n_intervals=n_intervals, smoothing=smoothing,
+                                        input_range=(lo, hi), offsets=offsets, gains=gains,
+                                        initial_state=initial_state, drift=drift, grid=grid, density="nonnegative")
+            candidates["lstsq"] = _lstsq_model(monotone, friction, limits, q)
+            candidates["lstsq"].signed_table = tables.everett
+        else:
+            candidates["lstsq"] = _lstsq_model(tables, friction, limits, q)
         accounts["lstsq"] = tables.samples
         times["lstsq"] = time.perf_counter() - t
 
@@ -392,7 +407,7 @@ def run_cli(args: Any) -> int:
     check_output_file(args.out, "model file", error=ModelFileError)
     bundle = read_bundle(args.bundle)
     model = identify(bundle, method=args.method, n_intervals=args.intervals, smoothing=args.smoothing,
-                     grid=args.grid)
+                     grid=args.grid, density=args.density)
     model.save(args.out)
     report = model.identification
     print(f"bmr identify: {bundle.actuator or args.bundle} ({len(bundle)} runs, {bundle.quantities.describe()}), "

@@ -294,7 +294,8 @@ def choose_table_settings(runs: Sequence[Run], friction: Any = None, *, input_ra
                     regressions[n] = _core.EverettFolds(table_nodes(us, ys, lo, hi, n, grid), data, n_off, folds,
                                                         drift=drift)
                 start = reference.passive if n == reference.n_intervals else None
-                parts = regressions[n].score(s, warm_start=None if start is None else [bool(x) for x in start])
+                parts = regressions[n].score(s, warm_start=None if start is None else [bool(x) for x in start],
+                                             signed=reference.signed)
                 scores[(n, s)] = pooled_rms(parts)
             except BmrError:
                 scores[(n, s)] = math.inf
@@ -354,7 +355,7 @@ def check_on_sweeps(us: list[np.ndarray], ys: list[np.ndarray], weights: list[np
         cv = _core.EverettFolds(np.asarray(reference.everett.grid), data, n_off, len(masks),
                                 drift=drift)
         start = None if reference.passive is None else [bool(x) for x in reference.passive]
-        parts = cv.score(reference.settings["smoothing"], warm_start=start)
+        parts = cv.score(reference.settings["smoothing"], warm_start=start, signed=reference.signed)
     except BmrError:
         return out
     out["sweep_rms"] = pooled_rms(parts)

@@ -15,7 +15,7 @@ from bmr.data.bundle import Bundle, Run
 from bmr.simulation.experiments import FULL_CURRENT_A, OPENING_RATE_A_PER_S, custom, ramp_path, simulate_bundle
 
 __all__ = ["minor_loop_vertices", "minor_loops", "repeated_loop_vertices", "repeated_loops", "diagnosis_bundle",
-           "MEDIUM_EFFECTS"]
+           "FAST_LOOP_RATE_A_PER_S", "MEDIUM_EFFECTS"]
 
 # A medium size of every physical effect of the vocabulary on the ``rig_preisach`` actuator: large enough for a
 # quick diagnosis bundle to show it, small enough to be realistic. What the calibration and the closed-loop checks
@@ -80,10 +80,10 @@ def repeated_loop_vertices(full_a: float = FULL_CURRENT_A, *, centres: Sequence[
     default full/5) around each of ``centres`` (fractions of full), each approached from the opposite
     saturation: the excitation that shows accommodation (loops drifting from cycle to cycle)."""
     if not (isinstance(cycles, int) and cycles >= 2):
-        raise BmrError(f"cycles must be an integer >= 2, got {cycles!r}")
+        raise ExcitationError(f"cycles must be an integer >= 2, got {cycles!r}")
     w = full_a / 5.0 if swing_a is None else float(swing_a)
     if not (0 < w < full_a):
-        raise BmrError(f"swing_a must lie in (0, full_a), got {swing_a!r}")
+        raise ExcitationError(f"swing_a must lie in (0, full_a), got {swing_a!r}")
     out: list[float] = []
     for c in centres:
         c = float(c) * full_a
@@ -100,7 +100,7 @@ def repeated_loops(actuator: Any, *, rate_a_per_s: float = 1.0, name: str = "rep
                    **kwargs: Any) -> Run:
     """A ``custom`` run of repeated minor loops (:func:`repeated_loop_vertices`) at ``rate_a_per_s``."""
     if not (np.isfinite(rate_a_per_s) and rate_a_per_s > 0):
-        raise BmrError(f"rate_a_per_s must be positive, got {rate_a_per_s!r}")
+        raise ExcitationError(f"rate_a_per_s must be positive, got {rate_a_per_s!r}")
     vertices = repeated_loop_vertices(full_a, **kwargs)
     body = ramp_path(0.0, vertices, rate_a_per_s / actuator.sample_rate_hz)
     run = custom(actuator, body, name=name, full_a=full_a, opening_rate_a_per_s=opening_rate_a_per_s)
@@ -108,15 +108,25 @@ def repeated_loops(actuator: Any, *, rate_a_per_s: float = 1.0, name: str = "rep
     return run
 
 
+# Drive speed of the second repeated-loop run of the diagnosis bundle (A/s): four times the rate of the
+# first-order curves the tables come from, so that a loss in proportion to the rate (``viscous``) shows as loops
+# wider than the tables' rather than as a wider table.
+FAST_LOOP_RATE_A_PER_S = 4.0
+
+
 def diagnosis_bundle(preset: str = "rig_preisach", *, effects: Any = None, seed: int = 0, quick: bool = True,
                      sample_rate_hz: float = 500.0, rest_s: float | None = None, overrides: Any = None,
                      forc_reversals: int | None = None) -> Bundle:
     """The paper's experiment set (:func:`bmr.simulation.experiments.simulate_bundle`) plus one
-    :func:`minor_loops` run and one :func:`repeated_loops` run, all on one virtual actuator (``preset`` with
+    :func:`minor_loops` run and two :func:`repeated_loops` runs, the second (``repeated_loops_fast``) the same
+    loops at :data:`FAST_LOOP_RATE_A_PER_S` (a second drive speed), all on one virtual actuator (``preset`` with
     ``effects``, ``seed``, ``overrides``): the bundle the diagnosis is calibrated on. ``rest_s``: rest between
     runs, ``forc_reversals``: reversals per first-order family (see ``simulate_bundle``)."""
     opening = 2.5 if quick else OPENING_RATE_A_PER_S
     return simulate_bundle(preset, effects=effects, seed=seed, quick=quick, sample_rate_hz=sample_rate_hz,
                            rest_s=rest_s, overrides=overrides, forc_reversals=forc_reversals,
                            extra_runs=[lambda a: minor_loops(a, opening_rate_a_per_s=opening),
-                                       lambda a: repeated_loops(a, opening_rate_a_per_s=opening)])
+                                       lambda a: repeated_loops(a, opening_rate_a_per_s=opening),
+                                       lambda a: repeated_loops(a, rate_a_per_s=FAST_LOOP_RATE_A_PER_S,
+                                                                name="repeated_loops_fast",
+                                                                opening_rate_a_per_s=opening)])

@@ -22,12 +22,8 @@ def _bench():
 
 # The creep stage (the exact inverse of the relaxation) makes tracking worse on this plant at medium size: the
 # closed-loop check leaves it off and the refined tables alone give ratio 0.70. Strict: reported the day it helps.
-# The viscous loss is not named on this bundle: every run ramps at one speed (2.5 A/s), so a loss proportional to
-# the rate only widens the loop and the tables absorb it; a second drive speed separates them (the independent
-# family's rate loss and the MR damper, which are named). Strict: reported the day the bundle separates them.
 _EXPECTED_MISSES = {
     "creep": "creep: the stage does not help on rig_preisach; ratio from the refined tables alone",
-    "viscous": "viscous: one drive speed in the bundle, the loss is absorbed by the tables and not named",
 }
 _CASES = [pytest.param(n, marks=pytest.mark.xfail(strict=True, reason=_EXPECTED_MISSES[n]))
           if n in _EXPECTED_MISSES else n for n in _bench().CLOSED_LOOP_EFFECTS]

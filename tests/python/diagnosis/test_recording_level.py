@@ -61,3 +61,30 @@ def test_a_piezo_recalibrated_per_recording_is_named_without_a_sensor_drift() ->
     bundle = device_bundle("piezo", effects={"run_gain_offset": {"gain_sd": 0.02, "offset_sd": 0.1}}, seed=1001)
     d = bmr.diagnose(bundle, progress=False, closed_loop=False)
     assert _physical(d) == ["run_gain_offset"], d.to_dict()["effects"]
+
+
+# Another Preisach density (harder, narrower steel, less reversible flux) and a coarser protocol: 7 first-order
+# curves per family at 250 Hz, where a per-run calibration was named with a heating next to it.
+SOFT_STEEL = {f"steel{k}.{p}": v for k in (1, 2) for p, v in
+              (("coercivity_a", 0.12), ("coercivity_width_a", 0.05), ("interaction_width_a", 0.6),
+               ("reversible_fraction", 0.15))}
+
+
+@pytest.mark.parametrize("hidden", ["run_gain_offset", "creep + run_gain_offset"])
+def test_a_calibration_per_recording_is_not_named_a_heating(hidden: str) -> None:
+    # The runs' gains differ from recording to recording, not along the coils' I² history: a heating fitted to them
+    # would carry about twice the heat the runs before leave into each run.
+    effects = {name: MEDIUM_EFFECTS[name] for name in hidden.split(" + ")}
+    bundle = diagnosis_bundle("rig_preisach", effects=effects, seed=1000, sample_rate_hz=250.0, forc_reversals=7,
+                              overrides=SOFT_STEEL)
+    d = bmr.diagnose(bundle, progress=False, closed_loop=False)
+    names = _physical(d)
+    assert "run_gain_offset" in names and "thermal_drift" not in names, d.to_dict()["effects"]
+
+
+def test_a_heating_is_named_with_the_heat_carried_between_runs() -> None:
+    # The same soft rig heated by its current (back to back: each run starts with the heat the runs before left).
+    bundle = diagnosis_bundle("rig_preisach", effects={"thermal_drift": MEDIUM_EFFECTS["thermal_drift"]}, seed=1000,
+                              sample_rate_hz=250.0, forc_reversals=7, overrides=SOFT_STEEL)
+    d = bmr.diagnose(bundle, progress=False, closed_loop=False)
+    assert "thermal_drift" in _physical(d), d.to_dict()["effects"]
