@@ -16,7 +16,7 @@ use alloc::vec::Vec;
 
 use super::error::{IdentificationError, RunError};
 use super::everett_regressors::{EverettGrid, NormalEquations, simulate_everett_from};
-use super::nnls::nnls_gram_warm;
+use super::nnls::{NnlsSolution, nnls_gram_warm};
 use crate::from_curves::CurveData;
 use crate::limits::{self, MAX_CURVE_POINTS, MAX_SOLVER_ITERATIONS};
 
@@ -459,6 +459,14 @@ pub(super) fn mass_space_matrix(
     ne: &NormalEquations,
     options: EverettFitOptions,
 ) -> Result<Vec<f64>, IdentificationError> {
+    let mut q = data_matrix(grid, ne);
+    regularise(grid, &mut q, ne.n_cols(), ne.n_nodes, options)?;
+    Ok(q)
+}
+
+/// The data part of [`mass_space_matrix`] (`Cᵀ G C` and its offset blocks, no regularisation): the same for
+/// every smoothing, so that problems differing only in their options share it.
+pub(super) fn data_matrix(grid: &EverettGrid, ne: &NormalEquations) -> Vec<f64> {
     let nn = ne.n_nodes;
     let m = ne.n_cols();
     // The Gram matrix is symmetric to the bit (`NormalEquations::finish` mirrors it), so its rows are its
@@ -488,12 +496,23 @@ pub(super) fn mass_space_matrix(
         q.extend_from_slice(&t[o * nn..(o + 1) * nn]);
         q.extend_from_slice(&ne.gram[o * m + nn..(o + 1) * m]);
     }
-    // Regularisation.
+    q
+}
+
+/// Adds the smoothness and ridge terms of `options` to a [`data_matrix`] `q` (`m × m`, the first `nn` columns
+/// the nodes); an error when an offset column is empty.
+pub(super) fn regularise(
+    grid: &EverettGrid,
+    q: &mut [f64],
+    m: usize,
+    nn: usize,
+    options: EverettFitOptions,
+) -> Result<(), IdentificationError> {
     let trace_q: f64 = (0..nn)
         .map(|i| q[i * m + i])
         .sum::<f64>()
         .max(f64::MIN_POSITIVE);
-    add_smoothness(grid, &mut q, m, options.smoothing, trace_q);
+    add_smoothness(grid, q, m, options.smoothing, trace_q);
     let ridge = options.ridge * trace_q / nn as f64;
     for i in 0..nn {
         q[i * m + i] += ridge.max(1e-14 * trace_q / nn as f64);
@@ -504,7 +523,7 @@ pub(super) fn mass_space_matrix(
         }
         q[o * m + o] *= 1.0 + 1e-12;
     }
-    Ok(q)
+    Ok(())
 }
 
 /// `out[k] = Cᵀ a[k, ..nn]` for every row `k` of the row-major `a` (row length `stride`), into the row-major
@@ -537,19 +556,8 @@ pub(super) fn solve(
     options: EverettFitOptions,
     warm_start: Option<&[bool]>,
 ) -> Result<EverettFit, IdentificationError> {
-    let nn = data.n_nodes;
     let m = data.rhs.len();
-    let mut c = grid.nodes_to_masses_adjoint(&data.rhs[..nn]);
-    c.extend_from_slice(&data.rhs[nn..]);
-    let constrained: Vec<bool> = (0..m).map(|i| i < nn && !options.signed).collect();
-    let sol = nnls_gram_warm(q, &c, &constrained, options.max_iter, warm_start)?;
-    let offsets = sol.x[nn..].to_vec();
-    let model = if options.signed {
-        EverettModel::with_signed_masses(grid.clone(), sol.x[..nn].to_vec(), offsets[0])?
-    } else {
-        let masses: Vec<f64> = sol.x[..nn].iter().map(|&v| v.max(0.0)).collect();
-        EverettModel::new(grid.clone(), masses, offsets[0])?
-    };
+    let (sol, model, offsets) = solve_masses(grid, data.rhs, data.n_nodes, q, options, warm_start)?;
     // Data-term RSS from the unregularised normal equations: yy − 2 zᵀ r + zᵀ G z, z = [C w, offsets].
     let mut z = model.node_values().to_vec();
     z.extend_from_slice(&offsets);
@@ -573,6 +581,31 @@ pub(super) fn solve(
         condition: sol.condition,
         drift: None,
     })
+}
+
+/// The nonnegative solve of [`solve`] alone: the solver's result, the table and the offsets for the normal
+/// right-hand side `rhs` (its first `nn` entries the nodes) and the regularised matrix `q`.
+pub(super) fn solve_masses(
+    grid: &EverettGrid,
+    rhs: &[f64],
+    nn: usize,
+    q: &[f64],
+    options: EverettFitOptions,
+    warm_start: Option<&[bool]>,
+) -> Result<(NnlsSolution, EverettModel, Vec<f64>), IdentificationError> {
+    let m = rhs.len();
+    let mut c = grid.nodes_to_masses_adjoint(&rhs[..nn]);
+    c.extend_from_slice(&rhs[nn..]);
+    let constrained: Vec<bool> = (0..m).map(|i| i < nn && !options.signed).collect();
+    let sol = nnls_gram_warm(q, &c, &constrained, options.max_iter, warm_start)?;
+    let offsets = sol.x[nn..].to_vec();
+    let model = if options.signed {
+        EverettModel::with_signed_masses(grid.clone(), sol.x[..nn].to_vec(), offsets[0])?
+    } else {
+        let masses: Vec<f64> = sol.x[..nn].iter().map(|&v| v.max(0.0)).collect();
+        EverettModel::new(grid.clone(), masses, offsets[0])?
+    };
+    Ok((sol, model, offsets))
 }
 
 /// One run of an [`EverettRegression`]: input, per-sample row weight (0 keeps a sample out of the fit while it

@@ -6,7 +6,7 @@
 use alloc::vec::Vec;
 
 use super::error::IdentificationError;
-use super::everett_fit::{DataTerm, EverettFitOptions, check_options, mass_space_matrix, solve};
+use super::everett_fit::{EverettFitOptions, check_options, data_matrix, regularise, solve_masses};
 use super::everett_regressors::{EverettGrid, NormalEquations};
 use crate::limits::{self, MAX_CV_FOLDS};
 
@@ -47,7 +47,8 @@ pub struct FoldScore {
 
 /// The least squares of [`super::fit_everett`] on one grid, split into folds for cross-validation (see the
 /// module). Each fold keeps the solver's passive set of every smoothing tried and warm-starts a new one from
-/// the nearest (in log scale).
+/// the nearest (in log scale), and keeps its training part's unregularised mass-space matrix (the same for
+/// every smoothing): a smoothing after the first costs a copy, the regularisation and the solve.
 #[derive(Clone, Debug)]
 pub struct EverettFolds {
     grid: EverettGrid,
@@ -55,6 +56,16 @@ pub struct EverettFolds {
     held: Vec<NormalEquations>,
     // Per fold: (smoothing, passive set) of every solve so far.
     warm: Vec<Vec<(f64, Vec<bool>)>>,
+    // Per fold, once prepared: its training part.
+    train: Vec<Option<TrainingPart>>,
+}
+
+/// A fold's training problem (the total less its own part) without the Gram matrix the scores do not need.
+#[derive(Clone, Debug)]
+struct TrainingPart {
+    rhs: Vec<f64>,
+    // The unregularised mass-space matrix (`data_matrix`).
+    q: Vec<f64>,
 }
 
 impl EverettFolds {
@@ -134,6 +145,7 @@ impl EverettFolds {
             grid: grid.clone(),
             total,
             warm: alloc::vec![Vec::new(); n_folds],
+            train: alloc::vec![None; n_folds],
             held,
         })
     }
@@ -156,7 +168,7 @@ impl EverettFolds {
         let given = warm_start.filter(|w| w.len() == self.n_unknowns());
         check_options(self.total.n_offsets, options)?;
         let mut out = Vec::with_capacity(self.held.len());
-        for (part, warm) in self.held.iter().zip(&mut self.warm) {
+        for ((part, warm), train) in self.held.iter().zip(&mut self.warm).zip(&mut self.train) {
             if part.n_rows == 0 {
                 out.push(FoldScore {
                     sse: 0.0,
@@ -165,30 +177,24 @@ impl EverettFolds {
                 });
                 continue;
             }
-            let mut train = self.total.clone();
-            for (t, h) in train.gram.iter_mut().zip(&part.gram) {
-                *t -= h;
-            }
-            for (t, h) in train.rhs.iter_mut().zip(&part.rhs) {
-                *t -= h;
-            }
-            train.yy = (train.yy - part.yy).max(0.0);
-            train.n_rows -= part.n_rows;
-            train.weight_sum -= part.weight_sum;
-            if train.n_rows == 0 {
-                return Err(IdentificationError::NoSamples);
-            }
-            let q = mass_space_matrix(&self.grid, &train, options)?;
-            let fit = solve(
+            let train = match train {
+                Some(t) => t,
+                None => train.insert(training_part(&self.grid, &self.total, part)?),
+            };
+            let mut q = train.q.clone();
+            regularise(&self.grid, &mut q, part.n_cols(), part.n_nodes, options)?;
+            let (sol, model, offsets) = solve_masses(
                 &self.grid,
-                &DataTerm::of(&train, &train.rhs, train.yy),
+                &train.rhs,
+                part.n_nodes,
                 &q,
                 options,
                 nearest(warm, options.smoothing).or(given),
             )?;
+            drop(q);
             // Held-out error as a quadratic form of the fold's own part: yy − 2 zᵀ r + zᵀ G z, z = [C w, offsets].
-            let mut z = fit.model.node_values().to_vec();
-            z.extend_from_slice(&fit.offsets);
+            let mut z = model.node_values().to_vec();
+            z.extend_from_slice(&offsets);
             let m = z.len();
             let mut zgz = 0.0;
             for i in 0..m {
@@ -199,12 +205,33 @@ impl EverettFolds {
             out.push(FoldScore {
                 sse: (part.yy - 2.0 * zr + zgz).max(0.0),
                 weight: part.weight_sum,
-                converged: fit.converged,
+                converged: sol.converged,
             });
-            warm.push((options.smoothing, fit.passive));
+            warm.push((options.smoothing, sol.passive));
         }
         Ok(out)
     }
+}
+
+/// The training part of the fold `part` of `total`: its right-hand side and unregularised mass-space matrix.
+fn training_part(
+    grid: &EverettGrid,
+    total: &NormalEquations,
+    part: &NormalEquations,
+) -> Result<TrainingPart, IdentificationError> {
+    let mut train = total.clone();
+    for (t, h) in train.gram.iter_mut().zip(&part.gram) {
+        *t -= h;
+    }
+    for (t, h) in train.rhs.iter_mut().zip(&part.rhs) {
+        *t -= h;
+    }
+    train.n_rows -= part.n_rows;
+    if train.n_rows == 0 {
+        return Err(IdentificationError::NoSamples);
+    }
+    let q = data_matrix(grid, &train);
+    Ok(TrainingPart { rhs: train.rhs, q })
 }
 
 /// The passive set of the solve whose smoothing is nearest to `smoothing` in log scale (0 counts as the
@@ -323,6 +350,53 @@ mod tests {
                     s.sse
                 );
             }
+        }
+    }
+
+    #[test]
+    fn a_fold_prepares_its_training_matrix_once_for_every_smoothing() {
+        let grid = EverettGrid::uniform(-1.0, 1.0, 6).unwrap();
+        let u = triangle(30, &[1.0, 0.7, 0.4, 0.9]);
+        let y: Vec<f64> = u.iter().map(|&x| libm::tanh(1.5 * x)).collect();
+        let fold: Vec<usize> = (0..u.len()).map(|i| (i * 6 / u.len()) % 2).collect();
+        let w = alloc::vec![1.0; u.len()];
+        let run = EverettFoldRun {
+            u: &u,
+            y: &y,
+            weight: &w,
+            fold: &fold,
+            offset_col: 0,
+            history: &[],
+            gain: 1.0,
+            drift: &[],
+        };
+        let mut cv = EverettFolds::new(&grid, &[run], 1, 2).unwrap();
+        assert!(cv.train.iter().all(Option::is_none));
+        let options = |smoothing| EverettFitOptions {
+            smoothing,
+            ..EverettFitOptions::default()
+        };
+        cv.score(options(1e-4), None).unwrap();
+        let prepared: Vec<*const f64> = cv
+            .train
+            .iter()
+            .map(|t| t.as_ref().expect("prepared by the first score").q.as_ptr())
+            .collect();
+        let second = cv.score(options(1e-2), None).unwrap();
+        let again: Vec<*const f64> = cv
+            .train
+            .iter()
+            .map(|t| t.as_ref().unwrap().q.as_ptr())
+            .collect();
+        assert_eq!(prepared, again, "a later smoothing rebuilt a fold's matrix");
+        // The kept matrix gives the scores of a fresh preparation.
+        let fresh = EverettFolds::new(&grid, &[run], 1, 2)
+            .unwrap()
+            .score(options(1e-2), None)
+            .unwrap();
+        for (a, b) in second.iter().zip(&fresh) {
+            assert_eq!(a.weight, b.weight);
+            assert!((a.sse - b.sse).abs() <= 1e-9 * b.sse.max(1e-12));
         }
     }
 
