@@ -64,6 +64,10 @@ class Effect(ABC):
     # calibration looks like more or less seal friction): it is judged on what it explains
     # beyond the per-run calibration, so that structure the calibration explains is not named after it.
     beyond_run_calibration = False
+    # Grid values that switch a part of the effect on or off (a yield force beside a viscous one): the fit on all
+    # data ranks only the values whose parameters stay in the vocabulary's range, so an optional part fitted
+    # against its physics (a negative yield force) is left off instead of making the whole effect unphysical.
+    ranks_in_range = False
 
     @property
     def needs_angle(self) -> bool:
@@ -809,6 +813,7 @@ class Viscous(Effect):
                   "tips in place; a time shift moves the tips)")
     doc = "a loss of the input's rate adds to the output: c·du/dt + f_y·tanh((du/dt)/v0)"
     needs_reidentify = True
+    ranks_in_range = True
     # Yield rates tried, as shares of the RMS input rate of the evaluated data: from a nearly stepped yield force
     # (a Bingham fluid) to one that is still proportional at the typical rate (where it is the viscous part).
     YIELD_RATE_SHARES = (0.01, 0.03, 0.1, 0.3)
