@@ -962,8 +962,8 @@ impl Stages {
                     }
                 }
                 EffectKind::Viscous => {
-                    if v[0] > 0.0 {
-                        st.viscous = Some(Viscous::new(v[0], dt_s, 0.0).ok_or(
+                    if v[0] > 0.0 || v[1] > 0.0 {
+                        st.viscous = Some(Viscous::new(v[0], v[1], v[2], dt_s, 0.0).ok_or(
                             StageError::Scale("viscous loss per sample (c/dt)", v[0] / dt_s),
                         )?);
                     }

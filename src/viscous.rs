@@ -1,20 +1,23 @@
-//! Viscous loss: a term proportional to the input's rate adds to the hysteretic core's output,
-//! `y = H(u) + c·du/dt` (`c` in output units per input unit per second, `c ≥ 0`). The shear of an MR fluid
-//! driven by a displacement (force per velocity), the damping of a positioning stage. Independent of the loop's
-//! local slope, unlike `rate_dependence`, and no shift in time, unlike `time_delay` and `coil_lag`.
+//! Viscous loss in the Bingham form: a function of the input's rate `r = du/dt` adds to the hysteretic core's
+//! output, `y = H(u) + c·r + f_y·tanh(r/v0)`: `c` (≥ 0, output units per input unit per second) the viscous
+//! part, `f_y` (≥ 0, output units) the yield part that takes the sign of the motion once `|r|` passes `v0` (> 0,
+//! input units per second; a smooth Coulomb force, the yield stress of an MR fluid). The shear of an MR fluid
+//! driven by a displacement, the damping of a positioning stage. Independent of the loop's local slope, unlike
+//! `rate_dependence`, and no shift in time, unlike `time_delay` and `coil_lag`.
 //!
-//! Forward (simulation), with the rate of the sample, `y_k = H(u_k) + (c/dt)·(u_k − u_{k−1})`.
+//! Forward (simulation), with the rate of the sample, `y_k = H(u_k) + loss((u_k − u_{k−1})/dt)`.
 //!
 //! Inverse (compensator): differencing the commanded input would put a loop gain `c/(dt·s)` in the command
 //! (noise amplified by `c/dt`, unstable for small `dt`). Instead the one-step implicit equation is solved for the
 //! core output `v = H(u_k)`:
 //!
-//! `f(v) = v + (c/dt)·(H⁻¹(v) − u_{k−1}) − y_ref = 0`,
+//! `f(v) = v + loss((H⁻¹(v) − u_{k−1})/dt) − y_ref = 0`,
 //!
 //! `H⁻¹` the exact inverse from the core's present state (monotone along the branch it selects, clamped at the
-//! input range's ends), so `f` increases at least with slope 1 and `[y_ref − f(y_ref), y_ref]` (or the reverse)
-//! brackets its root. Regula falsi with the Illinois step, bisection as a safeguard; a bounded number of
-//! iterations, no allocation, the same answer from the same state bit for bit.
+//! input range's ends) and `loss` non-decreasing, so `f` increases at least with slope 1 and
+//! `[y_ref − f(y_ref), y_ref]` (or the reverse) brackets its root. Regula falsi with the Illinois step, bisection
+//! as a safeguard (a yield part with a small `v0` is nearly a step); a bounded number of iterations, no
+//! allocation, the same answer from the same state bit for bit.
 use crate::cbh::Hysteresis;
 use crate::stages::Stage;
 use crate::vocabulary::EffectKind;
@@ -23,26 +26,54 @@ use crate::vocabulary::EffectKind;
 /// a bracket of 1e9 output units to 1e-9 in 60).
 pub const MAX_ITERATIONS: usize = 80;
 
-/// The viscous stage: the loss coefficient per sample and the core input of the last sample.
+/// The loss of an input rate `rate` (input units per second): `c·rate + f_y·tanh(rate/v0)` (output units), the
+/// one formula of the stage, the virtual plants and the diagnosis. Non-decreasing in `rate` for `c, f_y ≥ 0`.
+#[inline]
+pub fn loss(c: f64, f_y: f64, v0: f64, rate: f64) -> f64 {
+    let viscous = c * rate;
+    if f_y > 0.0 {
+        viscous + f_y * libm::tanh(rate / v0)
+    } else {
+        viscous
+    }
+}
+
+/// The viscous stage: the loss's parameters, the sample period and the core input of the last sample.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Viscous {
     c: f64,
+    f_y: f64,
+    v0: f64,
     dt_s: f64,
     /// `c/dt`: output per unit of input change within one sample.
     per_step: f64,
+    /// `v0·dt`: the input change within one sample at rate `v0`.
+    v0_step: f64,
     last_input: f64,
 }
 
 impl Viscous {
-    /// Loss coefficient `c` (≥ 0, finite; output units per input unit per second) at sample period `dt_s`, at rest
-    /// at core input `u0`. `None` for invalid arguments.
-    pub fn new(c: f64, dt_s: f64, u0: f64) -> Option<Self> {
-        let ok = c.is_finite() && c >= 0.0 && dt_s.is_finite() && dt_s > 0.0 && u0.is_finite();
-        let per_step = c / dt_s;
-        (ok && per_step.is_finite()).then_some(Viscous {
+    /// Loss coefficient `c` (≥ 0; output units per input unit per second), yield output `f_y` (≥ 0; output units)
+    /// and yield rate `v0` (> 0; input units per second), all finite, at sample period `dt_s`, at rest at core
+    /// input `u0`. `None` for invalid arguments.
+    pub fn new(c: f64, f_y: f64, v0: f64, dt_s: f64, u0: f64) -> Option<Self> {
+        let ok = c.is_finite()
+            && c >= 0.0
+            && f_y.is_finite()
+            && f_y >= 0.0
+            && v0.is_finite()
+            && v0 > 0.0
+            && dt_s.is_finite()
+            && dt_s > 0.0
+            && u0.is_finite();
+        let (per_step, v0_step) = (c / dt_s, v0 * dt_s);
+        (ok && per_step.is_finite() && v0_step > 0.0).then_some(Viscous {
             c,
+            f_y,
+            v0,
             dt_s,
             per_step,
+            v0_step,
             last_input: u0,
         })
     }
@@ -50,6 +81,22 @@ impl Viscous {
     /// The loss coefficient `c`.
     pub fn coefficient(&self) -> f64 {
         self.c
+    }
+
+    /// The yield output `f_y` and the yield rate `v0`.
+    pub fn yield_part(&self) -> (f64, f64) {
+        (self.f_y, self.v0)
+    }
+
+    /// The loss of an input change `du` within one sample.
+    #[inline]
+    fn loss_of_step(&self, du: f64) -> f64 {
+        let viscous = self.per_step * du;
+        if self.f_y > 0.0 {
+            viscous + self.f_y * libm::tanh(du / self.v0_step)
+        } else {
+            viscous
+        }
     }
 
     /// The core input of the last sample.
@@ -65,13 +112,13 @@ impl Viscous {
     /// The loss of this sample's core input `u` (output units), advancing the state to it.
     #[inline]
     pub fn step(&mut self, u: f64) -> f64 {
-        let loss = self.per_step * (u - self.last_input);
+        let loss = self.loss_of_step(u - self.last_input);
         self.last_input = u;
         loss
     }
 
     /// The core output `v` that, with the loss of the core input reaching it, gives `total`: the root of
-    /// `v + (c/dt)·(H⁻¹(v) − u_{k−1}) = total` (module doc), from the core's present state. The state does not
+    /// `v + loss((H⁻¹(v) − u_{k−1})/dt) = total` (module doc), from the core's present state. The state does not
     /// change ([`Viscous::step`] with the core input actually applied advances it). Non-finite `total` or
     /// core answers come back as NaN (the caller faults).
     #[inline]
@@ -84,7 +131,7 @@ impl Viscous {
             return f64::NAN;
         }
         let f =
-            |v: f64| v + self.per_step * (core.inverse_input(v).input - self.last_input) - total;
+            |v: f64| v + self.loss_of_step(core.inverse_input(v).input - self.last_input) - total;
         let f_total = f(total);
         if f_total == 0.0 || !f_total.is_finite() {
             return if f_total == 0.0 { total } else { f64::NAN };
@@ -161,7 +208,7 @@ impl Stage for Viscous {
         *self
     }
     fn load(&mut self, saved: &Viscous) -> bool {
-        if (saved.c, saved.dt_s) != (self.c, self.dt_s) {
+        if (saved.c, saved.f_y, saved.v0, saved.dt_s) != (self.c, self.f_y, self.v0, self.dt_s) {
             return false;
         }
         *self = *saved;

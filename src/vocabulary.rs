@@ -270,15 +270,22 @@ vocabulary! {
         [p("kappa", "1", 0.05, -0.9, 0.9, "share of the loop centre's distance from the middle it drifts"),
          p("cycles", "1", 3.0, 0.1, 1e4, "loop cycles to settle (e-folding)")];
     Viscous = "viscous", Field, stage(4, PERIOD, "the core input of the last sample (input units)"), NO_ANGLE,
-        "A loss proportional to the input's rate adds to the hysteretic core's output: y = H(u) + c * du/dt (the \
-         viscous shear of an MR fluid driven by a displacement, the damping of a stage), independent of the \
-         loop's local slope. The compensator solves the one-step implicit (backward Euler) equation \
-         H(u_k) + c (u_k - u_(k-1)) / dt = y_ref instead of differencing the command. A loss never feeds \
-         energy in: c >= 0. Signature: loop width that grows in proportion to the drive rate across runs of \
-         different speed, the same on steep and saturated branches; a time shift (time_delay, coil_lag) does \
-         not explain it, as it moves the loop tips too.",
+        "A loss of the input's rate adds to the hysteretic core's output, in the Bingham form \
+         y = H(u) + c * du/dt + f_y * tanh((du/dt) / v0): a viscous part in proportion to the rate (the shear of an \
+         MR fluid driven by a displacement, the damping of a stage) and a yield part that takes the sign of the \
+         motion once the rate passes v0 (the yield stress of the fluid: a smooth Coulomb force), independent of \
+         the loop's local slope. The compensator solves the one-step implicit (backward Euler) equation \
+         H(u_k) + c r + f_y tanh(r / v0) = y_ref, r = (u_k - u_(k-1)) / dt, instead of differencing the \
+         command; its left side rises with u_k. A loss never feeds energy in: c >= 0, f_y >= 0 (0 = no yield \
+         part). Signature: loop width that grows with the drive rate across runs of different speed, the same \
+         on steep and saturated branches; a time shift (time_delay, coil_lag) does not explain it, as it moves \
+         the loop tips too.",
         [p("c", "N·mm·s/A", 4.0, 0.0, 1e9,
-           "output per unit of input rate (output units per input unit per second; 0 = off)")];
+           "output per unit of input rate (output units per input unit per second; 0 = off)"),
+         p("f_y", "N·mm", 0.0, 0.0, 1e9,
+           "yield output the loss tends to at rates well above v0 (output units; 0 = off)"),
+         p("v0", "A/s", 1.0, 1e-9, 1e9,
+           "input rate at which the yield part reaches tanh(1) = 0.76 of f_y (input units per second)")];
 }
 
 /// Entries of a model file's `extensions` list that are not physical effects.

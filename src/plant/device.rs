@@ -224,9 +224,9 @@ pub struct VirtualDevice {
     leak_per_s: f64,
     leak_integral: f64,
     last_applied: f64,
-    /// `viscous`: loss per unit of input rate (output units · s per input unit) and the core input of the last
-    /// sample (input units).
-    viscous_c: f64,
+    /// `viscous`: loss per unit of input rate (output units · s per input unit), yield output (output units) and
+    /// yield rate (input units per second), and the core input of the last sample (input units).
+    viscous: (f64, f64, f64),
     last_core_input: f64,
     run_gain_offset: Option<(f64, f64)>,
     run_gain: f64,
@@ -245,7 +245,7 @@ impl VirtualDevice {
         let (mut creep, mut curvature, mut cubic, mut accommodation) = (None, 0.0, 0.0, None);
         let (mut thermal_loss, mut thermal_tau_s, mut drift, mut leak) = (0.0, 0.0, 0.0, 0.0);
         let mut run_gain_offset = None;
-        let mut viscous_c = 0.0;
+        let mut viscous = (0.0, 0.0, 1.0);
         for e in config.effects.iter() {
             match *e {
                 Effect::TimeDelay { delay_s } => delay = libm::round(delay_s / dt_s) as usize,
@@ -282,7 +282,7 @@ impl VirtualDevice {
                 Effect::RunGainOffset { gain_sd, offset_sd } => {
                     run_gain_offset = Some((gain_sd, offset_sd))
                 }
-                Effect::Viscous { c } => viscous_c = c,
+                Effect::Viscous { c, f_y, v0 } => viscous = (c, f_y, v0),
                 Effect::FrictionCurrent { .. }
                 | Effect::FrictionHarmonics { .. }
                 | Effect::TorqueRipple { .. } => {}
@@ -309,7 +309,7 @@ impl VirtualDevice {
             leak_per_s: leak,
             leak_integral: 0.0,
             last_applied: 0.0,
-            viscous_c,
+            viscous,
             last_core_input: config.input_centre,
             run_gain_offset,
             run_gain,
@@ -399,8 +399,9 @@ impl VirtualDevice {
         let mut y =
             cfg.output_offset + cfg.output_scale * output_map(b, self.curvature, self.cubic);
         // The viscous loss of the input's rate (backward difference over the sample).
-        if self.viscous_c > 0.0 {
-            y += self.viscous_c * (core_input - self.last_core_input) / self.dt_s;
+        let (c, f_y, v0) = self.viscous;
+        if c > 0.0 || f_y > 0.0 {
+            y += crate::viscous::loss(c, f_y, v0, (core_input - self.last_core_input) / self.dt_s);
         }
         self.last_core_input = core_input;
         if let Some(a) = self.accommodation.as_mut() {

@@ -71,6 +71,8 @@ pub enum Effect {
     },
     Viscous {
         c: f64,
+        f_y: f64,
+        v0: f64,
     },
 }
 
@@ -157,7 +159,11 @@ impl Effect {
                 kappa: v[0],
                 cycles: v[1],
             },
-            EffectKind::Viscous => Effect::Viscous { c: v[0] },
+            EffectKind::Viscous => Effect::Viscous {
+                c: v[0],
+                f_y: v[1],
+                v0: v[2],
+            },
         })
     }
 
@@ -189,7 +195,7 @@ impl Effect {
             Effect::RunGainOffset { gain_sd, offset_sd } => vec![gain_sd, offset_sd],
             Effect::Leakage { rate_per_s } => vec![rate_per_s],
             Effect::Accommodation { kappa, cycles } => vec![kappa, cycles],
-            Effect::Viscous { c } => vec![c],
+            Effect::Viscous { c, f_y, v0 } => vec![c, f_y, v0],
         };
         self.kind()
             .params()

@@ -277,11 +277,16 @@ struct ActiveEffects {
     leak_per_s: f64,
     /// Minor-loop accommodation: (kappa, cycles).
     accommodation: Option<(f64, f64)>,
-    /// `viscous`: loss torque per unit of field-current rate (N·mm·s/A).
-    viscous_c: f64,
+    /// `viscous`: loss torque per unit of field-current rate (N·mm·s/A), yield torque (N·mm), yield rate (A/s).
+    viscous: (f64, f64, f64),
 }
 
 impl ActiveEffects {
+    /// Whether the `viscous` loss is on (a viscous or a yield part).
+    fn viscous_on(&self) -> bool {
+        self.viscous.0 > 0.0 || self.viscous.1 > 0.0
+    }
+
     fn from_set(set: &EffectSet, dt_s: f64) -> Self {
         let mut a = ActiveEffects {
             lag_tau_s: 0.0,
@@ -300,7 +305,7 @@ impl ActiveEffects {
             run_gain_offset: None,
             leak_per_s: 0.0,
             accommodation: None,
-            viscous_c: 0.0,
+            viscous: (0.0, 0.0, 1.0),
         };
         for e in set.iter() {
             match *e {
@@ -340,7 +345,7 @@ impl ActiveEffects {
                 }
                 Effect::Leakage { rate_per_s } => a.leak_per_s = rate_per_s,
                 Effect::Accommodation { kappa, cycles } => a.accommodation = Some((kappa, cycles)),
-                Effect::Viscous { c } => a.viscous_c = c,
+                Effect::Viscous { c, f_y, v0 } => a.viscous = (c, f_y, v0),
             }
         }
         a
@@ -607,7 +612,7 @@ impl VirtualActuator {
         if let Some(a) = &self.accommodation {
             w.extend(a.state().map(f64::to_bits));
         }
-        if self.fx.viscous_c > 0.0 {
+        if self.fx.viscous_on() {
             f(&mut w, self.last_core_a);
         }
         self.drive.save_state(&mut w);
@@ -676,7 +681,7 @@ impl VirtualActuator {
                 return Err(PlantError::BadState("accommodation state"));
             }
         }
-        if self.fx.viscous_c > 0.0 {
+        if self.fx.viscous_on() {
             next.last_core_a = r.float()?;
         }
         next.drive.load_state(&mut r)?;
@@ -788,8 +793,9 @@ impl VirtualActuator {
         let core2 = self.rate2.as_ref().map_or(field2_a, |r| r.core_input());
         let core_a = core2 - core1;
         // `viscous`: a loss torque of that current's rate (backward difference over the sample).
-        if self.fx.viscous_c > 0.0 {
-            field += self.fx.viscous_c * (core_a - self.last_core_a) / self.dt_s;
+        if self.fx.viscous_on() {
+            let (c, f_y, v0) = self.fx.viscous;
+            field += crate::viscous::loss(c, f_y, v0, (core_a - self.last_core_a) / self.dt_s);
         }
         self.last_core_a = core_a;
         if let Some(a) = self.accommodation.as_mut() {

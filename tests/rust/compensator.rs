@@ -211,6 +211,8 @@ struct StageDraw {
     rate_tau_s: f64,
     kappa: f64,
     viscous_c: f64,
+    viscous_f_y: f64,
+    viscous_v0: f64,
 }
 
 fn stage_draw() -> impl Strategy<Value = StageDraw> {
@@ -219,6 +221,7 @@ fn stage_draw() -> impl Strategy<Value = StageDraw> {
         (0.0f64..0.9, -4.0f64..4.0, -0.45f64..5.0, -0.3f64..3.0),
         (-0.5f64..5.0, 4u32..25, -50.0f64..50.0),
         (0.0f64..0.2, 0.0f64..0.02, -0.3f64..0.3, 0.0f64..5.0),
+        (0.0f64..40.0, 0.01f64..10.0),
     )
         .prop_map(
             |(
@@ -226,6 +229,7 @@ fn stage_draw() -> impl Strategy<Value = StageDraw> {
                 (eps, ripple_phase, curvature, cubic),
                 (gain_per_a, order, amplitude),
                 (creep_fraction, rate_tau_s, kappa, viscous_c),
+                (viscous_f_y, viscous_v0),
             )| StageDraw {
                 tau_s,
                 delay_samples,
@@ -242,6 +246,8 @@ fn stage_draw() -> impl Strategy<Value = StageDraw> {
                 rate_tau_s,
                 kappa,
                 viscous_c,
+                viscous_f_y,
+                viscous_v0,
             },
         )
 }
@@ -286,7 +292,14 @@ fn effects(d: &StageDraw) -> Vec<Params> {
             EffectKind::Accommodation,
             &[("kappa", d.kappa), ("cycles", 2.0)],
         ),
-        p(EffectKind::Viscous, &[("c", d.viscous_c)]),
+        p(
+            EffectKind::Viscous,
+            &[
+                ("c", d.viscous_c),
+                ("f_y", d.viscous_f_y),
+                ("v0", d.viscous_v0),
+            ],
+        ),
     ]
 }
 
@@ -447,6 +460,8 @@ fn extended_compensator_inverts_the_extended_simulation() {
         rate_tau_s: 0.005,
         kappa: 0.1,
         viscous_c: 2.0,
+        viscous_f_y: 20.0,
+        viscous_v0: 0.5,
     };
     // With every stage on the error is what the estimated current of the current-dependent friction leaves
     // (smoothed over 10 ms: 0.3/A × ~37 N·mm × its lag); the plant's noise floor is ~1.5 N·mm.
@@ -465,6 +480,7 @@ fn extended_compensator_inverts_the_extended_simulation() {
         rate_tau_s: 0.0,
         kappa: 0.0,
         viscous_c: 0.0,
+        viscous_f_y: 0.0,
         ..d.clone()
     };
     let alone = [
@@ -509,6 +525,19 @@ fn extended_compensator_inverts_the_extended_simulation() {
             viscous_c: 2.0,
             ..off.clone()
         },
+        // The Bingham yield part alone and with the viscous part: a nearly stepped loss (v0 well under the
+        // reference's input rates) is solved to round-off too.
+        StageDraw {
+            viscous_f_y: 30.0,
+            viscous_v0: 0.05,
+            ..off.clone()
+        },
+        StageDraw {
+            viscous_c: 2.0,
+            viscous_f_y: 30.0,
+            viscous_v0: 0.5,
+            ..off.clone()
+        },
     ];
     for s in &alone {
         let e = inversion_error(s);
@@ -545,6 +574,8 @@ fn the_viscous_stage_damps_reference_noise_instead_of_differencing_it() {
             rate_tau_s: 0.0,
             kappa: 0.0,
             viscous_c: c_loss,
+            viscous_f_y: 0.0,
+            viscous_v0: 1.0,
         };
         let mut c = extended(false, 1.25, &d);
         let mut rng = common::Rng(5);

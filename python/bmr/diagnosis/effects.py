@@ -67,6 +67,10 @@ class Effect(ABC):
     # calibration looks like more or less seal friction): it is judged on what it explains
     # beyond the per-run calibration, so that structure the calibration explains is not named after it.
     beyond_run_calibration = False
+    # Grid values that switch a part of the effect on or off (a yield force beside a viscous one): the fit on all
+    # data ranks only the values whose parameters stay in the vocabulary's range, so an optional part fitted
+    # against its physics (a negative yield force) is left off instead of making the whole effect unphysical.
+    ranks_in_range = False
 
     @property
     def needs_angle(self) -> bool:
@@ -864,34 +868,64 @@ def input_rate(u: np.ndarray, dt_s: float) -> np.ndarray:
 
 
 class Viscous(Effect):
-    """A loss proportional to the input's rate adds to the output: ``c · du/dt`` (``c ≥ 0``, output units per
-    input unit per second), the same on steep and saturated branches. Linear in ``c``: one column, the input's
-    backward-difference rate over the evaluated spans. The loss also bent the protocol runs the tables come from, so
-    they are identified again with it removed. What tells it from a time shift (``time_delay``, ``coil_lag``) is a
-    second drive speed: the loss widens the loop in proportion to the rate and leaves the loop tips (where the rate
-    passes through zero) in place, a shift moves the tips too."""
+    """A loss of the input's rate adds to the output in the Bingham form ``c · du/dt + f_y · tanh((du/dt)/v0)``
+    (``c ≥ 0`` output units per input unit per second, ``f_y ≥ 0`` output units, ``v0 > 0`` input units per
+    second), the same on steep and saturated branches. Linear in ``c`` and ``f_y``: the grid runs over the yield
+    rate ``v0`` (None: the viscous part alone, one column, the input's backward-difference rate; a value: that
+    column and ``tanh(rate/v0)``), so the selection ranks the yield part against the plain loss on the training
+    blocks by the information criterion and the candidate keeps it only where it wins there, its gain then measured
+    on the held-out folds. The loss also bent the protocol runs the tables come from, so they are identified again
+    with it removed. What tells it from a time shift (``time_delay``, ``coil_lag``) is a second drive speed: the
+    loss widens the loop with the rate and leaves the loop tips (where the rate passes through zero) in place, a
+    shift moves the tips too."""
 
     name = "viscous"
     excitation = ("the same loop at a second drive speed (a rate-proportional loss widens the loop and leaves its "
                   "tips in place; a time shift moves the tips)")
-    doc = "a loss proportional to the input's rate adds to the output: c·du/dt"
+    doc = "a loss of the input's rate adds to the output: c·du/dt + f_y·tanh((du/dt)/v0)"
     needs_reidentify = True
+    ranks_in_range = True
+    # Yield rates tried, as shares of the RMS input rate of the evaluated data: from a nearly stepped yield force
+    # (a Bingham fluid) to one that is still proportional at the typical rate (where it is the viscous part).
+    YIELD_RATE_SHARES = (0.01, 0.03, 0.1, 0.3)
+
+    def grid(self, data: Any) -> list[Any]:
+        rate = self.columns(data, None, None, None)[:, 0]
+        rms = float(np.sqrt(np.mean(rate ** 2))) if rate.size else 0.0
+        if not (math.isfinite(rms) and rms > 0):
+            return [None]
+        v0 = self._v0_spec()
+        lo, hi = float(v0["min"]), float(v0["max"])
+        return [None] + [float(min(max(share * rms, lo), hi)) for share in self.YIELD_RATE_SHARES]
+
+    @staticmethod
+    def _v0_spec() -> dict[str, Any]:
+        """The vocabulary's yield rate ``v0``: its range and default (input units per second)."""
+        return _core.effect_parameters()["viscous"]["params"]["v0"]
 
     def columns(self, data, value, y_field, model):
-        def make() -> np.ndarray:
+        def rate() -> np.ndarray:
             return np.concatenate([input_rate(_run_input(r), r.dt_s)[r.start:] for r in data.runs])[:, None]
 
-        return data.cache.get("viscous_rate", make)
+        q = data.cache.get("viscous_rate", rate)
+        if value is None:
+            return q
+        return data.cache.get(("viscous_yield", float(value)),
+                              lambda: np.column_stack([q[:, 0], np.tanh(q[:, 0] / float(value))]))
 
     def update_path(self, path, value, own_beta, data):
         return path.with_correction(self, value, own_beta)
 
     @staticmethod
     def remove(y, value, beta, run):
-        return y - beta[0] * input_rate(run.current, run.dt)
+        rate = input_rate(run.current, run.dt)
+        out = y - beta[0] * rate
+        return out if value is None else out - beta[1] * np.tanh(rate / float(value))
 
     def params(self, value, beta, path):
-        return {"c": float(beta[0])}
+        if value is None:
+            return {"c": float(beta[0]), "f_y": 0.0, "v0": float(self._v0_spec()["default"])}
+        return {"c": float(beta[0]), "f_y": float(beta[1]), "v0": float(value)}
 
     # Share of a run's rate (RMS) that its direction of motion and a constant must leave unexplained for the run
     # to move at more than one speed: below it, a loss in proportion to the rate is a wider loop at that speed.
@@ -905,10 +939,13 @@ class Viscous(Effect):
         positive, and so must it be, fitted the same way, in every run that moves at more than one speed itself
         (its rate not a constant times its direction, :attr:`SECOND_SPEED_SHARE`). A time shift (``time_delay``,
         ``coil_lag``, ``rate_dependence``) lowers the output where it rises and gives ``c < 0``; when every sample
-        moves at one speed a loss cannot be told from a wider loop."""
+        moves at one speed a loss cannot be told from a wider loop. With a yield part fitted in ``after`` the
+        coefficient is that of the fitted loss ``c·du/dt + f_y·tanh((du/dt)/v0)`` instead of the rate alone (a
+        yield force grows with the rate below ``v0`` and is level above it, which the rate alone reads against)."""
         data = fitter.data
         residual, _ = fitter.fit(before.path, before.linear)
         rate = self.columns(data, None, residual, fitter.model)[:, 0]
+        shape = self._fitted_loss(data, after, rate)
         ok = np.isfinite(residual)
         if not np.any(rate[ok]):
             return "the input never moves"
@@ -922,11 +959,11 @@ class Viscous(Effect):
             q, r = rate[lo:hi][keep], residual[lo:hi][keep]
             if r.size < 3 or not np.any(q):
                 continue
-            c, speeds = self._rate_beyond_width(np.ones((q.size, 1)), q, r)
+            c, speeds = self._rate_beyond_width(np.ones((q.size, 1)), q, r, shape[lo:hi][keep])
             if speeds >= self.SECOND_SPEED_SHARE and not c > 0:
                 against.append(f"{run.name}: c = {c:.3g}")
         used = np.any(constants[ok], axis=0)
-        c, speeds = self._rate_beyond_width(constants[ok][:, used], rate[ok], residual[ok])
+        c, speeds = self._rate_beyond_width(constants[ok][:, used], rate[ok], residual[ok], shape[ok])
         if speeds < self.SECOND_SPEED_SHARE:
             return ("the input moves at one speed: a loss in proportion to the rate is a wider loop there (record "
                     "the same loop at a second drive speed)")
@@ -934,11 +971,23 @@ class Viscous(Effect):
             return f"the residual does not grow with the rate beyond the loop's width (c = {c:.3g})"
         return ("the residual opposes the motion beyond the loop width in " + ", ".join(against)) if against else ""
 
+    def _fitted_loss(self, data: Any, after: Any, rate: np.ndarray) -> np.ndarray:
+        """The loss's shape over the evaluated spans: ``c·rate + f_y·tanh(rate/v0)`` as fitted in ``after`` when it
+        carries a yield part, else the rate itself."""
+        if after is None or not after.linear or after.linear[-1][0].name != self.name or after.linear[-1][1] is None:
+            return rate
+        v0 = float(after.linear[-1][1])
+        c, f_y = (float(b) for b in np.asarray(after.beta)[-2:])
+        shape = self.columns(data, v0, None, None) @ np.array([c, f_y])
+        return shape if np.all(np.isfinite(shape)) and np.any(shape) else rate
+
     @staticmethod
-    def _rate_beyond_width(constants: np.ndarray, rate: np.ndarray, residual: np.ndarray) -> tuple[float, float]:
-        """The coefficient of ``rate`` in the least-squares fit of ``residual`` on ``[constants, sign(rate),
-        rate]`` and the share (RMS) of the rate the other columns leave unexplained (0: one speed)."""
-        x = np.column_stack([constants, np.sign(rate), rate])
+    def _rate_beyond_width(constants: np.ndarray, rate: np.ndarray, residual: np.ndarray,
+                           shape: np.ndarray) -> tuple[float, float]:
+        """The coefficient of the loss ``shape`` in the least-squares fit of ``residual`` on ``[constants,
+        sign(rate), shape]`` and the share (RMS) of the rate ``[constants, sign(rate)]`` leave unexplained (0: one
+        speed)."""
+        x = np.column_stack([constants, np.sign(rate), shape])
         beyond = rate - x[:, :-1] @ np.linalg.lstsq(x[:, :-1], rate, rcond=None)[0]
         share = float(np.sqrt(np.sum(beyond ** 2) / np.sum(rate ** 2)))
         if share < 1e-9:

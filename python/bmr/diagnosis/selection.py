@@ -681,7 +681,12 @@ def refit(fitter: Fitter, config: Configuration, eff: Effect) -> tuple[Configura
 
     def sse(v: Any) -> float:
         # The information criterion of the fit on all data (as the selection ranks grid values).
-        ff = fitter.solve(*_with(config, eff, v, data))
+        path, linear = _with(config, eff, v, data)
+        ff = fitter.solve(path, linear)
+        if eff.ranks_in_range and not eff.field:
+            own = ff.beta[data.folds][1 + sum(ff.widths[:len(config.linear)]):]
+            if out_of_range(eff.name, eff.params(v, own, path)):
+                return math.inf
         n = max(float(np.sum(ff.n_test)), 2.0)
         return float(n * math.log(max(float(ff.sse_train[data.folds]), 1e-300) / n) + sum(ff.widths) * math.log(n))
 

@@ -47,10 +47,11 @@ def test_chain_on_real_recordings(key, tmp_path):
         assert r.rms < 0.5 * r.baseline_rms and r.rms < 330.0, r
         assert r.hand_lstsq_rms is not None and r.hand_lstsq_rms < 0.5 * r.baseline_rms
         assert "diagnose" in r.status
-        # The velocity dependence is named: a viscous loss (force per displacement rate, c >= 0), and the extended
-        # model predicts through the whole chain at least 50 % better than the nominal one (today 109 N, 0.17x).
+        # The velocity dependence is named: a viscous loss in the Bingham form (force per displacement rate, c >= 0,
+        # and the fluid's yield force f_y·tanh(rate/v0)), and the extended model predicts through the whole chain
+        # within 0.15x the single-valued baseline (today 70.5 N, 0.109x; 109 N, 0.17x, without the yield force).
         assert "viscous" in r.named, r
-        assert r.extended_rms is not None and r.extended_rms < 0.5 * r.rms and r.extended_rms < 200.0, r
+        assert r.extended_rms is not None and r.extended_rms < 0.13 * r.baseline_rms and r.extended_rms < 80.0, r
     elif key in ("feco_forc", "sediment_forc", "sediment_lakeshore"):
         assert r.noise_floor is not None and r.noise_floor > 0
         # With the table chosen by cross-validation on the grid a FORC family gets (adaptive): feco_forc 3.9x the
