@@ -66,7 +66,7 @@ SANE: dict[str, object] = {
     "title": "bmr compensator", "prefix": "bmr", "core_nmm": 100 * U, "field_nmm": 100 * U, "curvature": 0.2,
     "scale_nmm": 300.0, "torque_ref_ahead_nmm": 50.0, "theta_ahead_rad": 0.3, "slope_ref": None, "rest_s": 0.0,
     "kappa": 0.1, "cycles": 5.0, "deadband": 0.05, "y_mid": 0.0, "t_s": np.arange(300) / 1000.0, "harmonics": 0,
-    "v": 10 * U, "taus_s": np.array([0.01, 0.1]), "signed": False,
+    "v": 10 * U, "taus_s": np.array([0.01, 0.1]), "signed": False, "cubic": 0.3,
 }
 SANE["subdivisions"] = 2
 SANE["drift"] = [np.cumsum(U) * 1e-3]  # one running input integral per run (the leakage column)
