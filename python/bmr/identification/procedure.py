@@ -142,6 +142,10 @@ class IdentificationReport:
                 lines.append(f"  held-out RMS [{m}]: " + ", ".join(f"{r} {o.format(v['rms'], 4)} (max "
                                                                     f"{o.format(v['max'], 4)})"
                                                                     for r, v in runs.items()))
+        if any(self.scores.values()):
+            # The same runs give other figures in `bmr predict`, whose default fits each run's own offset.
+            lines.append("  (held-out RMS with the model's common offset, which chooses the method; `bmr predict` "
+                         "fits each run's own offset by default: --offset run)")
         for r, v in self.out_of_range.items():
             if v["count"]:
                 lines.append(f"  {r}: {int(v['count'])} inputs beyond the table, up to {i.format(v['max_excess'], 4)}"

@@ -99,6 +99,7 @@ def test_cli_import_identify_predict(piezo_logs, tmp_path, capsys):
     assert main(["identify", str(bundle), "--method", "both", "-o", str(model)]) == 0
     out = capsys.readouterr().out
     assert "held-out RMS [forc]" in out and "held-out RMS [lstsq]" in out
+    assert "model's common offset" in out and "--offset run" in out  # why `bmr predict` reports other figures
     assert "voltage (V) → displacement (µm)" in out and "the device has no angle" in out and "µm" in out
     assert "N·mm" not in out
     js, fig = tmp_path / "p.json", tmp_path / "p.png"
