@@ -38,24 +38,13 @@ impl EverettModel {
         masses: Vec<f64>,
         offset: f64,
     ) -> Result<Self, IdentificationError> {
-        if masses.len() != grid.n_cells() {
-            return Err(IdentificationError::MassCount {
-                intervals: grid.n_intervals(),
-                expected: grid.n_cells(),
-                got: masses.len(),
-            });
-        }
-        if let Some(i) = masses.iter().position(|m| !m.is_finite() || *m < 0.0) {
+        // The count and the offset are checked where signed masses are; here only what a density adds.
+        if masses.len() == grid.n_cells()
+            && let Some(i) = masses.iter().position(|m| !m.is_finite() || *m < 0.0)
+        {
             return Err(IdentificationError::NegativeMass {
                 index: i,
                 value: masses[i],
-            });
-        }
-        if !offset.is_finite() {
-            return Err(IdentificationError::NonFinite {
-                what: "offset",
-                index: 0,
-                value: offset,
             });
         }
         Self::with_signed_masses(grid, masses, offset)
