@@ -4,6 +4,10 @@ independently written plant at 1500 Hz (327 k samples; ``tests/python/independen
 and seal lobes) and the full ``bmr2013`` experiment set. CPU time is the stable figure on a shared machine; wall
 time is reported next to it.
 
+Each bundle is also diagnosed once in this process to count the least-squares re-identifications of the core
+tables and the input histories whose regressions were prepared (the figures the search's cost follows, free of the
+machine's load).
+
 Usage: ``python benches/diagnosis_speed.py [--full] [--record]`` (``--record`` stores the figures for the README,
 ``docs/measurements.json``, section ``diagnosis_speed``).
 """
@@ -35,6 +39,27 @@ def _run(cmd: list[str]) -> dict[str, float]:
             "peak_mb": peak_kb / 1024.0}
 
 
+def count_fits(bundle: Path) -> dict[str, int]:
+    """Re-identifications of the core tables and input histories prepared by one diagnosis of ``bundle``."""
+    import bmr
+    from bmr.diagnosis import selection
+
+    fitters: list[selection.Fitter] = []
+    original = selection.Fitter.__init__
+
+    def keep(self: selection.Fitter, *args: object, **kwargs: object) -> None:
+        original(self, *args, **kwargs)
+        fitters.append(self)
+
+    selection.Fitter.__init__ = keep  # type: ignore[method-assign]
+    try:
+        bmr.diagnose(bundle, progress=False, closed_loop=False)
+    finally:
+        selection.Fitter.__init__ = original  # type: ignore[method-assign]
+    return {"reidentifications": sum(f.reidentifier.fits for f in fitters),
+            "regressions": sum(f.reidentifier.regressions for f in fitters)}
+
+
 def measure(bundle: Path, label: str) -> dict[str, object]:
     with tempfile.TemporaryDirectory() as tmp:
         diag = _run(["bmr", "diagnose", str(bundle), "--json", f"{tmp}/d.json"])
@@ -43,7 +68,8 @@ def measure(bundle: Path, label: str) -> dict[str, object]:
     samples = json.loads((bundle / "manifest.json").read_text())
     return {"bundle": label, "diagnose": diag, "identify": ident,
             "ratio_cpu": diag["cpu_s"] / max(ident["cpu_s"], 1e-9), "cause": doc["cause"],
-            "effects": [e["name"] for e in doc["effects"]], "n_runs": len(samples.get("runs", []))}
+            "effects": [e["name"] for e in doc["effects"]], "n_runs": len(samples.get("runs", [])),
+            **count_fits(bundle)}
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -74,7 +100,8 @@ def main(argv: list[str] | None = None) -> int:
     for r in rows:
         d, i = r["diagnose"], r["identify"]
         print(f"{r['bundle']}: diagnose {d['cpu_s']:.1f} CPU-s, {d['wall_s']:.1f} s wall, {d['peak_mb']:.0f} MB "
-              f"peak; identify {i['cpu_s']:.1f} CPU-s ({r['ratio_cpu']:.1f}x); cause {r['cause']}")
+              f"peak; identify {i['cpu_s']:.1f} CPU-s ({r['ratio_cpu']:.1f}x); cause {r['cause']}; "
+              f"{r['reidentifications']} re-identifications, {r['regressions']} input histories prepared")
     if args.record:
         from measurements import record
 

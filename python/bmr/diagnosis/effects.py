@@ -85,6 +85,17 @@ class Effect(ABC):
         at a time); None for a plain list."""
         return None
 
+    def grid_families(self, data: EvalData) -> list[range] | None:
+        """The stretches of ``grid(data)`` along each of which one continuous parameter runs in order (each searched
+        coarse to fine on its own when the values are costly); None: the grid is one such stretch or no order."""
+        return None
+
+    def screening_value(self, value: Any) -> Any:
+        """For a product grid (:meth:`grid_shape`): the value that scores ``value``'s outer coordinate without
+        identifying the core tables again (the configuration's own tables stand), used to rank the outer axis
+        before the costly values are evaluated; None: no such value."""
+        return None
+
     # Field effects (``field = True``) change the field path and implement ``apply``; linear effects add
     # regression columns and implement ``columns``. Asking one kind for the other's method is a dispatch error.
     def apply(self, path: FieldPath, value: Any, data: EvalData, train: np.ndarray | None) -> FieldPath:
@@ -204,6 +215,10 @@ class NonCongruent(Effect):
     def grid(self, data: EvalData) -> list[Any]:
         # Two one-parameter families, each in order of its parameter.
         return [(c, 0.0) for c in self.CURVATURES] + [(0.0, k) for k in self.CUBICS]
+
+    def grid_families(self, data: EvalData) -> list[range] | None:
+        n = len(self.CURVATURES)
+        return [range(0, n), range(n, n + len(self.CUBICS))]
 
     def apply(self, path, value, data, train):
         return path.with_(curvature=float(value[0]), cubic=float(value[1]), reidentify=True)
@@ -602,7 +617,14 @@ class Creep(Effect):
         return len(self._spectra(data)), len(self.FRACTIONS)
 
     def adjust_path(self, path, value):
+        if value[2] == 0.0:
+            # Nothing removed from the protocol runs: the configuration's own least-squares tables.
+            return path.with_(corrections=tuple(c for c in path.corrections if c[0] is not self), reidentify=True)
         return path.with_correction(self, value, (value[2],))
+
+    def screening_value(self, value: Any) -> Any:
+        # The spectrum's columns on the configuration's tables: ranks the spectra without re-identifying.
+        return (value[0], value[1], 0.0)
 
     @staticmethod
     def _spectrum(value: Any) -> list[float]:

@@ -68,7 +68,7 @@ from bmr.diagnosis.field import FieldPath, Reidentifier
 from bmr.diagnosis.residuals import BoundedCache, EvalData
 
 __all__ = ["Configuration", "Fitter", "FoldFit", "Candidate", "Alternative", "forward_selection", "out_of_range",
-           "coarse_to_fine", "coordinate_scan", "MIN_GAIN", "NOISE_MARGIN"]
+           "coarse_to_fine", "coordinate_scan", "screened_scan", "MIN_GAIN", "NOISE_MARGIN"]
 
 MIN_GAIN = 0.02
 MIN_EXCESS = 0.25
@@ -82,6 +82,9 @@ _RCOND = 1e-13
 CONVERGED_CORRECTION = 0.01
 # Grid step of the first pass of an input-side effect's coarse-to-fine scan (grid values, see coarse_to_fine).
 COARSE_STRIDE = 4
+# Outer values of a product grid kept after screening (see screened_scan): creep's relaxation spectra ranked by
+# their fit on the configuration's own tables, the fractions removed from the protocol runs then searched for these.
+SCREEN_KEEP = 3
 # Held-out gain added to each fold not yet re-identified when judging whether a candidate is clearly below
 # MIN_GAIN on its first folds (see _clearly_below).
 EARLY_EXIT_MARGIN = 0.01
@@ -422,11 +425,12 @@ def _fit_with(fitter: Fitter, config: Configuration, eff: Effect, value: Any, fo
     return ff, beta, path, linear
 
 
-def _input_side(eff: Effect) -> bool:
-    """An effect on the core's input: every grid value is a new input history, a least-squares re-identification
-    of the core tables (the costly part of a diagnosis), so its grid is scanned coarse to fine (an output-side
-    one costs a right-hand side per value and is scanned whole)."""
-    return bool(eff.field and eff.needs_reidentify and not eff.output_side)
+def _costly(eff: Effect) -> bool:
+    """A field effect whose every grid value is a least-squares re-identification of the core tables and a new
+    field simulation (the costly part of a diagnosis): its grid is scanned coarse to fine. On the core's input side
+    a value is also a new input history (its regression prepared again); on the output side one more right-hand
+    side."""
+    return bool(eff.field and eff.needs_reidentify)
 
 
 def coarse_to_fine(n: int, score: Callable[[int], np.ndarray], stride: int = COARSE_STRIDE) -> dict[int, np.ndarray]:
@@ -490,16 +494,46 @@ def coordinate_scan(shape: tuple[int, int], score: Callable[[int], np.ndarray]) 
             return done
 
 
-def _scan(eff: Effect, data: EvalData, n: int, score: Callable[[int], np.ndarray]) -> dict[int, np.ndarray] | None:
-    """The scores of the grid values a search needs (None: every value is scored): an input-side effect's grid
-    coarse to fine, a product grid (``Effect.grid_shape``) one axis at a time."""
+def screened_scan(shape: tuple[int, int], score: Callable[[int], np.ndarray], screen: Callable[[int], float],
+                  keep: int) -> dict[int, np.ndarray]:
+    """:func:`coordinate_scan` of a product grid (``shape`` = (outer, inner)) restricted to the ``keep`` outer values
+    that ``screen`` (a cheap score of an outer value, lower is better) ranks best: the costly values of the other
+    outer values are never evaluated. Returns the evaluated indices' scores (indices of the full grid)."""
+    n_outer, n_inner = shape
+    ranked = sorted(range(n_outer), key=lambda o: (np.nan_to_num(screen(o), nan=np.inf), o))
+    outer = sorted(ranked[:max(1, keep)])
+    sub = coordinate_scan((len(outer), n_inner), lambda i: score(outer[i // n_inner] * n_inner + i % n_inner))
+    return {outer[i // n_inner] * n_inner + i % n_inner: v for i, v in sub.items()}
+
+
+def _scan(eff: Effect, data: EvalData, n: int, score: Callable[[int], np.ndarray],
+          screen: Callable[[Any], float] | None = None) -> dict[int, np.ndarray] | None:
+    """The scores of the grid values a search needs (None: every value is scored): a costly field effect's grid
+    coarse to fine (each of its families on its own), a product grid (``Effect.grid_shape``) one axis at a time —
+    over the :data:`SCREEN_KEEP` outer values ``screen`` (the criterion of an effect's
+    :meth:`~bmr.diagnosis.effects.Effect.screening_value`) ranks best, when the effect has one."""
     shape = eff.grid_shape(data)
     if shape is not None and shape[0] * shape[1] == n and shape[0] > 2 and shape[1] > 2:
         # Searched for the best total over the criteria (the folds' training fits): every fold then picks its own
         # best among the values evaluated around it.
-        return coordinate_scan(shape, lambda i: np.array([np.sum(score(i))]))
-    if _input_side(eff) and n > 2 * COARSE_STRIDE:
-        return coarse_to_fine(n, score)
+        def total(i: int) -> np.ndarray:
+            return np.array([np.sum(score(i))])
+
+        grid = eff.grid(data)
+        if screen is not None and shape[0] > SCREEN_KEEP and eff.screening_value(grid[0]) is not None:
+            return screened_scan(shape, total, lambda o: screen(eff.screening_value(grid[o * shape[1]])),
+                                 SCREEN_KEEP)
+        return coordinate_scan(shape, total)
+    if _costly(eff):
+        families = eff.grid_families(data) or [range(n)]
+        out: dict[int, np.ndarray] = {}
+        for fam in families:
+            if len(fam) > 2 * COARSE_STRIDE:
+                part = coarse_to_fine(len(fam), lambda i, f=fam: score(f[i]))
+            else:
+                part = {i: np.asarray(score(f_i), dtype=float).reshape(-1) for i, f_i in enumerate(fam)}
+            out.update({fam[i]: v for i, v in part.items()})
+        return out
     return None
 
 
@@ -515,7 +549,11 @@ def _grid_fits(fitter: Fitter, config: Configuration, eff: Effect, grid: Sequenc
         fits[i] = ff
         return ff.sse_train[criterion]
 
-    if _scan(eff, data, len(grid), score) is None:
+    def screen(value: Any) -> float:
+        # Not a grid value: ranks an outer coordinate only, and is never a fold's choice.
+        return float(np.sum(fitter.solve(*_with(config, eff, value, data)).sse_train[criterion]))
+
+    if _scan(eff, data, len(grid), score, screen) is None:
         for i in range(len(grid)):
             score(i)
     return fits
@@ -690,7 +728,7 @@ def refit(fitter: Fitter, config: Configuration, eff: Effect) -> tuple[Configura
         n = max(float(np.sum(ff.n_test)), 2.0)
         return float(n * math.log(max(float(ff.sse_train[data.folds]), 1e-300) / n) + sum(ff.widths) * math.log(n))
 
-    scanned = _scan(eff, data, len(grid), lambda j: np.array([sse(grid[j])]))
+    scanned = _scan(eff, data, len(grid), lambda j: np.array([sse(grid[j])]), sse)
     if scanned is not None:
         scores = [float(scanned[j][0]) if j in scanned else math.inf for j in range(len(grid))]
     else:

@@ -12,7 +12,7 @@ from bmr.diagnosis.effects import LIBRARY
 from bmr.diagnosis.procedure import nominal_model
 from bmr.diagnosis.residuals import prepare
 from bmr.diagnosis.selection import Configuration, Fitter, evaluate, heldout
-from bmr.simulation.excitation import diagnosis_bundle
+from bmr.simulation.excitation import MEDIUM_EFFECTS, diagnosis_bundle
 
 HARMONIC = {"order": 6.0, "amplitude_nmm": 6.0, "phase_rad": 0.5}
 
@@ -165,3 +165,53 @@ def test_a_candidate_stopped_early_is_never_one_its_folds_would_accept() -> None
     assert not below([0.03, 0.03, -0.5, -0.5, -0.5], {0: 0.03, 1: 0.03})
     # Small gains, but the re-identification raised them by 0.3: the remaining folds could reach the minimum.
     assert not below([-0.30, -0.25, -0.20, -0.20, -0.20], {0: 0.0, 1: 0.01})
+
+
+@pytest.fixture(scope="module")
+def creep_fitter() -> Fitter:
+    # Creep and an output map the nominal tables lack: both candidates have a best value to find.
+    bundle = diagnosis_bundle("rig_preisach", effects={"creep": MEDIUM_EFFECTS["creep"],
+                                                       "non_congruent": MEDIUM_EFFECTS["non_congruent"]},
+                              seed=6).decimated(4)
+    model = nominal_model(bundle)
+    data = prepare(bundle, model.hysteresis.input_range, 3, friction=model.friction)
+    protocol = [(r, data.run_start_s[r.name]) for r in bundle.roles().protocol]
+    return Fitter(data, model, protocol)
+
+
+def _evaluate_fresh(fitter: Fitter, name: str):
+    """As :func:`_evaluate`, with the fits and tables of earlier calls forgotten (each call counts its own)."""
+    fitter._fits.clear()
+    fitter.reidentifier._tables.clear()
+    return _evaluate(fitter, name)
+
+
+@pytest.mark.parametrize("name", ["non_congruent", "creep"])
+def test_costly_grids_are_searched_in_part_with_every_folds_choice_kept(creep_fitter, monkeypatch, name) -> None:
+    # non_congruent: each family of the output map (curvature, cubic) coarse to fine, against the whole grid;
+    # creep: the relaxation spectra ranked on the configuration's own tables and the fractions removed from the
+    # protocol runs searched for the best few only, against the search over every spectrum. Every fold chooses the
+    # same value for a fraction of the re-identifications.
+    fast, fits_fast = _evaluate_fresh(creep_fitter, name)
+    if name == "creep":
+        monkeypatch.setattr(selection, "SCREEN_KEEP", 10 ** 6)
+    else:
+        monkeypatch.setattr(selection, "_scan", lambda *args: None)
+    full, fits_full = _evaluate_fresh(creep_fitter, name)
+    assert fast.values == full.values
+    np.testing.assert_array_equal(fast.fold_gains, full.fold_gains)
+    assert fast.accepted == full.accepted
+    assert 3 * fits_fast <= 2 * fits_full, (fits_fast, fits_full)
+
+
+def test_a_spectrum_screened_keeps_the_configurations_tables(creep_fitter) -> None:
+    # Nothing removed from the protocol runs: the configuration's own least-squares tables, not a re-identification.
+    config = Configuration(creep_fitter.nominal_path().with_(reidentify=True))
+    creep_fitter.solve(config.path, config.linear)
+    creep = _effect("creep")
+    before = creep_fitter.reidentifier.fits
+    value = creep.screening_value(creep.grid(creep_fitter.data)[0])
+    path, _ = selection._with(config, creep, value, creep_fitter.data)
+    assert path == config.path
+    creep_fitter.solve(*selection._with(config, creep, value, creep_fitter.data))
+    assert creep_fitter.reidentifier.fits == before
