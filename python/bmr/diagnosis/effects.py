@@ -137,6 +137,11 @@ class Effect(ABC):
         explain), and positive on all of them."""
         return None
 
+    # signature_missing reads the configuration without the effect only (not ``after``): it is checked before the
+    # candidate's grid is searched, and a candidate without its signature is not evaluated (it could be neither
+    # named nor an alternative to another).
+    signature_before_only = False
+
     def signature_missing(self, fitter: Any, before: Any, after: Any) -> str:
         """Why the residual of the configuration ``before`` (without this effect) does not show the effect's own
         mechanism signature, or the configuration ``after`` (``before`` plus this effect fitted on all data: its
@@ -211,6 +216,7 @@ class NonCongruent(Effect):
     # first-order tables do not measure) must exceed that on the major loop and the first-order curves by this
     # share of the noise floor's square.
     HIGHER_ORDER_EXCESS = 0.1
+    signature_before_only = True
 
     def grid(self, data: EvalData) -> list[Any]:
         # Two one-parameter families, each in order of its parameter.
@@ -500,6 +506,7 @@ class SensorDrift(Effect):
     doc = "torque sensor offset drifting linearly with time at rate_nmm_per_s"
 
     needs_reidentify = True
+    signature_before_only = True
 
     def columns(self, data, value, y_field, model):
         return data.t_abs[:, None]

@@ -259,6 +259,10 @@ def diagnose(bundle: Bundle | str | Path, model: Any = None, *, folds: int = 5, 
     rng = np.random.default_rng(seed)
     for row in accepted + sel["rejected"]:
         g = np.asarray(row["fold_gains"])
+        if g.size == 0:
+            # Not evaluated (its mechanism signature was not in the residual): no gain to resample.
+            row["gain_interval_bootstrap"] = [0.0, 0.0]
+            continue
         boots = g[rng.integers(0, g.size, size=(2000, g.size))].mean(axis=1)
         row["gain_interval_bootstrap"] = [float(np.quantile(boots, 0.025)), float(np.quantile(boots, 0.975))]
     # The cause: the accepted physical effect that removed the most held-out RMS; table_resolution (not physics)

@@ -52,9 +52,18 @@ configuration's tables) and stop once the candidate cannot have positive gains i
 clearly below :data:`MIN_GAIN` (:func:`_clearly_below`); a rejected candidate's row then holds the folds evaluated
 (``folds_evaluated``). A correction that changes the protocol runs by less than :data:`CONVERGED_CORRECTION` of
 the noise floor is not re-identified at all: the configuration's own least-squares tables stand.
+
+Fewer grid values are re-identified than the grids hold: a field effect whose every value is a re-identification
+is scanned coarse to fine (every eighth value first on long grids; each family of the output map on its own,
+:meth:`bmr.diagnosis.effects.Effect.grid_families`); creep's relaxation spectra are ranked by their fit on the
+configuration's own tables (nothing removed from the protocol runs, so nothing identified again) and the fractions
+removed are searched for the :data:`SCREEN_KEEP` best spectra only (:func:`screened_scan`). A candidate whose
+mechanism signature reads the configuration's residual alone (``Effect.signature_before_only``) and is missing
+is not searched at all: it could be neither named nor an alternative (its row says so, with no fold evaluated).
 """
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass, field
 from typing import Any, Callable, Sequence
@@ -80,8 +89,9 @@ _RCOND = 1e-13
 # Share of the noise floor (RMS over the protocol runs) below which a further change of a fitted correction is not
 # applied to the protocol runs again (see _fit_with).
 CONVERGED_CORRECTION = 0.01
-# Grid step of the first pass of an input-side effect's coarse-to-fine scan (grid values, see coarse_to_fine).
-COARSE_STRIDE = 4
+# Grid steps of the first pass of a costly field effect's coarse-to-fine scan (grid values, see coarse_to_fine): the
+# largest that leaves more than two steps in the grid (a grid of at most two steps is scanned whole).
+COARSE_STRIDES = (8, 4)
 # Outer values of a product grid kept after screening (see screened_scan): creep's relaxation spectra ranked by
 # their fit on the configuration's own tables, the fractions removed from the protocol runs then searched for these.
 SCREEN_KEEP = 3
@@ -342,9 +352,15 @@ class Candidate:
     # those samples, on which its consistency over the folds and its share of the excess are judged.
     local: "Candidate | None" = None
 
+    @staticmethod
+    def unevaluated(effect: Effect, rms: float, noise_nmm: float, no_signature: str) -> "Candidate":
+        """A candidate whose mechanism signature the configuration's residual (``rms`` held out) does not show,
+        checked before its grid is searched (``Effect.signature_before_only``): no fold evaluated, no gain."""
+        return Candidate(effect, np.zeros(0), rms, rms, [], noise_nmm, no_signature=no_signature)
+
     @property
     def mean_gain(self) -> float:
-        return float(np.mean(self.fold_gains))
+        return float(np.mean(self.fold_gains)) if self.fold_gains.size else 0.0
 
     @property
     def folds_positive(self) -> int:
@@ -354,6 +370,8 @@ class Candidate:
     def interval(self) -> tuple[float, float]:
         g = self.fold_gains
         k = g.size
+        if k == 0:
+            return 0.0, 0.0
         half = t975(k - 1) * float(np.std(g, ddof=1)) / math.sqrt(k) if k > 1 else float("inf")
         return float(np.mean(g) - half), float(np.mean(g) + half)
 
@@ -433,11 +451,17 @@ def _costly(eff: Effect) -> bool:
     return bool(eff.field and eff.needs_reidentify)
 
 
-def coarse_to_fine(n: int, score: Callable[[int], np.ndarray], stride: int = COARSE_STRIDE) -> dict[int, np.ndarray]:
+def coarse_stride(n: int) -> int | None:
+    """The first step of a coarse-to-fine scan of ``n`` grid values (None: scan them all)."""
+    return next((s for s in COARSE_STRIDES if n > 2 * s), None)
+
+
+def coarse_to_fine(n: int, score: Callable[[int], np.ndarray], stride: int | None = None) -> dict[int, np.ndarray]:
     """Scores (one per criterion, lower is better) of the indices ``0 … n−1`` of a grid, evaluated coarse to fine:
     every ``stride``-th index and the last, then, halving the step, both neighbours of each criterion's best so far,
     until every criterion's best has its immediate neighbours evaluated (the minimum of the full grid when a score
     is unimodal along it). Returns the evaluated indices' scores."""
+    stride = stride if stride is not None else coarse_stride(n) or 1
     done: dict[int, np.ndarray] = {}
 
     def ev(i: int) -> None:
@@ -506,6 +530,11 @@ def screened_scan(shape: tuple[int, int], score: Callable[[int], np.ndarray], sc
     return {outer[i // n_inner] * n_inner + i % n_inner: v for i, v in sub.items()}
 
 
+def _family_score(score: Callable[[int], np.ndarray], family: range, i: int) -> np.ndarray:
+    """``score`` of the ``i``-th value of a grid family (an index of the whole grid)."""
+    return score(family[i])
+
+
 def _scan(eff: Effect, data: EvalData, n: int, score: Callable[[int], np.ndarray],
           screen: Callable[[Any], float] | None = None) -> dict[int, np.ndarray] | None:
     """The scores of the grid values a search needs (None: every value is scored): a costly field effect's grid
@@ -528,8 +557,8 @@ def _scan(eff: Effect, data: EvalData, n: int, score: Callable[[int], np.ndarray
         families = eff.grid_families(data) or [range(n)]
         out: dict[int, np.ndarray] = {}
         for fam in families:
-            if len(fam) > 2 * COARSE_STRIDE:
-                part = coarse_to_fine(len(fam), lambda i, f=fam: score(f[i]))
+            if coarse_stride(len(fam)) is not None:
+                part = coarse_to_fine(len(fam), functools.partial(_family_score, score, fam))
             else:
                 part = {i: np.asarray(score(f_i), dtype=float).reshape(-1) for i, f_i in enumerate(fam)}
             out.update({fam[i]: v for i, v in part.items()})
@@ -802,7 +831,12 @@ def forward_selection(fitter: Fitter, *, library: Sequence[Effect] = LIBRARY, ma
         for eff in candidates:
             if progress is not None:
                 progress.set_postfix_str(f"round {rounds}: {eff.name}")
-            cands.append(evaluate(fitter, config, eff, before))
+            missing = eff.signature_missing(fitter, config, None) if eff.signature_before_only else ""
+            if missing:
+                # It could be neither named nor an alternative: its grid is not searched.
+                cands.append(Candidate.unevaluated(eff, before.rms(), data.noise_floor_nmm, missing))
+            else:
+                cands.append(evaluate(fitter, config, eff, before))
             if progress is not None:
                 progress.update(1)
         for c in cands:
@@ -865,7 +899,9 @@ def forward_selection(fitter: Fitter, *, library: Sequence[Effect] = LIBRARY, ma
             continue
         row = c.row()
         row["round"] = getattr(c, "round", 0)
-        row["reason"] = ("not accepted" if not c.accepted else
+        row["reason"] = (f"its mechanism signature is not in the residual ({c.no_signature}); not evaluated"
+                         if c.no_signature and not c.fold_gains.size else
+                         "not accepted" if not c.accepted else
                          f"parameters outside the documented range ({c.unphysical})" if c.unphysical else
                          f"its mechanism signature is not in the residual ({c.no_signature})" if c.no_signature else
                          "accepted but another effect explained more; not needed afterwards")

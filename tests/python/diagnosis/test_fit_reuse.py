@@ -215,3 +215,32 @@ def test_a_spectrum_screened_keeps_the_configurations_tables(creep_fitter) -> No
     assert path == config.path
     creep_fitter.solve(*selection._with(config, creep, value, creep_fitter.data))
     assert creep_fitter.reidentifier.fits == before
+
+
+@pytest.fixture(scope="module")
+def lag_fitter() -> Fitter:
+    bundle = diagnosis_bundle("rig_preisach", effects={"coil_lag": {"tau_s": 0.02}}, seed=7).decimated(4)
+    model = nominal_model(bundle)
+    data = prepare(bundle, model.hysteresis.input_range, 3, friction=model.friction)
+    protocol = [(r, data.run_start_s[r.name]) for r in bundle.roles().protocol]
+    return Fitter(data, model, protocol)
+
+
+@pytest.mark.parametrize("name, bundle", [("non_congruent", "lag_fitter"), ("sensor_drift", "fitter")])
+def test_a_candidate_without_its_signature_is_not_searched(request, name, bundle) -> None:
+    # A coil lag (no output map: the residual is no larger after higher-order reversals) and a friction harmonic
+    # (no zero drifting through the session): the configuration's residual lacks the candidate's signature, which
+    # reads that residual alone. Such a candidate could be neither named nor an alternative, so its grid is not
+    # searched at all.
+    fitter = request.getfixturevalue(bundle)
+    eff = _effect(name)
+    config = Configuration(fitter.nominal_path())
+    fitter.solve(config.path, config.linear)
+    missing = eff.signature_missing(fitter, config, None)
+    assert eff.signature_before_only and missing
+    start = fitter.reidentifier.fits
+    sel = selection.forward_selection(fitter, library=[eff], max_effects=1)
+    assert fitter.reidentifier.fits == start
+    assert not sel["accepted"] and not sel["alternatives"]
+    row = next(r for r in sel["rejected"] if r["name"] == name)
+    assert row["folds_evaluated"] == 0 and row["fold_gains"] == [] and missing in row["reason"]

@@ -77,3 +77,14 @@ def test_a_screened_product_grid_evaluates_only_the_outer_values_ranked_best():
         assert {i // 6 for i in done} <= set(sorted(range(12), key=lambda o: (o - co) ** 2)[:3])
         full = np.array([score(i)[0] for i in range(72)])
         assert min(done, key=lambda i: done[i][0]) == int(np.argmin(full))
+
+
+def test_a_long_grid_starts_eight_values_apart():
+    # The delay grid (50 values): a first pass every eighth value, then three halvings around the best.
+    from bmr.diagnosis.selection import coarse_stride
+
+    assert coarse_stride(50) == 8 and coarse_stride(16) == 4 and coarse_stride(8) is None
+    for centre in np.linspace(-2, 51, 40):
+        done = coarse_to_fine(50, lambda i: np.array([abs(i - centre) ** 1.5]))
+        assert min(done, key=lambda i: done[i][0]) == int(np.clip(round(centre), 0, 49))
+        assert len(done) <= 50 // 8 + 2 + 6
