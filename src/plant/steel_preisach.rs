@@ -188,8 +188,12 @@ impl Everett {
     /// Everett function at (α, β), bilinear between table nodes; arguments are clamped to the plane.
     #[inline]
     fn eval(&self, alpha: f64, beta: f64) -> f64 {
-        let (ia, s) = self.locate(alpha);
-        let (jb, t) = self.locate(beta);
+        self.eval_located(self.locate(alpha), self.locate(beta))
+    }
+
+    /// [`Self::eval`] at arguments already located (`locate`: cell and fraction).
+    #[inline]
+    fn eval_located(&self, (ia, s): (usize, f64), (jb, t): (usize, f64)) -> f64 {
         let n = self.n;
         let f00 = self.table[ia * n + jb];
         let f10 = self.table[(ia + 1) * n + jb];
@@ -218,6 +222,10 @@ pub struct PreisachSteel {
     prefix: Vec<f64>,
     input_a: f64,
     output: f64,
+    /// The newest extremum the last step was measured from and its located cell: it stays the same between
+    /// reversals, so each step locates only its input (same arithmetic, same bits).
+    anchor: f64,
+    anchor_cell: (usize, f64),
 }
 
 impl PreisachSteel {
@@ -245,6 +253,8 @@ impl PreisachSteel {
             prefix: Vec::new(),
             input_a: 0.0,
             output: 0.0,
+            anchor: f64::NAN,
+            anchor_cell: (0, 0.0),
         };
         s.demagnetise();
         Ok(s)
@@ -341,7 +351,19 @@ impl PreisachSteel {
             rising = true;
         }
         self.input_a = u;
-        self.output = 2.0 * (self.prefix[n] + self.segment(self.extrema[n], u, rising)) - 1.0;
+        let from = self.extrema[n];
+        if from.to_bits() != self.anchor.to_bits() {
+            self.anchor = from;
+            self.anchor_cell = self.everett.locate(from);
+        }
+        // `segment(from, u, rising)` with `from` located once.
+        let (at_from, at_u) = (self.anchor_cell, self.everett.locate(u));
+        let segment = if rising {
+            self.everett.eval_located(at_u, at_from)
+        } else {
+            -self.everett.eval_located(at_from, at_u)
+        };
+        self.output = 2.0 * (self.prefix[n] + segment) - 1.0;
         self.output
     }
 
@@ -533,8 +555,9 @@ mod tests {
         s.output
     }
 
-    /// A dither back over the newest extremum drops it without pushing the reversal first: outputs and memory
-    /// are the long way's to the bit, through saturation both ways.
+    /// A dither back over the newest extremum drops it without pushing the reversal first, and each step reuses
+    /// the located newest extremum: outputs and memory are the long way's (every segment located afresh) to the
+    /// bit, through saturation both ways.
     #[test]
     fn a_dither_back_over_the_newest_extremum_is_the_long_way_to_the_bit() {
         let mut short = steel();
