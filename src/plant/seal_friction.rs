@@ -65,3 +65,49 @@ impl SealFriction {
         f.with_current_gain(gain_per_a).map_err(bad)
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The evaluated form is the paper's `c0 + (1 + g|I|) Σ A_k sin(kθ + φ_k)` (plus the extra harmonic) to
+    /// round-off, over more than a turn and both current signs.
+    #[test]
+    fn the_evaluated_form_is_the_amplitude_phase_sum() {
+        let f = SealFriction {
+            offset_nmm: 20.0,
+            harmonics: vec![(30.0, 0.4), (9.3, 1.9), (4.6, -0.7)],
+        };
+        let (g, extra) = (0.3, (6, 4.0, -0.3));
+        let e = f.evaluated(Some(extra), g).unwrap();
+        for i in 0..5000 {
+            let th = -1.0 + 0.0017 * i as f64;
+            let current = 1.25 * libm::sin(0.01 * i as f64);
+            let ripple: f64 = f
+                .harmonics
+                .iter()
+                .enumerate()
+                .map(|(k, &(a, p))| a * libm::sin((k + 1) as f64 * th + p))
+                .sum::<f64>()
+                + extra.1 * libm::sin(extra.0 as f64 * th + extra.2);
+            let want = f.offset_nmm + ripple * (1.0 + g * current.abs());
+            let got = e.eval_at(th, current);
+            assert!((got - want).abs() < 1e-12, "θ={th}: {got} vs {want}");
+        }
+    }
+
+    #[test]
+    fn more_harmonics_than_the_series_holds_are_refused() {
+        let f = SealFriction {
+            offset_nmm: 0.0,
+            harmonics: vec![(1.0, 0.0); MAX_ORDER + 1],
+        };
+        let e = f.validate().unwrap_err().to_string();
+        assert!(e.contains(&format!("at most {MAX_ORDER}")), "{e}");
+        assert!(
+            SealFriction::none()
+                .evaluated(Some((MAX_ORDER + 1, 1.0, 0.0)), 0.0)
+                .is_err()
+        );
+    }
+}
