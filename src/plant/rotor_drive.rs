@@ -87,7 +87,13 @@ impl RotorDrive {
     /// Current rotor speed, rad/s.
     #[inline]
     pub fn speed_rad_s(&self) -> f64 {
-        self.params.speed_rad_s * (1.0 + self.params.speed_ripple * libm::sin(self.theta_rad))
+        self.speed_at_sin(crate::trig::sincos(self.theta_rad).0)
+    }
+
+    /// The speed at the present angle from its sine (`crate::trig::sincos`, as the friction evaluates it).
+    #[inline]
+    pub fn speed_at_sin(&self, sin_theta: f64) -> f64 {
+        self.params.speed_rad_s * (1.0 + self.params.speed_ripple * sin_theta)
     }
 
     /// Rotor angle of the current sample, rad in [0, 2π).

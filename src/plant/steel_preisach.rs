@@ -186,10 +186,14 @@ impl Everett {
     }
 
     /// Everett function at (α, β), bilinear between table nodes; arguments are clamped to the plane.
-    #[inline]
+    #[cfg(test)]
     fn eval(&self, alpha: f64, beta: f64) -> f64 {
-        let (ia, s) = self.locate(alpha);
-        let (jb, t) = self.locate(beta);
+        self.eval_located(self.locate(alpha), self.locate(beta))
+    }
+
+    /// [`Self::eval`] at arguments already located (`locate`: cell and fraction).
+    #[inline]
+    fn eval_located(&self, (ia, s): (usize, f64), (jb, t): (usize, f64)) -> f64 {
         let n = self.n;
         let f00 = self.table[ia * n + jb];
         let f10 = self.table[(ia + 1) * n + jb];
@@ -218,6 +222,11 @@ pub struct PreisachSteel {
     prefix: Vec<f64>,
     input_a: f64,
     output: f64,
+    /// Cells on the Everett grid (value bits, cell) of the extremum the last segment started from and of the
+    /// last input: the newest extremum stays the same between reversals and a reversal starts at the last input,
+    /// so a step locates only its new input (the same arithmetic, the same bits).
+    from_cell: (u64, (usize, f64)),
+    input_cell: (u64, (usize, f64)),
 }
 
 impl PreisachSteel {
@@ -245,6 +254,8 @@ impl PreisachSteel {
             prefix: Vec::new(),
             input_a: 0.0,
             output: 0.0,
+            from_cell: (f64::NAN.to_bits(), (0, 0.0)),
+            input_cell: (f64::NAN.to_bits(), (0, 0.0)),
         };
         s.demagnetise();
         Ok(s)
@@ -275,11 +286,24 @@ impl PreisachSteel {
 
     /// Staircase segment contribution to the "up" mass: rising a→b adds F(b, a), falling a→b removes F(a, b).
     #[inline]
-    fn segment(&self, from: f64, to: f64, rising: bool) -> f64 {
+    fn segment(&mut self, from: f64, to: f64, rising: bool) -> f64 {
+        let bits = from.to_bits();
+        if self.from_cell.0 != bits {
+            self.from_cell = if self.input_cell.0 == bits {
+                self.input_cell
+            } else {
+                (bits, self.everett.locate(from))
+            };
+        }
+        let bits = to.to_bits();
+        if self.input_cell.0 != bits {
+            self.input_cell = (bits, self.everett.locate(to));
+        }
+        let (at_from, at_to) = (self.from_cell.1, self.input_cell.1);
         if rising {
-            self.everett.eval(to, from)
+            self.everett.eval_located(at_to, at_from)
         } else {
-            -self.everett.eval(from, to)
+            -self.everett.eval_located(at_from, at_to)
         }
     }
 
@@ -500,6 +524,15 @@ mod tests {
         }));
     }
 
+    /// `PreisachSteel::segment` with both ends located afresh.
+    fn segment_afresh(s: &PreisachSteel, from: f64, to: f64, rising: bool) -> f64 {
+        if rising {
+            s.everett.eval(to, from)
+        } else {
+            -s.everett.eval(from, to)
+        }
+    }
+
     /// `apply_normalised` with every reversal pushed before the wipe-out (no shortcut for a dither back over the
     /// newest extremum).
     fn apply_long(s: &mut PreisachSteel, current_a: f64) -> f64 {
@@ -511,7 +544,7 @@ mod tests {
         let mut n = s.extrema.len() - 1;
         let mut rising = n.is_multiple_of(2);
         if (rising && u < s.input_a) || (!rising && u > s.input_a) {
-            let contribution = s.segment(s.extrema[n], s.input_a, rising);
+            let contribution = segment_afresh(s, s.extrema[n], s.input_a, rising);
             s.prefix.push(s.prefix[n] + contribution);
             s.extrema.push(s.input_a);
             n += 1;
@@ -529,12 +562,13 @@ mod tests {
             rising = true;
         }
         s.input_a = u;
-        s.output = 2.0 * (s.prefix[n] + s.segment(s.extrema[n], u, rising)) - 1.0;
+        s.output = 2.0 * (s.prefix[n] + segment_afresh(s, s.extrema[n], u, rising)) - 1.0;
         s.output
     }
 
-    /// A dither back over the newest extremum drops it without pushing the reversal first: outputs and memory
-    /// are the long way's to the bit, through saturation both ways.
+    /// A dither back over the newest extremum drops it without pushing the reversal first, and each step reuses
+    /// the values it located before: outputs and memory are the long way's (every segment located afresh) to the
+    /// bit, through saturation both ways.
     #[test]
     fn a_dither_back_over_the_newest_extremum_is_the_long_way_to_the_bit() {
         let mut short = steel();

@@ -19,7 +19,9 @@ use super::{PlantError, StateReader, check_range};
 use crate::accommodation::Accommodation;
 use crate::creep::{Creep, MAX_CREEP_TERMS};
 use crate::filters::{DelayLine, Heating, Lag};
+use crate::friction::{Friction, MAX_ORDER};
 use crate::rate_dependence::RateDependence;
+use crate::stages::Ripple;
 
 /// Everything that defines a virtual actuator (a preset is one of these).
 #[derive(Clone, Debug, PartialEq)]
@@ -260,7 +262,7 @@ struct ActiveEffects {
     thermal_loss: f64,
     thermal_tau_s: f64,
     friction_gain_per_a: f64,
-    harmonic: Option<(f64, f64, f64)>,
+    harmonic: Option<(usize, f64, f64)>,
     ripple: Option<(f64, f64)>,
     drift_nmm_per_s: f64,
     delay_samples: usize,
@@ -319,7 +321,7 @@ impl ActiveEffects {
                     order,
                     amplitude_nmm,
                     phase_rad,
-                } => a.harmonic = Some((order as f64, amplitude_nmm, phase_rad)),
+                } => a.harmonic = Some((order as usize, amplitude_nmm, phase_rad)),
                 Effect::TorqueRipple { eps, phase_rad } => a.ripple = Some((eps, phase_rad)),
                 Effect::SensorDrift { rate_nmm_per_s } => a.drift_nmm_per_s = rate_nmm_per_s,
                 Effect::TimeDelay { delay_s } => {
@@ -363,6 +365,9 @@ pub struct VirtualActuator {
     dt_s: f64,
     fx: ActiveEffects,
     torque_per_kpa: f64,
+    /// The seal friction with the extra harmonic and the current growth, in the compensator's evaluated form.
+    friction: Friction<MAX_ORDER>,
+    ripple: Option<Ripple>,
     delay_line: DelayLine<Vec<f64>>,
     converter1: Converter,
     converter2: Converter,
@@ -438,6 +443,10 @@ impl VirtualActuator {
                 0.0,
             )
         });
+        let friction = config
+            .friction
+            .evaluated(fx.harmonic, fx.friction_gain_per_a)?;
+        let ripple = fx.ripple.map(|(eps, phase)| Ripple::new(eps, phase));
         let mut calibration_rng = calibration_stream(seed);
         let (run_gain, run_offset_nmm) =
             draw_run_calibration(fx.run_gain_offset, &mut calibration_rng);
@@ -454,6 +463,8 @@ impl VirtualActuator {
             run_offset_nmm,
             calibration_rng,
             torque_per_kpa: config.geometry.yield_torque_per_kpa(),
+            friction,
+            ripple,
             delay_line: DelayLine::new(vec![0.0; fx.delay_samples], fx.delay_samples, 0.0)
                 .expect("sized to the delay"),
             converter1: Converter::new(config.converter.clone(), dt_s),
@@ -701,17 +712,7 @@ impl VirtualActuator {
 
     /// Noise-free seal friction (N·mm) at zero current and angle `theta_rad`, including any extra harmonic.
     pub fn true_friction_nmm(&self, theta_rad: f64) -> f64 {
-        self.friction_nmm(theta_rad, 0.0)
-    }
-
-    #[inline]
-    fn friction_nmm(&self, theta_rad: f64, field_current_a: f64) -> f64 {
-        let f = &self.config.friction;
-        let mut ripple = f.ripple_nmm(theta_rad);
-        if let Some((k, a, p)) = self.fx.harmonic {
-            ripple += a * libm::sin(k * theta_rad + p);
-        }
-        f.offset_nmm + ripple * (1.0 + self.fx.friction_gain_per_a * field_current_a.abs())
+        self.friction.eval(theta_rad)
     }
 
     /// The encoder angle (rad) of the next sample: the first of [`Self::theta_ahead`].
@@ -778,7 +779,9 @@ impl VirtualActuator {
         );
 
         let theta_rad = self.drive.theta_rad();
-        let speed_rad_s = self.drive.speed_rad_s();
+        // One `sincos` of the angle for the friction, the torque ripple and the drive's speed ripple.
+        let angle = self.friction.angle_terms(theta_rad);
+        let speed_rad_s = self.drive.speed_at_sin(angle.sin1);
         let fluid = &self.config.fluid;
         let yield1 = self.output_map(fluid.yield_stress_kpa(b1_t) * self.torque_per_kpa);
         let yield2 = self.output_map(fluid.yield_stress_kpa(b2_t) * self.torque_per_kpa);
@@ -807,10 +810,10 @@ impl VirtualActuator {
             let heat = (coil1_a * coil1_a + coil2_a * coil2_a) / (full * full);
             field *= 1.0 - self.fx.thermal_loss * self.heating.step_heat(heat);
         }
-        if let Some((eps, phase)) = self.fx.ripple {
-            field *= 1.0 + eps * libm::cos(theta_rad + phase);
+        if let Some(r) = &self.ripple {
+            field *= r.gain(&angle);
         }
-        let friction_nmm = self.friction_nmm(theta_rad, field1_a + field2_a);
+        let friction_nmm = self.friction.with_terms(&angle, field1_a + field2_a);
         let torque_true_nmm = field + friction_nmm;
         let drift = self.fx.drift_nmm_per_s * t_s;
         // What reaches the sensor: a charge-type measurement integrates the leakage (trapezoids of the applied
