@@ -90,12 +90,6 @@ class Effect(ABC):
         coarse to fine on its own when the values are costly); None: the grid is one such stretch or no order."""
         return None
 
-    def screening_value(self, value: Any) -> Any:
-        """For a product grid (:meth:`grid_shape`): the value that scores ``value``'s outer coordinate without
-        identifying the core tables again (the configuration's own tables stand), used to rank the outer axis
-        before the costly values are evaluated; None: no such value."""
-        return None
-
     # Field effects (``field = True``) change the field path and implement ``apply``; linear effects add
     # regression columns and implement ``columns``. Asking one kind for the other's method is a dispatch error.
     def apply(self, path: FieldPath, value: Any, data: EvalData, train: np.ndarray | None) -> FieldPath:
@@ -624,14 +618,7 @@ class Creep(Effect):
         return len(self._spectra(data)), len(self.FRACTIONS)
 
     def adjust_path(self, path, value):
-        if value[2] == 0.0:
-            # Nothing removed from the protocol runs: the configuration's own least-squares tables.
-            return path.with_(corrections=tuple(c for c in path.corrections if c[0] is not self), reidentify=True)
         return path.with_correction(self, value, (value[2],))
-
-    def screening_value(self, value: Any) -> Any:
-        # The spectrum's columns on the configuration's tables: ranks the spectra without re-identifying.
-        return (value[0], value[1], 0.0)
 
     @staticmethod
     def _spectrum(value: Any) -> list[float]:
