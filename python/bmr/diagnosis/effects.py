@@ -57,9 +57,6 @@ class Effect(ABC):
     # it from another effect).
     excitation = "a run with a different excitation"
     needs_reidentify = False  # the effect needs least-squares core tables (compare against those)
-    # A field effect that changes only the output side of the path (the core's input history stays the nominal
-    # one): each of its values re-identifies the tables with one more right-hand side, so every value is scored.
-    output_side = False
     # Order in which fitted effects are removed from the protocol runs before re-identification: additive terms
     # (rank 0) before multiplicative gains (rank 1).
     removal_rank = 0
@@ -201,7 +198,6 @@ class NonCongruent(Effect):
     excitation = "minor loops between the same input extremes at different histories (their size changes)"
     field = True
     needs_reidentify = True
-    output_side = True
     doc = ("output map after a Preisach core: T = S n (1 + curvature |n| + cubic n²)/(1 + curvature + cubic), "
            "n = core torque/S")
     CURVATURES = (-0.4, -0.3, -0.2, -0.12, -0.06, 0.06, 0.12, 0.2, 0.35, 0.5, 0.75, 1.0, 1.5, 2.2, 3.2, 4.5)
