@@ -57,9 +57,6 @@ class Effect(ABC):
     # it from another effect).
     excitation = "a run with a different excitation"
     needs_reidentify = False  # the effect needs least-squares core tables (compare against those)
-    # A field effect that changes only the output side of the path (the core's input history stays the nominal
-    # one): each of its values re-identifies the tables with one more right-hand side, so every value is scored.
-    output_side = False
     # Order in which fitted effects are removed from the protocol runs before re-identification: additive terms
     # (rank 0) before multiplicative gains (rank 1).
     removal_rank = 0
@@ -88,12 +85,6 @@ class Effect(ABC):
     def grid_families(self, data: EvalData) -> list[range] | None:
         """The stretches of ``grid(data)`` along each of which one continuous parameter runs in order (each searched
         coarse to fine on its own when the values are costly); None: the grid is one such stretch or no order."""
-        return None
-
-    def screening_value(self, value: Any) -> Any:
-        """For a product grid (:meth:`grid_shape`): the value that scores ``value``'s outer coordinate without
-        identifying the core tables again (the configuration's own tables stand), used to rank the outer axis
-        before the costly values are evaluated; None: no such value."""
         return None
 
     # Field effects (``field = True``) change the field path and implement ``apply``; linear effects add
@@ -207,7 +198,6 @@ class NonCongruent(Effect):
     excitation = "minor loops between the same input extremes at different histories (their size changes)"
     field = True
     needs_reidentify = True
-    output_side = True
     doc = ("output map after a Preisach core: T = S n (1 + curvature |n| + cubic n²)/(1 + curvature + cubic), "
            "n = core torque/S")
     CURVATURES = (-0.4, -0.3, -0.2, -0.12, -0.06, 0.06, 0.12, 0.2, 0.35, 0.5, 0.75, 1.0, 1.5, 2.2, 3.2, 4.5)
@@ -624,14 +614,7 @@ class Creep(Effect):
         return len(self._spectra(data)), len(self.FRACTIONS)
 
     def adjust_path(self, path, value):
-        if value[2] == 0.0:
-            # Nothing removed from the protocol runs: the configuration's own least-squares tables.
-            return path.with_(corrections=tuple(c for c in path.corrections if c[0] is not self), reidentify=True)
         return path.with_correction(self, value, (value[2],))
-
-    def screening_value(self, value: Any) -> Any:
-        # The spectrum's columns on the configuration's tables: ranks the spectra without re-identifying.
-        return (value[0], value[1], 0.0)
 
     @staticmethod
     def _spectrum(value: Any) -> list[float]:

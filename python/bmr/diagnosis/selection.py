@@ -55,9 +55,7 @@ the noise floor is not re-identified at all: the configuration's own least-squar
 
 Fewer grid values are re-identified than the grids hold: a field effect whose every value is a re-identification
 is scanned coarse to fine (every eighth value first on long grids; each family of the output map on its own,
-:meth:`bmr.diagnosis.effects.Effect.grid_families`); creep's relaxation spectra are ranked by their fit on the
-configuration's own tables (nothing removed from the protocol runs, so nothing identified again) and the fractions
-removed are searched for the :data:`SCREEN_KEEP` best spectra only (:func:`screened_scan`). A candidate whose
+:meth:`bmr.diagnosis.effects.Effect.grid_families`). A candidate whose
 mechanism signature reads the configuration's residual alone (``Effect.signature_before_only``) and is missing
 is not searched at all: it could be neither named nor an alternative (its row says so, with no fold evaluated).
 """
@@ -77,7 +75,7 @@ from bmr.diagnosis.field import FieldPath, Reidentifier
 from bmr.diagnosis.residuals import BoundedCache, EvalData
 
 __all__ = ["Configuration", "Fitter", "FoldFit", "Candidate", "Alternative", "forward_selection", "out_of_range",
-           "coarse_to_fine", "coordinate_scan", "screened_scan", "MIN_GAIN", "NOISE_MARGIN"]
+           "coarse_to_fine", "coordinate_scan", "MIN_GAIN", "NOISE_MARGIN"]
 
 MIN_GAIN = 0.02
 MIN_EXCESS = 0.25
@@ -92,9 +90,6 @@ CONVERGED_CORRECTION = 0.01
 # Grid steps of the first pass of a costly field effect's coarse-to-fine scan (grid values, see coarse_to_fine): the
 # largest that leaves more than two steps in the grid (a grid of at most two steps is scanned whole).
 COARSE_STRIDES = (8, 4)
-# Outer values of a product grid kept after screening (see screened_scan): creep's relaxation spectra ranked by
-# their fit on the configuration's own tables, the fractions removed from the protocol runs then searched for these.
-SCREEN_KEEP = 3
 # Held-out gain added to each fold not yet re-identified when judging whether a candidate is clearly below
 # MIN_GAIN on its first folds (see _clearly_below).
 EARLY_EXIT_MARGIN = 0.01
@@ -518,41 +513,19 @@ def coordinate_scan(shape: tuple[int, int], score: Callable[[int], np.ndarray]) 
             return done
 
 
-def screened_scan(shape: tuple[int, int], score: Callable[[int], np.ndarray], screen: Callable[[int], float],
-                  keep: int) -> dict[int, np.ndarray]:
-    """:func:`coordinate_scan` of a product grid (``shape`` = (outer, inner)) restricted to the ``keep`` outer values
-    that ``screen`` (a cheap score of an outer value, lower is better) ranks best: the costly values of the other
-    outer values are never evaluated. Returns the evaluated indices' scores (indices of the full grid)."""
-    n_outer, n_inner = shape
-    ranked = sorted(range(n_outer), key=lambda o: (np.nan_to_num(screen(o), nan=np.inf), o))
-    outer = sorted(ranked[:max(1, keep)])
-    sub = coordinate_scan((len(outer), n_inner), lambda i: score(outer[i // n_inner] * n_inner + i % n_inner))
-    return {outer[i // n_inner] * n_inner + i % n_inner: v for i, v in sub.items()}
-
-
 def _family_score(score: Callable[[int], np.ndarray], family: range, i: int) -> np.ndarray:
     """``score`` of the ``i``-th value of a grid family (an index of the whole grid)."""
     return score(family[i])
 
 
-def _scan(eff: Effect, data: EvalData, n: int, score: Callable[[int], np.ndarray],
-          screen: Callable[[Any], float] | None = None) -> dict[int, np.ndarray] | None:
+def _scan(eff: Effect, data: EvalData, n: int, score: Callable[[int], np.ndarray]) -> dict[int, np.ndarray] | None:
     """The scores of the grid values a search needs (None: every value is scored): a costly field effect's grid
-    coarse to fine (each of its families on its own), a product grid (``Effect.grid_shape``) one axis at a time —
-    over the :data:`SCREEN_KEEP` outer values ``screen`` (the criterion of an effect's
-    :meth:`~bmr.diagnosis.effects.Effect.screening_value`) ranks best, when the effect has one."""
+    coarse to fine (each of its families on its own), a product grid (``Effect.grid_shape``) one axis at a time."""
     shape = eff.grid_shape(data)
     if shape is not None and shape[0] * shape[1] == n and shape[0] > 2 and shape[1] > 2:
         # Searched for the best total over the criteria (the folds' training fits): every fold then picks its own
         # best among the values evaluated around it.
-        def total(i: int) -> np.ndarray:
-            return np.array([np.sum(score(i))])
-
-        grid = eff.grid(data)
-        if screen is not None and shape[0] > SCREEN_KEEP and eff.screening_value(grid[0]) is not None:
-            return screened_scan(shape, total, lambda o: screen(eff.screening_value(grid[o * shape[1]])),
-                                 SCREEN_KEEP)
-        return coordinate_scan(shape, total)
+        return coordinate_scan(shape, lambda i: np.array([np.sum(score(i))]))
     if _costly(eff):
         families = eff.grid_families(data) or [range(n)]
         out: dict[int, np.ndarray] = {}
@@ -578,11 +551,7 @@ def _grid_fits(fitter: Fitter, config: Configuration, eff: Effect, grid: Sequenc
         fits[i] = ff
         return ff.sse_train[criterion]
 
-    def screen(value: Any) -> float:
-        # Not a grid value: ranks an outer coordinate only, and is never a fold's choice.
-        return float(np.sum(fitter.solve(*_with(config, eff, value, data)).sse_train[criterion]))
-
-    if _scan(eff, data, len(grid), score, screen) is None:
+    if _scan(eff, data, len(grid), score) is None:
         for i in range(len(grid)):
             score(i)
     return fits
@@ -757,7 +726,7 @@ def refit(fitter: Fitter, config: Configuration, eff: Effect) -> tuple[Configura
         n = max(float(np.sum(ff.n_test)), 2.0)
         return float(n * math.log(max(float(ff.sse_train[data.folds]), 1e-300) / n) + sum(ff.widths) * math.log(n))
 
-    scanned = _scan(eff, data, len(grid), lambda j: np.array([sse(grid[j])]), sse)
+    scanned = _scan(eff, data, len(grid), lambda j: np.array([sse(grid[j])]))
     if scanned is not None:
         scores = [float(scanned[j][0]) if j in scanned else math.inf for j in range(len(grid))]
     else:

@@ -169,7 +169,7 @@ def test_a_candidate_stopped_early_is_never_one_its_folds_would_accept() -> None
 
 @pytest.fixture(scope="module")
 def creep_fitter() -> Fitter:
-    # Creep and an output map the nominal tables lack: both candidates have a best value to find.
+    # Creep and an output map the nominal tables lack: the output map has a best value to find.
     bundle = diagnosis_bundle("rig_preisach", effects={"creep": MEDIUM_EFFECTS["creep"],
                                                        "non_congruent": MEDIUM_EFFECTS["non_congruent"]},
                               seed=6).decimated(4)
@@ -186,35 +186,17 @@ def _evaluate_fresh(fitter: Fitter, name: str):
     return _evaluate(fitter, name)
 
 
-@pytest.mark.parametrize("name", ["non_congruent", "creep"])
-def test_costly_grids_are_searched_in_part_with_every_folds_choice_kept(creep_fitter, monkeypatch, name) -> None:
-    # non_congruent: each family of the output map (curvature, cubic) coarse to fine, against the whole grid;
-    # creep: the relaxation spectra ranked on the configuration's own tables and the fractions removed from the
-    # protocol runs searched for the best few only, against the search over every spectrum. Every fold chooses the
-    # same value for a fraction of the re-identifications.
-    fast, fits_fast = _evaluate_fresh(creep_fitter, name)
-    if name == "creep":
-        monkeypatch.setattr(selection, "SCREEN_KEEP", 10 ** 6)
-    else:
-        monkeypatch.setattr(selection, "_scan", lambda *args: None)
-    full, fits_full = _evaluate_fresh(creep_fitter, name)
+def test_the_output_maps_families_are_searched_coarse_to_fine_with_every_folds_choice_kept(creep_fitter,
+                                                                                         monkeypatch) -> None:
+    # Each family of the output map (curvature, cubic) coarse to fine: every fold chooses the value the whole grid
+    # gives it, for a fraction of the re-identifications.
+    fast, fits_fast = _evaluate_fresh(creep_fitter, "non_congruent")
+    monkeypatch.setattr(selection, "_scan", lambda *args: None)
+    full, fits_full = _evaluate_fresh(creep_fitter, "non_congruent")
     assert fast.values == full.values
     np.testing.assert_array_equal(fast.fold_gains, full.fold_gains)
     assert fast.accepted == full.accepted
     assert 3 * fits_fast <= 2 * fits_full, (fits_fast, fits_full)
-
-
-def test_a_spectrum_screened_keeps_the_configurations_tables(creep_fitter) -> None:
-    # Nothing removed from the protocol runs: the configuration's own least-squares tables, not a re-identification.
-    config = Configuration(creep_fitter.nominal_path().with_(reidentify=True))
-    creep_fitter.solve(config.path, config.linear)
-    creep = _effect("creep")
-    before = creep_fitter.reidentifier.fits
-    value = creep.screening_value(creep.grid(creep_fitter.data)[0])
-    path, _ = selection._with(config, creep, value, creep_fitter.data)
-    assert path == config.path
-    creep_fitter.solve(*selection._with(config, creep, value, creep_fitter.data))
-    assert creep_fitter.reidentifier.fits == before
 
 
 @pytest.fixture(scope="module")

@@ -59,26 +59,6 @@ def test_product_grid_is_searched_one_axis_at_a_time():
         assert len(done) < 72 and len(set(calls[:len(done)])) == len(done)
 
 
-def test_a_screened_product_grid_evaluates_only_the_outer_values_ranked_best():
-    from bmr.diagnosis.selection import screened_scan
-
-    rng = np.random.default_rng(11)
-    for _ in range(50):
-        co, ci = rng.uniform(-1, [12, 6])
-        calls = []
-
-        def score(i: int) -> np.ndarray:
-            calls.append(i)
-            o, j = divmod(i, 6)
-            return np.array([(o - co) ** 2 + 2.0 * (j - ci) ** 2])
-
-        # The screen sees the outer axis only (its profile plus an offset): the best outer value is among those kept.
-        done = screened_scan((12, 6), score, lambda o: (o - co) ** 2 + 5.0, keep=3)
-        assert {i // 6 for i in done} <= set(sorted(range(12), key=lambda o: (o - co) ** 2)[:3])
-        full = np.array([score(i)[0] for i in range(72)])
-        assert min(done, key=lambda i: done[i][0]) == int(np.argmin(full))
-
-
 def test_a_long_grid_starts_eight_values_apart():
     # The delay grid (50 values): a first pass every eighth value, then three halvings around the best.
     from bmr.diagnosis.selection import coarse_stride
