@@ -255,7 +255,14 @@ impl VirtualDevice {
                     fraction,
                     tau_min_s,
                     tau_max_s,
-                } => creep = Creep::log_uniform(fraction, tau_min_s, tau_max_s, dt_s, 0.0),
+                    fluctuation,
+                    tau0_s,
+                } => {
+                    // The core runs on the input normalised by its half span: so does the fluctuation field.
+                    let half = config.input_half_span;
+                    creep = Creep::log_uniform(fraction, tau_min_s, tau_max_s, dt_s, 0.0)
+                        .and_then(|c| c.with_fluctuation(fluctuation / half, tau0_s, dt_s, 0.0));
+                }
                 Effect::NonCongruent {
                     curvature: c,
                     cubic: k,

@@ -56,7 +56,7 @@ def test_nostd_check_builds_the_current_export_of_the_extended_model(tmp_path, c
     committed = (REPO / "nostd-check" / "src" / "model.rs").read_text()
     assert out.read_text() == committed, "re-export: bmr export tests/data/extended_model.json --rust " \
                                          "nostd-check/src/model.rs"
-    assert "EffectValues { kind: 0, values: [0.015, 0.0, 0.0, 0.0] }" in committed  # coil_lag, vocabulary #0
+    assert "EffectValues { kind: 0, values: [0.015, 0.0, 0.0, 0.0, 0.0] }" in committed  # coil_lag, vocabulary #0
 
 
 def test_export_errors_are_clear(tmp_path):
