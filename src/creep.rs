@@ -110,13 +110,6 @@ impl FluctuationField {
         (self.direction, self.since_s, self.last_u) = (0.0, 0.0, u0);
     }
 
-    /// The input held for `duration_s`: the clock runs on (the after-effect keeps creeping through a rest).
-    pub fn hold(&mut self, duration_s: f64) {
-        if duration_s > 0.0 && duration_s.is_finite() {
-            self.since_s += duration_s;
-        }
-    }
-
     /// `(direction, time since it turned (s), last input)`.
     pub fn state(&self) -> [f64; FLUCTUATION_STATE] {
         [self.direction, self.since_s, self.last_u]
@@ -360,9 +353,6 @@ impl Creep {
             return;
         }
         let periods = duration_s / dt_s;
-        if let Some(f) = &mut self.fluctuation {
-            f.hold(duration_s);
-        }
         for r in self.relax.iter_mut().take(self.n) {
             let p = libm::pow(r.pole(), periods);
             r.set_output(p * r.output() + (1.0 - p) * v);

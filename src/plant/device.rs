@@ -364,6 +364,8 @@ impl VirtualDevice {
             self.rate.iter_mut().for_each(|r| r.reset(0.0, b));
             if let Some(cr) = self.creep.as_mut() {
                 cr.hold(b, rest_s, self.dt_s);
+                // The core went to the input centre without the fluctuation field: it starts again from there.
+                cr.fluctuation_mut().into_iter().for_each(|f| f.reset(0.0));
             }
             let cooled = if self.thermal_tau_s > 0.0 {
                 self.heating.state() * libm::exp(-rest_s / self.thermal_tau_s)

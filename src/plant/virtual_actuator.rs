@@ -565,6 +565,10 @@ impl VirtualActuator {
             if let Some(c) = self.creep2.as_mut() {
                 c.hold(b2, rest_s, self.dt_s);
             }
+            // The steel went to zero current without the fluctuation field: it starts again from there.
+            for c in self.creep1.iter_mut().chain(self.creep2.iter_mut()) {
+                c.fluctuation_mut().into_iter().for_each(|f| f.reset(0.0));
+            }
             let cooled = if self.fx.thermal_tau_s > 0.0 {
                 self.heating.state() * libm::exp(-rest_s / self.fx.thermal_tau_s)
             } else {
