@@ -15,7 +15,7 @@
 /*
  Most parameters of one effect (the vocabulary's `MAX_PARAMS`).
  */
-#define BMR_MAX_PARAMS 4
+#define BMR_MAX_PARAMS 5
 
 /*
  `bmr_compensator_init` succeeded.

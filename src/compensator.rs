@@ -367,10 +367,15 @@ impl<S: AsRef<[f64]>, const N: usize, const K: usize> Compensator<S, N, K> {
         }
         let inv = self.inverse_input(target);
         let (input, saturated) = (inv.input, inv.saturated);
-        // The field current that brings the core input there (rate dependence), then the coil command (lag).
-        let field_wanted = match &self.stages.rate {
-            Some(r) => r.input_for(input),
+        // The input before creep's fluctuation field that gives that core input, the field current that brings it
+        // there (rate dependence), then the coil command (lag).
+        let pushed = match &self.stages.creep {
+            Some(c) => c.applied_input_for(input),
             None => input,
+        };
+        let field_wanted = match &self.stages.rate {
+            Some(r) => r.input_for(pushed),
+            None => pushed,
         };
         let command = match &self.stages.coil_lag {
             Some(l) => l.command_for(field_wanted),
@@ -380,10 +385,10 @@ impl<S: AsRef<[f64]>, const N: usize, const K: usize> Compensator<S, N, K> {
         if !limited.is_finite() || !field_wanted.is_finite() {
             return self.fault();
         }
-        let exact = !saturated && limited == command;
+        let commanded = !saturated && limited == command;
         // The field current actually reached; the lag state is kept exactly on it.
         let field_a = match &mut self.stages.coil_lag {
-            Some(l) if exact => {
+            Some(l) if commanded => {
                 l.reached(field_wanted);
                 field_wanted
             }
@@ -391,13 +396,21 @@ impl<S: AsRef<[f64]>, const N: usize, const K: usize> Compensator<S, N, K> {
             None => limited,
         };
         let core_in = match &mut self.stages.rate {
-            Some(r) if exact => {
-                r.reached(input);
-                input
+            Some(r) if commanded => {
+                r.reached(pushed);
+                pushed
             }
             Some(r) => r.step(field_a),
             None => field_a,
         };
+        let core_in = match &mut self.stages.creep {
+            Some(c) if commanded => c.core_input(pushed),
+            Some(c) => c.core_input(core_in),
+            None => core_in,
+        };
+        // Exact: the core reaches the inverse's input (the fluctuation field may not let it, see
+        // `FluctuationField::input_for`).
+        let exact = commanded && core_in == input;
         if let Some(t) = &mut self.stages.thermal {
             t.commit(limited);
         }
@@ -442,6 +455,10 @@ impl<S: AsRef<[f64]>, const N: usize, const K: usize> Compensator<S, N, K> {
         let core_in = match &mut self.stages.rate {
             Some(r) => r.step(field_a),
             None => field_a,
+        };
+        let core_in = match &mut self.stages.creep {
+            Some(c) => c.core_input(core_in),
+            None => core_in,
         };
         let y = self.forward.step(core_in);
         if self.extended {

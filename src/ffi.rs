@@ -17,7 +17,7 @@ type Inner = Compensator<&'static [f64], MEMORY, MAX_ORDER>;
 /// Size of a compensator's storage in 8-byte words.
 pub const BMR_COMPENSATOR_WORDS: usize = 6144;
 /// Most parameters of one effect (the vocabulary's `MAX_PARAMS`).
-pub const BMR_MAX_PARAMS: usize = 4;
+pub const BMR_MAX_PARAMS: usize = 5;
 
 const _: () = assert!(size_of::<Inner>() <= 8 * BMR_COMPENSATOR_WORDS);
 const _: () = assert!(align_of::<Inner>() <= 8);

@@ -136,6 +136,9 @@ impl<S: AsRef<[f64]>, D: AsRef<[f64]> + AsMut<[f64]>, const N: usize, const K: u
             }
             if let Some(c) = &mut self.stages.creep {
                 c.reset(core_out);
+                c.fluctuation_mut()
+                    .into_iter()
+                    .for_each(|f| f.reset(current_a));
             }
             if let Some(v) = &mut self.stages.viscous {
                 v.reset(current_a);
@@ -150,6 +153,10 @@ impl<S: AsRef<[f64]>, D: AsRef<[f64]> + AsMut<[f64]>, const N: usize, const K: u
         let core_a = match &mut self.stages.rate {
             Some(r) => r.step(field_a),
             None => field_a,
+        };
+        let core_a = match &mut self.stages.creep {
+            Some(c) => c.core_input(core_a),
+            None => core_a,
         };
         let core_nmm = self.core.step(core_a);
         let mut field = self.stages.after_core(core_nmm, core_a);

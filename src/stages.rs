@@ -28,7 +28,7 @@
 //! its state words) and one line in the stage list (`stage_list!`, in the vocabulary's loop order): every walk
 //! over the stages (snapshot, restore, words, reset, the names of those that are on) is generated from that list.
 use crate::accommodation::Accommodation;
-use crate::creep::{Creep, MAX_CREEP_TERMS};
+use crate::creep::{Creep, FLUCTUATION_STATE, MAX_CREEP_TERMS};
 use crate::filters::{Heating, Lag};
 use crate::friction::{AngleTerms, FrictionError};
 use crate::rate_dependence::RateDependence;
@@ -616,20 +616,36 @@ impl Stage for RateDependence {
 
 impl Stage for Creep {
     stateful!(Creep, Creep);
-    fn rest(&mut self, _: f64, core_out: f64) {
+    fn rest(&mut self, field_a: f64, core_out: f64) {
         self.reset(core_out);
+        if let Some(f) = self.fluctuation_mut() {
+            f.reset(field_a);
+        }
     }
     fn write_words(&self, push: &mut dyn FnMut(u64)) {
         self.states()[..self.terms()]
             .iter()
             .for_each(|v| push(v.to_bits()));
+        // The fluctuation field's state follows, when there is one.
+        if let Some(f) = self.fluctuation() {
+            f.state().iter().for_each(|v| push(v.to_bits()));
+        }
     }
     fn read_words(&mut self, words: &mut &[u64]) -> Option<()> {
         let mut s = [0.0; MAX_CREEP_TERMS];
         for v in s.iter_mut().take(self.terms()) {
             *v = take_float(words)?;
         }
-        self.set_states(&s).then_some(())
+        let mut f = [0.0; FLUCTUATION_STATE];
+        if self.fluctuation().is_some() {
+            for v in &mut f {
+                *v = take_float(words)?;
+            }
+        }
+        // Both checked before either changes.
+        let mut next = *self;
+        let fluctuation_ok = next.fluctuation_mut().is_none_or(|x| x.set_state(&f));
+        (next.set_states(&s) && fluctuation_ok).then(|| *self = next)
     }
 }
 
@@ -947,11 +963,12 @@ impl Stages {
                 EffectKind::SensorDrift | EffectKind::RunGainOffset => {}
                 EffectKind::Leakage => st.leak_per_s = v[0],
                 EffectKind::Creep => {
-                    if v[0] != 0.0 {
-                        st.creep = Some(
-                            Creep::log_uniform(v[0], v[1], v[2], dt_s, 0.0)
-                                .ok_or(StageError::Scale("creep time constants (s)", v[1]))?,
-                        );
+                    if v[0] != 0.0 || v[3] != 0.0 {
+                        let c = Creep::log_uniform(v[0], v[1], v[2], dt_s, 0.0)
+                            .ok_or(StageError::Scale("creep time constants (s)", v[1]))?;
+                        st.creep = Some(c.with_fluctuation(v[3], v[4], dt_s, 0.0).ok_or(
+                            StageError::Scale("creep fluctuation onset tau0_s (s)", v[4]),
+                        )?);
                     }
                 }
                 EffectKind::RateDependence => {

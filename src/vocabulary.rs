@@ -149,7 +149,7 @@ const fn zero_or_at_least(smallest: f64, spec: ParamSpec) -> ParamSpec {
 pub const MAX_HARMONIC: usize = 24;
 
 /// Most parameters any effect has.
-pub const MAX_PARAMS: usize = 4;
+pub const MAX_PARAMS: usize = 5;
 
 macro_rules! vocabulary {
     ($($kind:ident = $name:literal, $acts:ident, $stage:expr, $angle:expr, $doc:expr,
@@ -237,10 +237,19 @@ vocabulary! {
          magnetic after-effect of steel, the creep of a piezo stack. The core output v is the equilibrium and \
          y = v + fraction * sum_i w_i (x_i - v) with x_i first-order lags of v, time constants spaced evenly in \
          log(tau) from tau_min_s to tau_max_s (equal weights: creep logarithmic in time between them). \
+         Unbounded form (magnetic viscosity: thermally activated switching over a flat spectrum of barrier \
+         energies): a fluctuation field pushes the core input the way it last moved, by \
+         fluctuation * ln(1 + t/tau0_s) with t the time since the input last turned, so the output moves by the \
+         branch's differential slope times it (S = slope * fluctuation per e-fold of time) and never settles \
+         within a run; it starts again from zero when the input turns. \
          Signature: after each reversal or dwell the residual relaxes with log(time since it).",
         [p("fraction", "1", 0.02, 0.0, 0.9, "share of every output change that arrives by relaxation"),
          p("tau_min_s", "s", 0.1, 1e-4, 1e5, "shortest relaxation time"),
-         p("tau_max_s", "s", 100.0, 1e-4, 1e6, "longest relaxation time (tau_min_s..tau_max_s: log-uniform)")];
+         p("tau_max_s", "s", 100.0, 1e-4, 1e6, "longest relaxation time (tau_min_s..tau_max_s: log-uniform)"),
+         p("fluctuation", "A", 0.0, 0.0, 1e3,
+           "thermal fluctuation field of the log-time after-effect, per e-fold of time (input units; 0 = off)"),
+         p("tau0_s", "s", 0.05, 1e-4, 1e3,
+           "onset of the log-time after-effect: it grows as ln(1 + t/tau0_s)")];
     RateDependence = "rate_dependence", Current,
         stage(3, PERIOD, "core input and its last value (input units), last core output, relative slope"),
         NO_ANGLE,

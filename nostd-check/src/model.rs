@@ -115,19 +115,19 @@ pub mod model {
     ];
     pub static EFFECTS: [EffectValues; 7] = [
         // time_delay: delay_s=0.006 s
-        EffectValues { kind: 6, values: [0.006, 0.0, 0.0, 0.0] },
+        EffectValues { kind: 6, values: [0.006, 0.0, 0.0, 0.0, 0.0] },
         // coil_lag: tau_s=0.015 s
-        EffectValues { kind: 0, values: [0.015, 0.0, 0.0, 0.0] },
+        EffectValues { kind: 0, values: [0.015, 0.0, 0.0, 0.0, 0.0] },
         // non_congruent: curvature=1.2, scale_nmm=300.0 N·mm, cubic=0.3
-        EffectValues { kind: 7, values: [1.2, 300.0, 0.3, 0.0] },
+        EffectValues { kind: 7, values: [1.2, 300.0, 0.3, 0.0, 0.0] },
         // thermal_drift: gain_loss=0.08, tau_s=20.0 s
-        EffectValues { kind: 1, values: [0.08, 20.0, 0.0, 0.0] },
+        EffectValues { kind: 1, values: [0.08, 20.0, 0.0, 0.0, 0.0] },
         // torque_ripple: eps=0.04, phase_rad=0.6 rad
-        EffectValues { kind: 4, values: [0.04, 0.6, 0.0, 0.0] },
+        EffectValues { kind: 4, values: [0.04, 0.6, 0.0, 0.0, 0.0] },
         // friction_harmonics: order=6.0 cycles/rev, amplitude_nmm=4.0 N·mm, phase_rad=-0.3 rad
-        EffectValues { kind: 3, values: [6.0, 4.0, -0.3, 0.0] },
+        EffectValues { kind: 3, values: [6.0, 4.0, -0.3, 0.0, 0.0] },
         // friction_current: gain_per_a=0.3 1/A
-        EffectValues { kind: 2, values: [0.3, 0.0, 0.0, 0.0] },
+        EffectValues { kind: 2, values: [0.3, 0.0, 0.0, 0.0, 0.0] },
     ];
     pub static MODEL: ModelData<'static> = ModelData {
         ascending: &ASCENDING,

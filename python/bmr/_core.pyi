@@ -62,6 +62,7 @@ __all__ = [
     "accommodation_shift",
     "candidate_signals",
     "check_extensions",
+    "creep_fluctuation_shift",
     "creep_relaxation",
     "delay",
     "export_source",
@@ -506,6 +507,10 @@ def heating_state(current_a: _ArrayLike, tau_s: float, dt_s: float, full_current
 def creep_relaxation(v: _ArrayLike, taus_s: _ArrayLike, dt_s: float) -> np.ndarray:
     """Mean over ``taus_s`` of ``lag(v, τ) − v`` per sample (exact lags from rest at ``v[0]``): the creep output of
     an equal-weight spectrum is ``v + fraction · relaxation``."""
+
+def creep_fluctuation_shift(u: _ArrayLike, tau0_s: float, dt_s: float) -> np.ndarray:
+    """Per unit fluctuation field along applied input ``u``: the input's last direction × ``ln(1 + t/tau0_s)``,
+    ``t`` the time since it turned; creep's log-time after-effect feeds the core ``u + fluctuation · shift``."""
 
 def accommodation_shift(u: _ArrayLike, v: _ArrayLike, *, kappa: float, cycles: float, lo: float, hi: float,
                         deadband: float, saturation_tol: float, y_mid: float) -> np.ndarray:

@@ -255,7 +255,14 @@ impl VirtualDevice {
                     fraction,
                     tau_min_s,
                     tau_max_s,
-                } => creep = Creep::log_uniform(fraction, tau_min_s, tau_max_s, dt_s, 0.0),
+                    fluctuation,
+                    tau0_s,
+                } => {
+                    // The core runs on the input normalised by its half span: so does the fluctuation field.
+                    let half = config.input_half_span;
+                    creep = Creep::log_uniform(fraction, tau_min_s, tau_max_s, dt_s, 0.0)
+                        .and_then(|c| c.with_fluctuation(fluctuation / half, tau0_s, dt_s, 0.0));
+                }
                 Effect::NonCongruent {
                     curvature: c,
                     cubic: k,
@@ -357,6 +364,8 @@ impl VirtualDevice {
             self.rate.iter_mut().for_each(|r| r.reset(0.0, b));
             if let Some(cr) = self.creep.as_mut() {
                 cr.hold(b, rest_s, self.dt_s);
+                // The core went to the input centre without the fluctuation field: it starts again from there.
+                cr.fluctuation_mut().into_iter().for_each(|f| f.reset(0.0));
             }
             let cooled = if self.thermal_tau_s > 0.0 {
                 self.heating.state() * libm::exp(-rest_s / self.thermal_tau_s)

@@ -54,6 +54,8 @@ pub enum Effect {
         fraction: f64,
         tau_min_s: f64,
         tau_max_s: f64,
+        fluctuation: f64,
+        tau0_s: f64,
     },
     RateDependence {
         tau_s: f64,
@@ -147,6 +149,8 @@ impl Effect {
                     fraction: v[0],
                     tau_min_s: v[1],
                     tau_max_s: v[2],
+                    fluctuation: v[3],
+                    tau0_s: v[4],
                 }
             }
             EffectKind::RateDependence => Effect::RateDependence { tau_s: v[0] },
@@ -190,7 +194,9 @@ impl Effect {
                 fraction,
                 tau_min_s,
                 tau_max_s,
-            } => vec![fraction, tau_min_s, tau_max_s],
+                fluctuation,
+                tau0_s,
+            } => vec![fraction, tau_min_s, tau_max_s, fluctuation, tau0_s],
             Effect::RateDependence { tau_s } => vec![tau_s],
             Effect::RunGainOffset { gain_sd, offset_sd } => vec![gain_sd, offset_sd],
             Effect::Leakage { rate_per_s } => vec![rate_per_s],

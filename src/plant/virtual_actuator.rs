@@ -271,8 +271,8 @@ struct ActiveEffects {
     curvature_scale_nmm: f64,
     /// Odd cubic term of the output map (`non_congruent`).
     cubic: f64,
-    /// Creep of each circuit's flux density: (fraction, tau_min_s, tau_max_s).
-    creep: Option<(f64, f64, f64)>,
+    /// Creep of each circuit's flux density: (fraction, tau_min_s, tau_max_s, fluctuation field (A), tau0_s).
+    creep: Option<(f64, f64, f64, f64, f64)>,
     rate_tau_s: f64,
     /// Spread of the per-run sensor gain and offset (N·mm).
     run_gain_offset: Option<(f64, f64)>,
@@ -340,7 +340,9 @@ impl ActiveEffects {
                     fraction,
                     tau_min_s,
                     tau_max_s,
-                } => a.creep = Some((fraction, tau_min_s, tau_max_s)),
+                    fluctuation,
+                    tau0_s,
+                } => a.creep = Some((fraction, tau_min_s, tau_max_s, fluctuation, tau0_s)),
                 Effect::RateDependence { tau_s } => a.rate_tau_s = tau_s,
                 Effect::RunGainOffset { gain_sd, offset_sd } => {
                     a.run_gain_offset = Some((gain_sd, offset_sd))
@@ -412,8 +414,9 @@ impl VirtualActuator {
         let steel1 = PreisachSteel::new(config.steel1.clone())?;
         let steel2 = PreisachSteel::new_beside(config.steel2.clone(), Some(&steel1))?;
         let creep = || {
-            fx.creep
-                .and_then(|(f, lo, hi)| Creep::log_uniform(f, lo, hi, dt_s, 0.0))
+            fx.creep.and_then(|(f, lo, hi, field, tau0)| {
+                Creep::log_uniform(f, lo, hi, dt_s, 0.0)?.with_fluctuation(field, tau0, dt_s, 0.0)
+            })
         };
         let full = config.full_current_a;
         let rate = |steel: &SteelParams| {
@@ -526,8 +529,10 @@ impl VirtualActuator {
         self.steel1.demagnetise();
         self.steel2.demagnetise();
         self.heating.set_state(0.0);
-        self.creep1.iter_mut().for_each(|c| c.reset(0.0));
-        self.creep2.iter_mut().for_each(|c| c.reset(0.0));
+        for c in self.creep1.iter_mut().chain(self.creep2.iter_mut()) {
+            c.reset(0.0);
+            c.fluctuation_mut().into_iter().for_each(|f| f.reset(0.0));
+        }
         self.rate1.iter_mut().for_each(|r| r.reset(0.0, 0.0));
         self.rate2.iter_mut().for_each(|r| r.reset(0.0, 0.0));
         self.accommodation.iter_mut().for_each(|a| a.reset());
@@ -570,6 +575,10 @@ impl VirtualActuator {
             }
             if let Some(c) = self.creep2.as_mut() {
                 c.hold(b2, rest_s, self.dt_s);
+            }
+            // The steel went to zero current without the fluctuation field: it starts again from there.
+            for c in self.creep1.iter_mut().chain(self.creep2.iter_mut()) {
+                c.fluctuation_mut().into_iter().for_each(|f| f.reset(0.0));
             }
             let cooled = if self.fx.thermal_tau_s > 0.0 {
                 self.heating.state() * libm::exp(-rest_s / self.fx.thermal_tau_s)
@@ -856,7 +865,8 @@ impl VirtualActuator {
 }
 
 /// One circuit's flux density (any Preisach core's output): the input through the dynamic field (rate
-/// dependence) into the core, then the after-effect (creep).
+/// dependence) and the thermal fluctuation field (creep's log-time after-effect) into the core, then the
+/// relaxations (creep).
 #[inline]
 pub(super) fn preisach_flux(
     steel: &mut PreisachSteel,
@@ -866,11 +876,16 @@ pub(super) fn preisach_flux(
 ) -> f64 {
     let b = match rate {
         Some(r) => {
-            let b = steel.apply(r.step(field_current_a));
+            let h = r.step(field_current_a);
+            let b = steel.apply(creep.as_mut().map_or(h, |c| c.core_input(h)));
             r.observe(b);
             b
         }
-        None => steel.apply(field_current_a),
+        None => steel.apply(
+            creep
+                .as_mut()
+                .map_or(field_current_a, |c| c.core_input(field_current_a)),
+        ),
     };
     match creep {
         Some(c) => c.step(b),

@@ -5,7 +5,7 @@ use pyo3::prelude::*;
 use pyo3::types::PyTuple;
 
 use crate::accommodation::Accommodation;
-use crate::creep::{MAX_CREEP_TERMS, mean_relaxation};
+use crate::creep::{MAX_CREEP_TERMS, fluctuation_shift, mean_relaxation};
 use crate::discrepancy::{CANDIDATES, candidate_library, library_width};
 use crate::python::BmrError;
 use crate::python::arrays::{DETACH_LEN, extract_f64_array};
@@ -55,6 +55,33 @@ fn creep_relaxation<'py>(
         return Err(BmrError::new_err(format!(
             "creep_relaxation needs dt_s > 0 and 1 to {MAX_CREEP_TERMS} positive finite time constants \
              (dt_s={dt_s}, taus_s={taus:?})"
+        )));
+    }
+    Ok(PyArray1::from_vec(py, out))
+}
+
+/// The fluctuation field's shift per unit field along an applied input ``u`` sampled every ``dt_s`` (from rest at
+/// ``u[0]``): the direction the input last moved times ``ln(1 + t/tau0_s)``, ``t`` the time since it turned. Creep's
+/// log-time after-effect feeds the core ``u + fluctuation · shift``.
+#[pyfunction]
+fn creep_fluctuation_shift<'py>(
+    py: Python<'py>,
+    u: Bound<'py, PyAny>,
+    tau0_s: f64,
+    dt_s: f64,
+) -> PyResult<Bound<'py, PyArray1<f64>>> {
+    let u = extract_f64_array(&u, "u")?;
+    finite(&u, "u")?;
+    let mut out = vec![0.0; u.len()];
+    let run = |out: &mut [f64]| fluctuation_shift(&u, tau0_s, dt_s, out);
+    let ok = if u.len() > DETACH_LEN {
+        py.detach(|| run(&mut out))
+    } else {
+        run(&mut out)
+    };
+    if !ok {
+        return Err(BmrError::new_err(format!(
+            "creep_fluctuation_shift needs tau0_s > 0 and dt_s > 0, finite (tau0_s={tau0_s}, dt_s={dt_s})"
         )));
     }
     Ok(PyArray1::from_vec(py, out))
@@ -160,6 +187,7 @@ fn candidate_signals<'py>(
 
 pub(crate) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(creep_relaxation, m)?)?;
+    m.add_function(wrap_pyfunction!(creep_fluctuation_shift, m)?)?;
     m.add_function(wrap_pyfunction!(accommodation_shift, m)?)?;
     m.add_function(wrap_pyfunction!(candidate_signals, m)?)?;
     let items: Vec<Bound<'_, PyTuple>> = CANDIDATES

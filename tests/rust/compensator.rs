@@ -213,6 +213,7 @@ struct StageDraw {
     viscous_c: f64,
     viscous_f_y: f64,
     viscous_v0: f64,
+    creep_fluctuation: f64,
 }
 
 fn stage_draw() -> impl Strategy<Value = StageDraw> {
@@ -221,7 +222,7 @@ fn stage_draw() -> impl Strategy<Value = StageDraw> {
         (0.0f64..0.9, -4.0f64..4.0, -0.45f64..5.0, -0.3f64..3.0),
         (-0.5f64..5.0, 4u32..25, -50.0f64..50.0),
         (0.0f64..0.2, 0.0f64..0.02, -0.3f64..0.3, 0.0f64..5.0),
-        (0.0f64..40.0, 0.01f64..10.0),
+        (0.0f64..40.0, 0.01f64..10.0, 0.0f64..0.01),
     )
         .prop_map(
             |(
@@ -229,7 +230,7 @@ fn stage_draw() -> impl Strategy<Value = StageDraw> {
                 (eps, ripple_phase, curvature, cubic),
                 (gain_per_a, order, amplitude),
                 (creep_fraction, rate_tau_s, kappa, viscous_c),
-                (viscous_f_y, viscous_v0),
+                (viscous_f_y, viscous_v0, creep_fluctuation),
             )| StageDraw {
                 tau_s,
                 delay_samples,
@@ -248,6 +249,7 @@ fn stage_draw() -> impl Strategy<Value = StageDraw> {
                 viscous_c,
                 viscous_f_y,
                 viscous_v0,
+                creep_fluctuation,
             },
         )
 }
@@ -285,6 +287,8 @@ fn effects(d: &StageDraw) -> Vec<Params> {
                 ("fraction", d.creep_fraction),
                 ("tau_min_s", 0.01),
                 ("tau_max_s", 10.0),
+                ("fluctuation", d.creep_fluctuation),
+                ("tau0_s", 0.05),
             ],
         ),
         p(EffectKind::RateDependence, &[("tau_s", d.rate_tau_s)]),
@@ -339,11 +343,19 @@ proptest! {
                 prop_assert!(cmd.current_a == 0.0 && !cmd.saturated);
             }
             // The forward memory holds the core input the stages reached: the lag's field current, through the
-            // rate-dependence stage when there is one.
+            // rate-dependence stage when there is one, pushed by creep's fluctuation field when there is one.
+            let pushed = |u: f64| match c.stages().creep.as_ref().and_then(|k| k.fluctuation()) {
+                Some(f) => {
+                    let [d, since_s, last_u] = f.state();
+                    prop_assert_eq!(last_u, u);
+                    Ok(u + f.field() * (d * (since_s / f.tau0_s()).ln_1p()))
+                }
+                None => Ok(u),
+            };
             if let Some(r) = c.stages().rate {
-                prop_assert_eq!(c.forward().state().input(), r.core_input().clamp(-1.25, 1.25));
+                prop_assert_eq!(c.forward().state().input(), pushed(r.core_input())?.clamp(-1.25, 1.25));
             } else if let Some(l) = c.stages().coil_lag {
-                prop_assert_eq!(c.forward().state().input(), l.field_a().clamp(-1.25, 1.25));
+                prop_assert_eq!(c.forward().state().input(), pushed(l.field_a())?.clamp(-1.25, 1.25));
             }
         }
     }
@@ -462,6 +474,7 @@ fn extended_compensator_inverts_the_extended_simulation() {
         viscous_c: 2.0,
         viscous_f_y: 20.0,
         viscous_v0: 0.5,
+        creep_fluctuation: 0.0,
     };
     // With every stage on the error is what the estimated current of the current-dependent friction leaves
     // (smoothed over 10 ms: 0.3/A × ~37 N·mm × its lag); the plant's noise floor is ~1.5 N·mm.
@@ -576,6 +589,7 @@ fn the_viscous_stage_damps_reference_noise_instead_of_differencing_it() {
             viscous_c: c_loss,
             viscous_f_y: 0.0,
             viscous_v0: 1.0,
+            creep_fluctuation: 0.0,
         };
         let mut c = extended(false, 1.25, &d);
         let mut rng = common::Rng(5);
@@ -604,6 +618,77 @@ fn the_viscous_stage_damps_reference_noise_instead_of_differencing_it() {
     assert!(
         worst < 1e-8,
         "model torque off the reference by {worst} N·mm"
+    );
+}
+
+#[test]
+fn the_creep_fluctuation_field_is_inverted_wherever_the_core_input_is_reachable() {
+    // The log-time after-effect pushes the core input along its last direction; the compensator takes the field
+    // off before the rate and lag inverses. Where the reference turns back by less than the field the turn drops,
+    // the sample cannot reach it: the command is flagged and the torque is off by less than that field's torque.
+    let d = StageDraw {
+        tau_s: 0.0,
+        delay_samples: 0,
+        gain_loss: 0.0,
+        heat_tau_s: 5.0,
+        eps: 0.0,
+        ripple_phase: 0.0,
+        curvature: 0.0,
+        cubic: 0.0,
+        gain_per_a: 0.0,
+        order: 5,
+        amplitude: 0.0,
+        creep_fraction: 0.0,
+        rate_tau_s: 0.0,
+        kappa: 0.0,
+        viscous_c: 0.0,
+        viscous_f_y: 0.0,
+        viscous_v0: 1.0,
+        creep_fluctuation: 0.003,
+    };
+    let mut c = extended(false, 1.25, &d);
+    let f = Friction::from_amplitude_phase(12.0, &[25.0, 8.0, 4.0], &[0.3, 1.1, -0.7]).unwrap();
+    let scales = Scales::of_core(&forward(), 1.25, 300.0);
+    let mut sim: Simulation<Vec<f64>, Vec<f64>, 16, 24> =
+        Simulation::new(forward(), f, &effects(&d), DT, scales, |n| vec![0.0; n]).unwrap();
+    let mut plain = extended(
+        false,
+        1.25,
+        &StageDraw {
+            creep_fluctuation: 0.0,
+            ..d.clone()
+        },
+    );
+    let (mut flagged, mut worst, mut worst_plain) = (0, 0.0f64, 0.0f64);
+    for i in 0..6000 {
+        // An opening beyond reach both ways (plant and compensator start from one state), then a smooth reference.
+        let r = match i {
+            0..200 => 10.0 * i as f64,
+            200..600 => 2000.0 - 10.0 * (i - 200) as f64,
+            600..800 => -2000.0 + 10.0 * (i - 600) as f64,
+            _ => {
+                let t = (i - 800) as f64 * DT;
+                100.0 * (t * 1.3).sin() + 20.0 * (t * 3.1).sin()
+            }
+        };
+        let cmd = c.step(r, 0.0);
+        let s = sim.step(cmd.current_a, 0.0);
+        let without = plain.step(r, 0.0);
+        if i > 1000 {
+            if cmd.saturated {
+                flagged += 1;
+            } else {
+                worst = worst.max((s.torque_nmm - r).abs());
+            }
+            // Without the stage the command differs (the field is not taken off).
+            worst_plain = worst_plain.max((without.current_a - cmd.current_a).abs());
+        }
+    }
+    assert!(worst < 1e-9, "worst tracking error {worst} N·mm");
+    assert!(flagged < 500, "{flagged} samples flagged");
+    assert!(
+        worst_plain > 1e-3,
+        "the field changes the command: {worst_plain} A"
     );
 }
 

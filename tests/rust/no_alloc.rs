@@ -116,7 +116,10 @@ fn extended_compensator_step_does_not_allocate() {
         ),
         p(EffectKind::FrictionCurrent, &[("gain_per_a", 0.4)]),
         p(EffectKind::FrictionHarmonics, &[("order", 7.0)]),
-        p(EffectKind::Creep, &[("fraction", 0.05)]),
+        p(
+            EffectKind::Creep,
+            &[("fraction", 0.05), ("fluctuation", 0.003)],
+        ),
         p(EffectKind::RateDependence, &[("tau_s", 0.005)]),
         p(EffectKind::Accommodation, &[("kappa", 0.1)]),
         p(EffectKind::Viscous, &[("c", 2.0)]),

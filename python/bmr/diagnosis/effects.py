@@ -585,7 +585,15 @@ class Creep(Effect):
     it (with the opposite sign on faster or slower runs): so the grid value is ``(tau_min_s, tau_max_s,
     fraction removed from the protocol runs)`` — each candidate's tables are identified again from the protocol
     runs with that creep removed (an output-side change: one right-hand side), and the evaluation runs fit the
-    fraction linearly on those tables."""
+    fraction linearly on those tables.
+
+    The unbounded form (magnetic viscosity over a flat spectrum of barrier energies: a thermal fluctuation field
+    ``fluctuation · d · ln(1 + t/tau0_s)`` pushing the core's input the way it last moved, ``t`` the time since it
+    turned, :func:`bmr._core.creep_fluctuation_shift`) has grid values ``("log", tau0_s, share of the input span
+    removed from the protocol runs as fluctuation field)``. Its column is the nominal core's response to that field
+    per unit field, linearised: ``(H(u + ε·shift) − H(u))/ε`` with ``ε`` :attr:`LINEARISE_SHARE` of the input
+    span, so a saturated branch creeps no more and the turning points the field moved stay in the core's memory;
+    the protocol runs lose the field's exact response."""
 
     name = "creep"
     excitation = "a dwell after a reversal (relaxation logarithmic in the time since it)"
@@ -598,8 +606,15 @@ class Creep(Effect):
         longest = max(r.current_a.size * r.dt_s for r in data.runs)
         return [t for t in CREEP_TAUS_S if 3.0 * dt <= t <= 3.0 * longest]
 
+    # Fluctuation fields removed from the protocol runs (shares of the input span) and onsets of the log law (s).
+    FIELD_SHARES = (0.0, 0.00025, 0.0005, 0.001, 0.002, 0.004)
+    ONSETS_S = (0.01, 0.03, 0.1, 0.3, 1.0)
+    # The fluctuation field (share of the input span) the core's response is linearised with.
+    LINEARISE_SHARE = 1e-3
+
     def grid(self, data: Any) -> list[Any]:
-        return [(a, b, f) for a, b in self._spectra(data) for f in self.FRACTIONS]
+        return ([(a, b, f) for a, b in self._spectra(data) for f in self.FRACTIONS]
+                + [("log", t, s) for t in self.ONSETS_S for s in self.FIELD_SHARES])
 
     def _spectra(self, data: Any) -> list[tuple[float, float]]:
         taus = self._taus(data)
@@ -611,10 +626,14 @@ class Creep(Effect):
 
     def grid_shape(self, data: Any) -> tuple[int, int] | None:
         # Spectra × fractions removed from the protocol runs: every value is a re-identification of the tables.
-        return len(self._spectra(data)), len(self.FRACTIONS)
+        return len(self._spectra(data)) + len(self.ONSETS_S), len(self.FRACTIONS)
 
     def adjust_path(self, path, value):
         return path.with_correction(self, value, (value[2],))
+
+    @staticmethod
+    def _unbounded(value: Any) -> bool:
+        return value[0] == "log"
 
     @staticmethod
     def _spectrum(value: Any) -> list[float]:
@@ -622,6 +641,8 @@ class Creep(Effect):
         return [t for t in CREEP_TAUS_S if lo * (1 - 1e-9) <= t <= hi * (1 + 1e-9)]
 
     def columns(self, data, value, y_field, model):
+        if self._unbounded(value):
+            return self._fluctuation_column(data, float(value[1]), model)
         taus = self._spectrum(value)
 
         def make() -> np.ndarray:
@@ -637,12 +658,79 @@ class Creep(Effect):
 
         return data.cache.get(("creep", _fingerprint(y_field), tuple(taus)), make)
 
+    @staticmethod
+    def _fluctuation_response(hysteresis: Any, u: np.ndarray, field: float, tau0_s: float, dt_s: float
+                              ) -> np.ndarray:
+        """The core's output change (from negative saturation) when a fluctuation field ``field`` (input units per
+        e-fold of time) pushes its input ``u``."""
+        u = np.ascontiguousarray(u, dtype=float)
+        pushed = np.ascontiguousarray(u + field * _core.creep_fluctuation_shift(u, tau0_s, dt_s))
+        h = copy.copy(hysteresis)
+        h.reset(initial="negative")
+        plain = np.asarray(h.run(u), dtype=float)
+        h.reset(initial="negative")
+        return np.asarray(h.run(pushed), dtype=float) - plain
+
+    def _fluctuation_column(self, data: Any, tau0_s: float, model: Any) -> np.ndarray:
+        def make() -> np.ndarray:
+            lo, hi = model.hysteresis.input_range
+            eps = self.LINEARISE_SHARE * (hi - lo)
+            return np.concatenate([self._fluctuation_response(model.hysteresis, _run_input(r), eps, tau0_s,
+                                                              r.dt_s)[r.start:] / eps for r in data.runs])[:, None]
+
+        return data.cache.get(("creep_fluctuation", tau0_s), make)
+
     @classmethod
     def remove(cls, y, value, beta, run):
+        if cls._unbounded(value):
+            # The nominal core's response to the field (a share of the input span) along the run.
+            lo, hi = run.model.hysteresis.input_range
+            return y - cls._fluctuation_response(run.model.hysteresis, run.current, beta[0] * (hi - lo),
+                                                 float(value[1]), run.dt)
         # The relaxation of the measured output approximates that of the core output (second order in fraction).
         return y - beta[0] * _core.creep_relaxation(np.asarray(y, dtype=float), cls._spectrum(value), run.dt)
 
+    # Samples a part of the evaluated data needs for its own fit in the signature check.
+    SIGNATURE_SAMPLES = 100
+
+    def signature_missing(self, fitter: Any, before: Any, after: Any) -> str:
+        """The unbounded form's signature: the output keeps creeping the way the input last moved, after a reversal
+        while the input moves on and in a dwell (the input held), and still grows late after the turn. What the
+        fitted configuration ``after`` leaves without the creep column (its tables re-identified with the creep
+        removed) is fitted on the column (with a constant) separately on the moving samples, on the dwell samples
+        and on the samples later after the turn than the median: each coefficient must be positive (parts with fewer
+        than :attr:`SIGNATURE_SAMPLES` samples are not judged). The spectrum form checks none beyond its gain."""
+        if not after.linear or after.linear[-1][0] is not self or not self._unbounded(after.linear[-1][1]):
+            return ""
+        data = fitter.data
+        value = after.linear[-1][1]
+        residual, _ = fitter.fit(after.path, after.linear[:-1])
+        column = self.columns(data, value, None, fitter.model)[:, 0]
+        held = data.concat([np.concatenate([[False], np.diff(_run_input(r)) == 0])[r.start:] for r in data.runs])
+        since = np.abs(data.concat([_core.creep_fluctuation_shift(_run_input(r), float(value[1]), r.dt_s)[r.start:]
+                                    for r in data.runs]))
+        ok = np.isfinite(residual)
+        late = since > np.median(since[ok])
+        parts = {"while the input moves on after a reversal": ok & ~held, "in dwells": ok & held,
+                 "late after the turn": ok & late}
+        against = []
+        for what, mask in parts.items():
+            if np.count_nonzero(mask) < self.SIGNATURE_SAMPLES or not np.ptp(column[mask]) > 0:
+                continue
+            x = np.column_stack([np.ones(np.count_nonzero(mask)), column[mask]])
+            c = float(np.linalg.lstsq(x, residual[mask], rcond=None)[0][1])
+            if not c > 0:
+                against.append(f"{what} (fluctuation {c:.3g})")
+        if not against:
+            return ""
+        return "the residual does not creep the way the input last moved " + ", ".join(against)
+
     def params(self, value, beta, path):
+        if self._unbounded(value):
+            spec = _core.effect_parameters()["creep"]["params"]
+            return {"fraction": 0.0, "tau_min_s": float(spec["tau_min_s"]["default"]),
+                    "tau_max_s": float(spec["tau_max_s"]["default"]), "fluctuation": float(beta[0]),
+                    "tau0_s": float(value[1])}
         return {"fraction": float(beta[0]), "tau_min_s": float(value[0]), "tau_max_s": float(value[1])}
 
 

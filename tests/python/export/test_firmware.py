@@ -56,7 +56,7 @@ def test_nostd_check_builds_the_current_export_of_the_extended_model(tmp_path, c
     committed = (REPO / "nostd-check" / "src" / "model.rs").read_text()
     assert out.read_text() == committed, "re-export: bmr export tests/data/extended_model.json --rust " \
                                          "nostd-check/src/model.rs"
-    assert "EffectValues { kind: 0, values: [0.015, 0.0, 0.0, 0.0] }" in committed  # coil_lag, vocabulary #0
+    assert "EffectValues { kind: 0, values: [0.015, 0.0, 0.0, 0.0, 0.0] }" in committed  # coil_lag, vocabulary #0
 
 
 def test_export_errors_are_clear(tmp_path):
@@ -88,14 +88,14 @@ def test_c_header_is_the_one_cbindgen_writes(tmp_path):
         "regenerate: cbindgen --config cbindgen.toml --output include/bmr.h src/ffi.rs"
 
 
-def _c_program(tmp_path: Path, source: str) -> Path:
-    """``tests/c/<source>.c`` compiled against the no_std static library and the exported test model."""
+def _c_program(tmp_path: Path, source: str, model: Path = MODEL) -> Path:
+    """``tests/c/<source>.c`` compiled against the no_std static library and the exported ``model``."""
     cc, cargo = _tool("cc"), _tool("cargo")
     env = dict(os.environ, CARGO_TERM_COLOR="never")
     subprocess.run([cargo, "build", "--release", "--quiet", "--manifest-path", "nostd-check/Cargo.toml"],
                    cwd=REPO, check=True, env=env)
     lib = REPO / "nostd-check" / "target" / "release" / "libbmr_nostd_check.a"
-    assert main(["export", str(MODEL), "--c", str(tmp_path / "model.h")]) == 0
+    assert main(["export", str(model), "--c", str(tmp_path / "model.h")]) == 0
     exe = tmp_path / source
     subprocess.run([cc, "-std=c99", "-O2", "-Wall", "-Wextra", "-Werror", "-I", str(REPO / "include"), "-I",
                     str(tmp_path), str(REPO / "tests" / "c" / f"{source}.c"), str(lib), "-Wl,--gc-sections",
@@ -116,6 +116,25 @@ def test_c_program_matches_python_run_bit_for_bit(tmp_path):
     # Every stage did something: the extended commands differ from the nominal model's.
     nominal = bmr.Model.load(MODEL).compensator(stages=[]).run(ref, theta)["current_a"]
     assert np.max(np.abs(c - nominal)) > 0.05
+
+
+@pytest.mark.slow
+def test_c_program_with_creeps_fluctuation_field_matches_python_bit_for_bit(tmp_path):
+    # Creep's log-time after-effect: its fluctuation field is taken off the core input, in C as in Python.
+    m = bmr.Model.load(MODEL)
+    m.extensions = list(m.extensions) + [{"name": "creep", "params": {"fraction": 0.01, "fluctuation": 0.004,
+                                                                      "tau0_s": 0.05}}]
+    path = m.save(tmp_path / "creep_model.json")
+    exe = _c_program(tmp_path, "run_model", path)
+    ref, theta = reference()
+    python = bmr.Model.load(path).compensator(DT_S).run(ref, theta)["current_a"]
+    text = f"{ref.size}\n" + "".join(f"{r.hex()} {a.hex()}\n" for r, a in zip(ref, theta))
+    out = subprocess.run([str(exe), repr(DT_S)], input=text, capture_output=True, text=True, check=True)
+    c = np.array([float.fromhex(v) for v in out.stdout.split()])
+    assert np.array_equal(c.view(np.uint64), python.view(np.uint64)), np.flatnonzero(c != python)[:5]
+    # The field changed the commands.
+    without = bmr.Model.load(MODEL).compensator(DT_S).run(ref, theta)["current_a"]
+    assert np.max(np.abs(c - without)) > 1e-3
 
 
 @pytest.mark.slow

@@ -33,6 +33,24 @@ def test_creep_relaxes_logarithmically_after_a_step_and_settles():
     np.testing.assert_array_equal(a["current_a"], b["current_a"])
 
 
+def test_creeps_fluctuation_field_keeps_the_output_moving_with_log_time_and_restarts_at_a_turn():
+    # Saturate, rise to +0.3 A and hold 200 s: the fluctuation field keeps pushing the field the way it last moved,
+    # by equal steps per e-fold of time, never settling; a small turn back starts it again the other way.
+    hold = int(210 * FS)
+    u = np.concatenate([ramp_path(0.0, [1.25, -1.25, 0.3], 1.0 / FS), np.full(hold, 0.3),
+                        np.linspace(0.3, 0.28, 11)[1:], np.full(int(10 * FS), 0.28)])
+    a, b = _pair({"creep": {"fraction": 0.0, "fluctuation": 0.004, "tau0_s": 0.05}}, u)
+    d = b["torque_nmm"] - a["torque_nmm"]
+    hold0 = u.size - hold - 10 - int(10 * FS)
+    at = lambda s: d[hold0 + int(s * FS)]  # noqa: E731
+    assert 0 < at(2) < at(20) < at(200)
+    # ln(1 + t/τ₀) for t ≫ τ₀: the same step per decade of time.
+    assert abs((at(20) - at(2)) / (at(200) - at(20)) - 1.0) < 0.2
+    # After the turn back the output creeps down: the field along the new direction.
+    after = hold0 + hold + 10
+    assert d[after + int(9 * FS)] < d[after + int(1 * FS)]
+
+
 def test_rate_dependence_widens_loops_with_rate_most_where_the_loop_is_steep():
     widths = []
     for rate in (0.5, 2.0):

@@ -120,6 +120,7 @@ def _targets() -> list[tuple[str, object, dict[str, object]]]:
         ("accommodation_shift", core.accommodation_shift, {"saturation_tol": 0.002}),
         ("candidate_signals", core.candidate_signals, {"theta_rad": None}),
         ("creep_relaxation", core.creep_relaxation, {}),
+        ("creep_fluctuation_shift", core.creep_fluctuation_shift, {"tau0_s": 0.05}),
         ("fit_curve", core.fit_curve, {"u": np.linspace(0, 1, 200), "y": np.linspace(0, 1, 200) ** 2}),
         ("Hysteresis.restore", _hysteresis().restore, {"state": _hysteresis().snapshot()}),
         ("fit_friction_order", core.fit_friction_order, {}),
