@@ -477,7 +477,7 @@ impl<S: AsRef<[f64]>, const N: usize> Hysteresis<S, N> {
             if i == 0 && via_point.is_none() {
                 r = self.anchor;
             } else {
-                let k = first_piece_scale(&self.asc, &self.desc, &r, first_to);
+                let k = first_piece_scale(&self.asc, &self.desc, &r, first_to, 0);
                 r.k = k.unwrap_or(1.0);
                 r.linear = k.is_none();
             }
@@ -596,13 +596,17 @@ pub(crate) fn push_reversal_made<S: AsRef<[f64]>, const N: usize>(
         st.history.push(t.reversal);
         return;
     }
-    let strip = if st.history.rising() {
-        desc.strip(-u)
+    // A maximum if rising until now (its branch follows the descending family), else a minimum. That family's cell
+    // hint was left where the branch last moved its way, towards the entry below, where the scale is taken (hints
+    // change no cell, no strip, so no bit).
+    let hint = st.history.next_strip_hint();
+    let (strip, cell) = if st.history.rising() {
+        (desc.strip_hinted(-u, hint), st.hint_d)
     } else {
-        asc.strip(u)
+        (asc.strip_hinted(u, hint), st.hint_a)
     };
     let mut r = Reversal::scaled(u, y, strip, None);
-    let k = first_piece_scale(asc, desc, &r, (below.u, below.y));
+    let k = first_piece_scale(asc, desc, &r, (below.u, below.y), cell);
     r.k = k.unwrap_or(1.0);
     r.linear = k.is_none();
     st.history.push(r);
@@ -633,7 +637,7 @@ fn merge<S: AsRef<[f64]>, const N: usize>(
         saturation
     };
     h.get_mut(j + 2).via = Some(second_piece(asc, desc, &upper, point(&old), point(&lower)));
-    let k = first_piece_scale(asc, desc, &lower, point(&upper));
+    let k = first_piece_scale(asc, desc, &lower, point(&upper), 0);
     let via = second_piece(asc, desc, &lower, point(&upper), lower_target);
     let l = h.get_mut(j - 1);
     l.k = k.unwrap_or(1.0);
@@ -643,14 +647,15 @@ fn merge<S: AsRef<[f64]>, const N: usize>(
 }
 
 /// Scale of `entry`'s first branch piece so that it closes on `to` (`None`: a straight line, see
-/// [`branch_scale`]). The branch rises from a minimum (`to` above it) and falls from a maximum.
+/// [`branch_scale`]). The branch rises from a minimum (`to` above it) and falls from a maximum. `hint`: where the
+/// search for `to`'s cell in the family the branch follows starts (it changes no cell).
 fn first_piece_scale<S: AsRef<[f64]>>(
     asc: &Family<S>,
     desc: &Family<S>,
     entry: &Reversal,
     to: (f64, f64),
+    mut hint: usize,
 ) -> Option<f64> {
-    let mut hint = 0;
     if to.0 > entry.u {
         branch_scale(to.1 - entry.y, asc.everett(&entry.strip, to.0, &mut hint))
     } else {

@@ -65,6 +65,33 @@ impl Strip {
     };
 }
 
+/// A strip of the family found before (its curve and the grid nodes of its ends): a search hint for
+/// [`Family::strip_hinted`] that only speeds it up.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct StripHint {
+    j: usize,
+    k_j: usize,
+    k_next: usize,
+}
+
+impl StripHint {
+    /// No strip to start from.
+    pub(crate) const NONE: StripHint = StripHint {
+        j: usize::MAX,
+        k_j: 0,
+        k_next: 0,
+    };
+
+    /// Start from strip `s` (of the same family).
+    pub(crate) fn of(s: &Strip) -> StripHint {
+        StripHint {
+            j: s.j,
+            k_j: s.k_j,
+            k_next: s.k_next,
+        }
+    }
+}
+
 /// A validated family table over storage `S` (owned `Vec<f64>` or a `&'static [f64]` on embedded targets).
 ///
 /// `data` = `[grid (nodes) | reversals (curves) | values (curves × nodes, row-major)]`.
@@ -251,12 +278,50 @@ impl<S: AsRef<[f64]>> Family<S> {
         row[k] + t * (row[k + 1] - row[k])
     }
 
-    /// The strip holding reversal `m` (clamped to the table range). `O(log curves)`; called at reversals only.
+    /// The strip holding reversal `m` (clamped to the table range). `O(log curves + log nodes)`; called at
+    /// reversals only.
     pub fn strip(&self, m: f64) -> Strip {
+        self.strip_hinted(m, StripHint::NONE)
+    }
+
+    /// [`Self::strip`], starting from a strip `hint` found before (a new reversal usually falls in the strip of
+    /// the last one of its family): the strip's curve and its grid nodes are taken from the hint when that curve
+    /// still holds `m`, else searched. The strip is the same, bit for bit, for any hint.
+    #[inline]
+    pub(crate) fn strip_hinted(&self, m: f64, hint: StripHint) -> Strip {
         let m = m.clamp(self.lo(), self.hi());
         let r = self.reversals();
         let g = self.grid();
-        let j = r.partition_point(|&x| x <= m).max(1) - 1;
+        let StripHint { j, k_j, k_next } = hint;
+        // The hint's curve holds m (the last curve at or below it) and its nodes are those of that curve: a hint
+        // from another table never passes.
+        let held = j < self.curves
+            && r[j] <= m
+            && (j + 1 == self.curves || m < r[j + 1])
+            && k_j <= k_next
+            && k_next < self.nodes
+            && g[k_j] == r[j]
+            && g[k_next]
+                == if j + 1 < self.curves {
+                    r[j + 1]
+                } else {
+                    self.hi()
+                };
+        let (j, k_j, k_next) = if held {
+            (j, k_j, k_next)
+        } else {
+            let j = r.partition_point(|&x| x <= m).max(1) - 1;
+            let r_next = if j + 1 < self.curves {
+                r[j + 1]
+            } else {
+                self.hi()
+            };
+            // Reversals and the range end are exact grid nodes (validated).
+            let k_j = g.partition_point(|&x| x < r[j]);
+            // r_next >= r_j: every node before k_j is below it too.
+            let k_next = k_j + g[k_j..].partition_point(|&x| x < r_next);
+            (j, k_j, k_next)
+        };
         let r_j = r[j];
         let r_next = if j + 1 < self.curves {
             r[j + 1]
@@ -264,10 +329,6 @@ impl<S: AsRef<[f64]>> Family<S> {
             self.hi()
         };
         let lambda = ((m - r_j) / (r_next - r_j)).clamp(0.0, 1.0);
-        // Reversals and the range end are exact grid nodes (validated).
-        let k_j = g.partition_point(|&x| x < r_j);
-        // r_next >= r_j: every node before k_j is below it too.
-        let k_next = k_j + g[k_j..].partition_point(|&x| x < r_next);
         let t_j = self.row(j)[k_next];
         let row_j = self.nodes + self.curves + j * self.nodes;
         let tri = if lambda == 0.0 {
@@ -472,4 +533,61 @@ fn invert_monotone(
         }
     }
     cell(lo, hi, f(lo), f(hi))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::StripHint;
+    use crate::{BuildOptions, Hysteresis, Initial};
+    use preisach_plant::measure_first_order;
+
+    /// A strip searched from a hint is the strip searched afresh, bit for bit, for every hint: a strip of the same
+    /// curve, of another curve, of the other family's table, none, and one whose nodes lie outside the table.
+    #[test]
+    fn a_strip_from_any_hint_is_the_strip_searched_afresh() {
+        let (a, d) = measure_first_order(40, 9);
+        let op = Hysteresis::<Vec<f64>, 8>::from_curve_data(
+            &a,
+            &d,
+            &BuildOptions::default(),
+            Initial::Negative,
+        )
+        .unwrap();
+        let (asc, desc) = (op.ascending(), op.descending());
+        let mut held = 0;
+        for (fam, other) in [(asc, desc), (desc, asc)] {
+            let (lo, hi) = (fam.lo(), fam.hi());
+            let ms: Vec<f64> = (0..=300)
+                .map(|i| lo + (hi - lo) * i as f64 / 300.0)
+                .chain(fam.reversals().iter().copied())
+                .chain([lo - 1.0, hi + 1.0, f64::NAN, f64::INFINITY])
+                .collect();
+            let foreign = StripHint {
+                j: 1,
+                k_j: usize::MAX - 1,
+                k_next: usize::MAX,
+            };
+            let hints: Vec<StripHint> = ms
+                .iter()
+                .map(|&m| StripHint::of(&fam.strip(m)))
+                .chain(
+                    other
+                        .reversals()
+                        .iter()
+                        .map(|&m| StripHint::of(&other.strip(m))),
+                )
+                .chain([StripHint::NONE, foreign])
+                .collect();
+            for &m in &ms {
+                let afresh = format!("{:?}", fam.strip(m));
+                for &h in &hints {
+                    let s = fam.strip_hinted(m, h);
+                    assert_eq!(format!("{s:?}"), afresh, "m = {m}, hint {h:?}");
+                    held += usize::from(h == StripHint::of(&s));
+                }
+            }
+        }
+        // Many hints hold the very strip: the reuse is exercised, not only the search.
+        assert!(held > 10_000, "only {held} hints held their strip");
+    }
 }

@@ -5,7 +5,7 @@
 //! The entry below each one is its *closure target*: when the input passes the target, the pair is wiped out and
 //! the output returns exactly to the stored output (return-point memory). The anchor's target is positive
 //! saturation.
-use crate::everett::Strip;
+use crate::everett::{Strip, StripHint};
 
 /// A point where the output follows a second piece after a merge (see [`History::merge_candidate`]).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -144,6 +144,18 @@ impl<const N: usize> History<N> {
             }
         }
         best.map(|(j, _)| j)
+    }
+
+    /// Where to start the strip search of a reversal pushed next: the strip of the newest entry of the same kind
+    /// (minimum or maximum, so the same curve family), the one below the newest entry. A reversal pushed after a
+    /// short excursion usually lies in the same strip.
+    #[inline]
+    pub(crate) fn next_strip_hint(&self) -> StripHint {
+        if self.len >= 2 {
+            StripHint::of(&self.entries[self.len - 2].strip)
+        } else {
+            StripHint::NONE
+        }
     }
 
     /// Mutable access to entry `i` (merging reshapes the neighbours of the removed pair).

@@ -6,7 +6,7 @@
 //! do), and invert that one branch in closed form inside a table cell. `forward(inverse(T)) = T` to round-off
 //! for every reachable `T`; unreachable targets saturate at the input range and are flagged. No allocation.
 use crate::cbh::{Hysteresis, Turn, branch_scale, push_reversal};
-use crate::everett::{Hit, Strip};
+use crate::everett::{Hit, Strip, StripHint};
 use crate::history::Reversal;
 
 /// Result of an inverse query.
@@ -176,7 +176,7 @@ impl<S: AsRef<[f64]>, const N: usize> Hysteresis<S, N> {
             from_u = top.u;
             (h.get(len - 2), len - 2)
         } else {
-            virtual_entry = self.new_reversal_at(u_c, y_c, top, up);
+            virtual_entry = self.new_reversal_at(u_c, y_c, top, up, h.next_strip_hint());
             turn = Some(Turn {
                 reversal: virtual_entry,
                 below_u: top.u,
@@ -245,7 +245,14 @@ impl<S: AsRef<[f64]>, const N: usize> Hysteresis<S, N> {
     }
 
     /// The reversal `push_reversal` would create at the current point (same arithmetic, no state change).
-    fn new_reversal_at(&self, u: f64, y: f64, below: &Reversal, up: bool) -> Reversal {
+    fn new_reversal_at(
+        &self,
+        u: f64,
+        y: f64,
+        below: &Reversal,
+        up: bool,
+        strip_hint: StripHint,
+    ) -> Reversal {
         // The search starts from the family's hint (the entry below was reached moving that family's way); a
         // hint only speeds the search, the cell is the same.
         let mut hint = if up {
@@ -254,11 +261,11 @@ impl<S: AsRef<[f64]>, const N: usize> Hysteresis<S, N> {
             self.state.hint_d
         };
         if up {
-            let strip: Strip = self.asc.strip(u);
+            let strip: Strip = self.asc.strip_hinted(u, strip_hint);
             let e = self.asc.everett(&strip, below.u, &mut hint);
             Reversal::scaled(u, y, strip, branch_scale(below.y - y, e))
         } else {
-            let strip = self.desc.strip(-u);
+            let strip = self.desc.strip_hinted(-u, strip_hint);
             let e = self.desc.everett(&strip, -below.u, &mut hint);
             Reversal::scaled(u, y, strip, branch_scale(y - below.y, e))
         }
@@ -431,6 +438,51 @@ mod tests {
         assert!(
             turns > 2_000,
             "only {turns} turning answers: the test does not exercise the reuse"
+        );
+    }
+
+    /// Under a dither (a target that reverses at almost every sample, as noisy feedback makes it) every reversal
+    /// pushed, its strip searched from the strip of the entry of its kind before it and its scale from the cell
+    /// hints, is the one the operator rebuilds afresh from the remembered points alone (`state_from_words`
+    /// searches every strip and cell from nothing): the whole state to the bit after every sample, through the
+    /// exact inverse's commits, steps to limited inputs and merges of a full memory.
+    #[test]
+    fn a_dither_s_reversals_are_those_built_afresh() {
+        let (a, d) = measure_first_order(40, 9);
+        let mut op = Hysteresis::<Vec<f64>, 8>::from_curve_data(
+            &a,
+            &d,
+            &BuildOptions::default(),
+            Initial::Negative,
+        )
+        .unwrap();
+        let (lo, hi) = op.output_range();
+        let mut rng = Rng(11);
+        let (mut reversals, mut full) = (0, 0);
+        for i in 0..20_000 {
+            let slow = 0.8 * libm::sin(i as f64 * 0.002);
+            let target = lo + (hi - lo) * (0.5 + 0.5 * slow + 0.01 * (rng.uniform() - 0.5));
+            let before = op.state().history().len();
+            let inv = op.inverse_input(target);
+            if i % 5 == 2 || inv.saturated {
+                op.step_made(0.98 * inv.input, inv.turn.as_ref());
+            } else {
+                op.commit(inv.input, target, &inv);
+            }
+            let len = op.state().history().len();
+            reversals += usize::from(len > before);
+            full += usize::from(len == 8);
+            // Every remembered entry whole (strip, scales, second piece); the words hold the rest of the state.
+            let afresh = op.state_from_words(&op.snapshot().to_words()).unwrap();
+            assert_eq!(
+                format!("{:?}", afresh.history().entries()),
+                format!("{:?}", op.state().history().entries()),
+                "sample {i}"
+            );
+        }
+        assert!(
+            reversals > 5_000 && full > 500,
+            "{reversals} reversals, {full} samples at a full memory: the test does not exercise the dither"
         );
     }
 }
