@@ -147,8 +147,8 @@ def test_the_chosen_setting_predicts_held_out_loops_at_least_as_well_as_the_defa
     # Minor loops inside the major one: the rest predicts whole held-out sweeps, so the ranking is trusted.
     assert choice.undecided is None and choice.sweep_rms < 0.2 * choice.sweep_spread
     assert len(choice.candidates) >= 4  # the default and its neighbours in smoothing and resolution
-    # A Preisach plant: the signed table is scored on the same folds and not taken (no negative density to find).
-    assert choice.density is None and np.isfinite(choice.nonnegative_cv_rms)
+    # Loops and minor loops, not a family of first-order reversal curves: no signed density is tried.
+    assert choice.density is None and not np.isfinite(choice.nonnegative_cv_rms)
     assert not chosen.identification.lstsq.signed
     rms_chosen, rms_default = predict(chosen, held).rms, predict(default, held).rms
     print(choice, "held out:", round(rms_chosen, 3), "default:", round(rms_default, 3))
