@@ -4,6 +4,7 @@ next to the best reference figure for that data.
 
     python benches/real_data.py            # print the table
     python benches/real_data.py --record   # and record it as the ``real_data`` section of docs/results.md
+    python benches/real_data.py --only feco_forc --only slac   # only these data sets (print only)
 
 The same chain runs in the tests (tests/python/real_data), which skip the data sets that are absent. References:
 the measurement's own noise floor (FORC files: the white noise of the moment along each curve, from its second
@@ -110,6 +111,7 @@ class ChainResult:
     extended_rms: float | None = None
     named: list[str] = field(default_factory=list)
     seconds: float = 0.0
+    cpu_s: dict[str, float] = field(default_factory=dict)  # CPU seconds of each command (this process)
 
     @property
     def ok(self) -> bool:
@@ -180,7 +182,9 @@ def run_chain(ds: DataSet, workdir: Path, figures: bool = False) -> ChainResult:
         steps.append(("predict extended", ["predict", str(extended), str(bundle), "--json",
                                            str(workdir / "extended_prediction.json")]))
     for step, args in steps:
+        c0 = time.process_time()
         rc, _, err = _cli(args)
+        res.cpu_s[step] = time.process_time() - c0
         res.status[step] = rc
         if rc != 0:
             res.errors[step] = err.strip().splitlines()[-1] if err.strip() else f"exit status {rc}"
@@ -254,10 +258,17 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--record", action="store_true", help="record the figures as docs/results.md's real_data section "
                     "and draw the FORC diagrams into docs/")
+    ap.add_argument("--only", action="append", choices=[d.key for d in DATASETS], metavar="NAME",
+                    help="run only this data set (repeatable; one of %(choices)s); not with --record")
     args = ap.parse_args(argv)
-    results = run_all(figures=args.record)
+    if args.only and args.record:
+        ap.error("--record measures every data set: drop --only")
+    chosen = tuple(d for d in DATASETS if not args.only or d.key in args.only)
+    results = run_all(chosen, figures=args.record)
     values = {"results": [r.to_dict() for r in results]}
     print(render(values))
+    for r in results:
+        print(f"{r.key}: " + ", ".join(f"{k} {v:.1f} CPU-s" for k, v in r.cpu_s.items()), file=sys.stderr)
     if args.record:
         sys.path.insert(0, str(Path(__file__).resolve().parent))
         from measurements import record

@@ -23,9 +23,14 @@ pub const MAX_GENERATED_SAMPLES: usize = 1 << 24;
 pub const MAX_FIT_ORDER: usize = 64;
 /// Most grid intervals of an Everett (Preisach) table.
 pub const MAX_EVERETT_INTERVALS: usize = 2048;
-/// Most unknowns (cell masses plus output offsets) of one least-squares Everett fit: its dense normal
-/// equations hold the square of this many values (128 MiB).
+/// Most unknowns (cell masses plus output offsets) of one least-squares Everett fit solved on its dense normal
+/// equations, which hold the square of this many values (128 MiB); larger fits take the matrix-free path.
 pub const MAX_EVERETT_UNKNOWNS: usize = 4096;
+/// Most unknowns of one least-squares Everett fit on the matrix-free path (about 510 grid intervals): it holds a
+/// dozen vectors of this many values (13 MiB) besides the regressor entries.
+pub const MAX_EVERETT_LARGE_UNKNOWNS: usize = 1 << 17;
+/// Most regressor entries the matrix-free Everett fit stores (12 bytes each: 384 MiB).
+pub const MAX_EVERETT_ENTRIES: usize = 1 << 25;
 /// Most cross-validation folds of one Everett fit: each holds its own normal equations (up to 128 MiB).
 pub const MAX_CV_FOLDS: usize = 10;
 /// Most pivoting iterations of the nonnegative least-squares solver.

@@ -22,6 +22,8 @@ pub enum RunError {
     },
     /// A run gain that is not positive and finite.
     BadGain { gain: f64 },
+    /// The run's regressors would pass a documented size limit (see [`crate::limits`]).
+    Limit(LimitError),
 }
 
 impl fmt::Display for RunError {
@@ -46,6 +48,7 @@ impl fmt::Display for RunError {
             RunError::BadGain { gain } => {
                 write!(f, "run gain must be positive and finite, got {gain}")
             }
+            RunError::Limit(e) => write!(f, "{e}"),
         }
     }
 }

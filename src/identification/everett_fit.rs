@@ -361,7 +361,9 @@ pub struct EverettFit {
     pub drift: Option<f64>,
 }
 
-/// Identify the Everett masses on `grid` and `n_offsets` free output offsets from `runs`.
+/// Identify the Everett masses on `grid` and `n_offsets` free output offsets from `runs`. Up to
+/// [`crate::limits::MAX_EVERETT_UNKNOWNS`] unknowns on the dense normal equations (exact active-set solve), past
+/// it matrix-free ([`super::everett_large`], up to [`crate::limits::MAX_EVERETT_LARGE_UNKNOWNS`]).
 pub fn fit_everett(
     grid: &EverettGrid,
     runs: &[EverettRun<'_>],
@@ -371,6 +373,26 @@ pub fn fit_everett(
     check_options(n_offsets, options)?;
     // The drift coefficient is one more free column after the offsets.
     let with_drift = runs.iter().any(|r| !r.drift.is_empty());
+    let unknowns = limits::sum(
+        grid.n_cells(),
+        limits::sum(n_offsets, usize::from(with_drift)),
+    );
+    if super::everett_large::needs_large_path(unknowns) {
+        let views: Vec<super::EverettFoldRun<'_>> = runs
+            .iter()
+            .map(|r| super::EverettFoldRun {
+                u: r.u,
+                y: r.y,
+                weight: r.weight,
+                fold: &[],
+                offset_col: r.offset_col,
+                history: r.history,
+                gain: r.gain,
+                drift: r.drift,
+            })
+            .collect();
+        return super::everett_large::fit_everett_large(grid, &views, n_offsets, options);
+    }
     let mut ne = NormalEquations::new(grid, n_offsets + usize::from(with_drift))?;
     for (k, run) in runs.iter().enumerate() {
         ne.add_run(
@@ -775,11 +797,12 @@ impl EverettRegression {
     }
 }
 
-/// Add `λ Dᵀ D` for first differences of the density between neighbouring cells.
-fn add_smoothness(grid: &EverettGrid, q: &mut [f64], m: usize, smoothing: f64, trace_q: f64) {
-    if smoothing <= 0.0 {
-        return;
-    }
+/// One first difference of the density between neighbouring cells: `(cell a, scale a), (cell b, scale b)`, the
+/// difference being `scale_a · w_a − scale_b · w_b` (a scale turns a mass into a density).
+pub(super) type DensityDifference = ((usize, f64), (usize, f64));
+
+/// The first differences of the density between neighbouring cells (the rows of `D`) and `tr(DᵀD)`.
+pub(super) fn smoothness_pairs(grid: &EverettGrid) -> (Vec<DensityDifference>, f64) {
     let g = grid.nodes();
     let n = grid.n_intervals();
     let h = |p: usize| g[p + 1] - g[p];
@@ -791,7 +814,7 @@ fn add_smoothness(grid: &EverettGrid, q: &mut [f64], m: usize, smoothing: f64, t
             1.0 / (h(p) * h(q))
         }
     };
-    let mut pairs: Vec<((usize, f64), (usize, f64))> = Vec::new();
+    let mut pairs: Vec<DensityDifference> = Vec::new();
     for p in 0..n {
         for qq in p..n {
             let a = (grid.cell_index(p, qq), scale(p, qq));
@@ -813,6 +836,15 @@ fn add_smoothness(grid: &EverettGrid, q: &mut [f64], m: usize, smoothing: f64, t
         .iter()
         .map(|&((_, sa), (_, sb))| sa * sa + sb * sb)
         .sum();
+    (pairs, trace_d)
+}
+
+/// Add `λ Dᵀ D` for first differences of the density between neighbouring cells.
+fn add_smoothness(grid: &EverettGrid, q: &mut [f64], m: usize, smoothing: f64, trace_q: f64) {
+    if smoothing <= 0.0 {
+        return;
+    }
+    let (pairs, trace_d) = smoothness_pairs(grid);
     if trace_d <= 0.0 {
         return;
     }
@@ -1063,7 +1095,7 @@ mod tests {
 
     #[test]
     fn sizes_are_bounded_before_allocation() {
-        use crate::limits::{MAX_EVERETT_INTERVALS, MAX_EVERETT_UNKNOWNS};
+        use crate::limits::{MAX_EVERETT_INTERVALS, MAX_EVERETT_LARGE_UNKNOWNS};
         let limit = |e: IdentificationError| matches!(e, IdentificationError::Limit(_));
         assert!(limit(
             EverettGrid::uniform(0.0, 1.0, MAX_EVERETT_INTERVALS + 1).unwrap_err()
@@ -1085,7 +1117,7 @@ mod tests {
             };
             fit_everett(&grid, &[run], n_offsets, opts)
         };
-        assert!(limit(fit(MAX_EVERETT_UNKNOWNS, 10).unwrap_err()));
+        assert!(limit(fit(MAX_EVERETT_LARGE_UNKNOWNS, 10).unwrap_err()));
         assert!(limit(fit(usize::MAX, 10).unwrap_err()));
         assert!(limit(fit(1, usize::MAX).unwrap_err()));
         let model = EverettModel::new(grid.clone(), alloc::vec![0.1; grid.n_cells()], 0.0).unwrap();

@@ -7,6 +7,7 @@ use alloc::vec::Vec;
 
 use super::error::IdentificationError;
 use super::everett_fit::{EverettFitOptions, check_options, data_matrix, regularise, solve_masses};
+use super::everett_large::{EverettRows, needs_large_path};
 use super::everett_regressors::{EverettGrid, NormalEquations};
 use crate::limits::{self, MAX_CV_FOLDS};
 
@@ -51,6 +52,18 @@ pub struct FoldScore {
 /// every smoothing): a smoothing after the first costs a copy, the regularisation and the solve.
 #[derive(Clone, Debug)]
 pub struct EverettFolds {
+    kind: FoldsKind,
+}
+
+// Up to the dense solver's unknowns: normal equations per fold; past them: the rows kept, solved matrix-free.
+#[derive(Clone, Debug)]
+enum FoldsKind {
+    Dense(DenseFolds),
+    Large(EverettRows),
+}
+
+#[derive(Clone, Debug)]
+struct DenseFolds {
     grid: EverettGrid,
     total: NormalEquations,
     held: Vec<NormalEquations>,
@@ -82,7 +95,12 @@ impl EverettFolds {
         }
         limits::check("cross-validation folds", n_folds, MAX_CV_FOLDS)?;
         let with_drift = runs.iter().any(|r| !r.drift.is_empty());
-        let cols = n_offsets + usize::from(with_drift);
+        let cols = limits::sum(n_offsets, usize::from(with_drift));
+        if needs_large_path(limits::sum(grid.n_cells(), cols)) {
+            return Ok(Self {
+                kind: FoldsKind::Large(EverettRows::new(grid, runs, n_offsets, n_folds)?),
+            });
+        }
         let mut total = NormalEquations::new(grid, cols)?;
         let mut held = Vec::with_capacity(n_folds);
         for _ in 0..n_folds {
@@ -142,17 +160,27 @@ impl EverettFolds {
             part.finish();
         }
         Ok(Self {
-            grid: grid.clone(),
-            total,
-            warm: alloc::vec![Vec::new(); n_folds],
-            train: alloc::vec![None; n_folds],
-            held,
+            kind: FoldsKind::Dense(DenseFolds {
+                grid: grid.clone(),
+                total,
+                warm: alloc::vec![Vec::new(); n_folds],
+                train: alloc::vec![None; n_folds],
+                held,
+            }),
         })
     }
 
     /// Number of unknowns (cell masses, offsets and the drift coefficient when any run has a drift regressor).
     pub fn n_unknowns(&self) -> usize {
-        self.total.n_cols()
+        match &self.kind {
+            FoldsKind::Dense(d) => d.total.n_cols(),
+            FoldsKind::Large(rows) => rows.n_unknowns(),
+        }
+    }
+
+    /// Whether the folds are solved matrix-free (a table past the dense solver's unknowns).
+    pub fn is_large(&self) -> bool {
+        matches!(self.kind, FoldsKind::Large(_))
     }
 
     /// Every fold's held-out error of the table fitted with `options` on the rest (a fold without held-out rows
@@ -160,7 +188,25 @@ impl EverettFolds {
     /// whole, ignored unless it has [`Self::n_unknowns`] entries), later ones from the nearest smoothing's. An
     /// error when a fold's training part cannot be fitted (e.g. a run whose samples are all held out leaves its
     /// offset column empty).
+    /// On the matrix-free path each fold warm-starts from its own earlier solutions only.
     pub fn score(
+        &mut self,
+        options: EverettFitOptions,
+        warm_start: Option<&[bool]>,
+    ) -> Result<Vec<FoldScore>, IdentificationError> {
+        match &mut self.kind {
+            FoldsKind::Dense(d) => d.score(options, warm_start),
+            FoldsKind::Large(rows) => rows.score(options),
+        }
+    }
+}
+
+impl DenseFolds {
+    fn n_unknowns(&self) -> usize {
+        self.total.n_cols()
+    }
+
+    fn score(
         &mut self,
         options: EverettFitOptions,
         warm_start: Option<&[bool]>,
@@ -253,6 +299,13 @@ fn nearest(warm: &[(f64, Vec<bool>)], smoothing: f64) -> Option<&[bool]> {
 mod tests {
     use super::*;
     use crate::identification::{EverettRun, fit_everett};
+
+    fn dense(cv: &EverettFolds) -> &DenseFolds {
+        match &cv.kind {
+            FoldsKind::Dense(d) => d,
+            FoldsKind::Large(_) => panic!("a small table takes the dense path"),
+        }
+    }
 
     fn triangle(n: usize, amps: &[f64]) -> Vec<f64> {
         let mut u = Vec::new();
@@ -371,19 +424,19 @@ mod tests {
             drift: &[],
         };
         let mut cv = EverettFolds::new(&grid, &[run], 1, 2).unwrap();
-        assert!(cv.train.iter().all(Option::is_none));
+        assert!(dense(&cv).train.iter().all(Option::is_none));
         let options = |smoothing| EverettFitOptions {
             smoothing,
             ..EverettFitOptions::default()
         };
         cv.score(options(1e-4), None).unwrap();
-        let prepared: Vec<*const f64> = cv
+        let prepared: Vec<*const f64> = dense(&cv)
             .train
             .iter()
             .map(|t| t.as_ref().expect("prepared by the first score").q.as_ptr())
             .collect();
         let second = cv.score(options(1e-2), None).unwrap();
-        let again: Vec<*const f64> = cv
+        let again: Vec<*const f64> = dense(&cv)
             .train
             .iter()
             .map(|t| t.as_ref().unwrap().q.as_ptr())

@@ -175,6 +175,27 @@ impl EverettGrid {
         e
     }
 
+    /// [`Self::masses_to_nodes`] into `out` (`n_cells` long) with `scratch` (at least `N + 1` long), in O(N²)
+    /// without allocating: `E(i, j) = R(i, j) + E(i + 1, j)` with the row prefix `R(i, j) = Σ_{q = i..j−1} w(i, q)`.
+    pub fn masses_to_nodes_into(&self, w: &[f64], out: &mut [f64], scratch: &mut [f64]) {
+        let n = self.n_intervals();
+        // below[j] = E(i + 1, j) for the row i being filled (0 on and below the diagonal).
+        let below = &mut scratch[..=n];
+        below.fill(0.0);
+        for i in (0..n).rev() {
+            let start = self.cell_index(i, i);
+            let len = n - i;
+            let mut prefix = 0.0;
+            for l in 0..len {
+                let j = i + 1 + l;
+                prefix += w[start + l];
+                let e = prefix + below[j];
+                out[start + l] = e;
+                below[j] = e;
+            }
+        }
+    }
+
     /// Adjoint of [`Self::masses_to_nodes`]: `(Cᵀ g)(p, q) = Σ_{i ≤ p, j ≥ q + 1} g(i, j)`, O(N²).
     pub fn nodes_to_masses_adjoint(&self, g: &[f64]) -> Vec<f64> {
         let mut out = alloc::vec![0.0; self.n_cells()];
@@ -469,89 +490,31 @@ impl NormalEquations {
         drift: Option<(usize, &[f64])>,
         mut visit: impl FnMut(usize, f64, &[(usize, f64)]) -> Result<(), RunError>,
     ) -> Result<(), RunError> {
-        if weight.len() != u.len() {
-            return Err(RunError::Lengths {
-                inputs: u.len(),
-                outputs: u.len(),
-                weights: weight.len(),
-            });
-        }
-        if let Some((column, d)) = drift {
-            if column >= self.n_offsets {
-                return Err(RunError::OffsetColumn {
-                    column,
-                    columns: self.n_offsets,
-                });
-            }
-            if d.len() != u.len() {
-                return Err(RunError::Lengths {
-                    inputs: u.len(),
-                    outputs: d.len(),
-                    weights: weight.len(),
-                });
-            }
-            if let Some(i) = d.iter().position(|v| !v.is_finite()) {
-                return Err(RunError::NonFinite {
-                    what: "drift regressor",
-                    sample: i,
-                    value: d[i],
-                });
-            }
-        }
-        if offset_col >= self.n_offsets {
-            return Err(RunError::OffsetColumn {
-                column: offset_col,
-                columns: self.n_offsets,
-            });
-        }
-        if let Some(i) = u.iter().position(|v| !v.is_finite()) {
-            return Err(RunError::NonFinite {
-                what: "input",
-                sample: i,
-                value: u[i],
-            });
-        }
-        if let Some(i) = history.iter().position(|v| !v.is_finite()) {
-            return Err(RunError::NonFinite {
-                what: "initial history",
-                sample: i,
-                value: history[i],
-            });
-        }
-        if !(gain.is_finite() && gain > 0.0) {
-            return Err(RunError::BadGain { gain });
-        }
         let m = self.n_cols();
-        let off = self.n_nodes + offset_col;
-        let mut memory = PreisachMemory::with_history(grid, history);
-        let mut row: Vec<(usize, f64)> = Vec::with_capacity(64);
-        for i in 0..u.len() {
-            memory.update(u[i]);
-            let w = weight[i];
-            if w.is_nan() || w <= 0.0 {
-                continue;
-            }
-            row.clear();
-            memory.for_each_term(|beta, alpha, sign| {
-                grid.push_everett(beta, alpha, gain * sign, &mut row)
-            });
-            row.push((off, 1.0));
-            if let Some((column, d)) = drift {
-                row.push((self.n_nodes + column, d[i]));
-            }
-            merge_duplicates(&mut row);
-            visit(i, w, &row)?;
+        let gram = &mut self.gram;
+        let (mut n_rows, mut weight_sum) = (0, 0.0);
+        let columns = RunColumns {
+            n_nodes: self.n_nodes,
+            n_offsets: self.n_offsets,
+            offset_col,
+            drift,
+        };
+        regressor_rows(grid, u, weight, history, gain, columns, |i, w, row| {
+            visit(i, w, row)?;
             // Upper triangle only (the row is sorted by column); `finish` mirrors it.
             for (e, &(a, va)) in row.iter().enumerate() {
                 let wa = w * va;
-                let ga = &mut self.gram[a * m..(a + 1) * m];
+                let ga = &mut gram[a * m..(a + 1) * m];
                 for &(b, vb) in &row[e..] {
                     ga[b] += wa * vb;
                 }
             }
-            self.n_rows += 1;
-            self.weight_sum += w;
-        }
+            n_rows += 1;
+            weight_sum += w;
+            Ok(())
+        })?;
+        self.n_rows += n_rows;
+        self.weight_sum += weight_sum;
         Ok(())
     }
 
@@ -579,6 +542,115 @@ impl NormalEquations {
         let m = self.n_cols();
         mirror_upper(&mut self.gram, m);
     }
+}
+
+/// Where one run's regressors go among the columns of a fit: `n_nodes` node columns, then `n_offsets` free
+/// columns (offsets and drift coefficients); the run's offset column `offset_col` and its drift regressor
+/// `drift = Some((column, values))` (`column` counted among the free columns).
+#[derive(Clone, Copy, Debug)]
+pub struct RunColumns<'a> {
+    /// Number of node columns.
+    pub n_nodes: usize,
+    /// Number of free columns after them.
+    pub n_offsets: usize,
+    /// The run's offset column (`< n_offsets`).
+    pub offset_col: usize,
+    /// The run's drift regressor and its free column.
+    pub drift: Option<(usize, &'a [f64])>,
+}
+
+/// The regression rows of one run: the memory starts at negative saturation, follows `history` and then every
+/// sample of `u`; for each sample with `weight[i] > 0`, `visit(i, weight[i], row)` gets its sparse row
+/// (`(column, value)` pairs sorted by column, one entry per column): the Everett terms scaled by `gain`, the
+/// offset column and the drift regressor. Checks the run's lengths, columns and values first.
+pub fn regressor_rows(
+    grid: &EverettGrid,
+    u: &[f64],
+    weight: &[f64],
+    history: &[f64],
+    gain: f64,
+    columns: RunColumns<'_>,
+    mut visit: impl FnMut(usize, f64, &[(usize, f64)]) -> Result<(), RunError>,
+) -> Result<(), RunError> {
+    let RunColumns {
+        n_nodes,
+        n_offsets,
+        offset_col,
+        drift,
+    } = columns;
+    if weight.len() != u.len() {
+        return Err(RunError::Lengths {
+            inputs: u.len(),
+            outputs: u.len(),
+            weights: weight.len(),
+        });
+    }
+    if let Some((column, d)) = drift {
+        if column >= n_offsets {
+            return Err(RunError::OffsetColumn {
+                column,
+                columns: n_offsets,
+            });
+        }
+        if d.len() != u.len() {
+            return Err(RunError::Lengths {
+                inputs: u.len(),
+                outputs: d.len(),
+                weights: weight.len(),
+            });
+        }
+        if let Some(i) = d.iter().position(|v| !v.is_finite()) {
+            return Err(RunError::NonFinite {
+                what: "drift regressor",
+                sample: i,
+                value: d[i],
+            });
+        }
+    }
+    if offset_col >= n_offsets {
+        return Err(RunError::OffsetColumn {
+            column: offset_col,
+            columns: n_offsets,
+        });
+    }
+    if let Some(i) = u.iter().position(|v| !v.is_finite()) {
+        return Err(RunError::NonFinite {
+            what: "input",
+            sample: i,
+            value: u[i],
+        });
+    }
+    if let Some(i) = history.iter().position(|v| !v.is_finite()) {
+        return Err(RunError::NonFinite {
+            what: "initial history",
+            sample: i,
+            value: history[i],
+        });
+    }
+    if !(gain.is_finite() && gain > 0.0) {
+        return Err(RunError::BadGain { gain });
+    }
+    let off = n_nodes + offset_col;
+    let mut memory = PreisachMemory::with_history(grid, history);
+    let mut row: Vec<(usize, f64)> = Vec::with_capacity(64);
+    for i in 0..u.len() {
+        memory.update(u[i]);
+        let w = weight[i];
+        if w.is_nan() || w <= 0.0 {
+            continue;
+        }
+        row.clear();
+        memory.for_each_term(|beta, alpha, sign| {
+            grid.push_everett(beta, alpha, gain * sign, &mut row)
+        });
+        row.push((off, 1.0));
+        if let Some((column, d)) = drift {
+            row.push((n_nodes + column, d[i]));
+        }
+        merge_duplicates(&mut row);
+        visit(i, w, &row)?;
+    }
+    Ok(())
 }
 
 /// Sort a sparse row by column and add up entries of one column.
@@ -670,6 +742,18 @@ mod tests {
         let lhs: f64 = cw.iter().zip(&v).map(|(a, b)| a * b).sum();
         let rhs: f64 = w.iter().zip(&ctv).map(|(a, b)| a * b).sum();
         assert!((lhs - rhs).abs() < 1e-9);
+    }
+
+    #[test]
+    fn fast_masses_to_nodes_matches_the_plain_sum() {
+        let g = EverettGrid::new(alloc::vec![0.0, 0.5, 0.7, 1.6, 2.0, 2.1, 3.0]).unwrap();
+        let w: Vec<f64> = (0..g.n_cells())
+            .map(|k| ((k * 7919) % 13) as f64 - 6.0)
+            .collect();
+        let mut fast = alloc::vec![0.0; g.n_cells()];
+        let mut scratch = alloc::vec![0.0; g.n_intervals() + 1];
+        g.masses_to_nodes_into(&w, &mut fast, &mut scratch);
+        assert_eq!(fast, g.masses_to_nodes(&w));
     }
 
     #[test]

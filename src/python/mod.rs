@@ -175,6 +175,8 @@ fn limits_dict(py: Python<'_>) -> PyResult<Bound<'_, pyo3::types::PyDict>> {
     d.set_item("friction_fit_order", MAX_FIT_ORDER)?;
     d.set_item("everett_intervals", MAX_EVERETT_INTERVALS)?;
     d.set_item("everett_unknowns", MAX_EVERETT_UNKNOWNS)?;
+    d.set_item("everett_large_unknowns", MAX_EVERETT_LARGE_UNKNOWNS)?;
+    d.set_item("everett_entries", MAX_EVERETT_ENTRIES)?;
     d.set_item("solver_iterations", MAX_SOLVER_ITERATIONS)?;
     d.set_item("cv_folds", MAX_CV_FOLDS)?;
     d.set_item("curve_points", MAX_CURVE_POINTS)?;

@@ -3,7 +3,11 @@
 //! exactly at grid reversals.
 #![cfg(feature = "lstsq")]
 
-use bmr::identification::{EverettFitOptions, EverettGrid, EverettModel, EverettRun, fit_everett};
+use bmr::identification::{
+    EverettFitOptions, EverettFoldRun, EverettFolds, EverettGrid, EverettModel, EverettRows,
+    EverettRun, IdentificationError, fit_everett,
+};
+use bmr::limits::{MAX_EVERETT_LARGE_UNKNOWNS, MAX_EVERETT_UNKNOWNS};
 use bmr::{BuildOptions, Hysteresis, Initial};
 
 type H = Hysteresis<Vec<f64>, 64>;
@@ -142,6 +146,205 @@ fn noisy_triangles_identify_the_plant_and_the_cbh_agrees() {
         max_err < 1e-9 * span,
         "CBH vs Everett model off the grid: {max_err}"
     );
+}
+
+/// First-order reversal curves of `truth` (down from positive saturation to each reversal, then up), with noise.
+fn forc_runs(
+    truth: &EverettModel,
+    reversals: usize,
+    points: usize,
+    seed: u64,
+) -> Vec<(Vec<f64>, Vec<f64>)> {
+    let mut noise = Noise(seed);
+    (0..reversals)
+        .map(|k| {
+            let turn = -1.0 + 1.9 * k as f64 / reversals as f64 + 0.013;
+            let u: Vec<f64> = (0..=points)
+                .map(|i| turn + (1.0 - turn) * i as f64 / points as f64)
+                .collect();
+            let y: Vec<f64> = truth
+                .simulate_from(&[1.0, turn], &u, None)
+                .iter()
+                .map(|v| v + 0.05 * noise.normal())
+                .collect();
+            (u, y)
+        })
+        .collect()
+}
+
+#[test]
+fn the_matrix_free_solver_finds_the_dense_solution() {
+    // Nonuniform grid, a per-curve offset, smoothing: the dense active-set solve and the matrix-free one minimise
+    // the same objective, so their tables and offsets agree.
+    let nodes: Vec<f64> = (0..=14)
+        .map(|k| -1.0 + 2.0 * (k as f64 / 14.0).powf(1.3))
+        .collect();
+    let grid = EverettGrid::new(nodes).unwrap();
+    let truth = plant(&grid);
+    let curves = forc_runs(&truth, 20, 60, 3);
+    let w: Vec<Vec<f64>> = curves.iter().map(|(u, _)| vec![1.0; u.len()]).collect();
+    let history: Vec<[f64; 2]> = curves.iter().map(|(u, _)| [1.0, u[0]]).collect();
+    for (smoothing, signed) in [(1e-4, false), (1e-2, false), (1e-4, true)] {
+        let opts = EverettFitOptions {
+            smoothing,
+            signed,
+            ..Default::default()
+        };
+        let dense_runs: Vec<EverettRun<'_>> = curves
+            .iter()
+            .enumerate()
+            .map(|(k, (u, y))| EverettRun {
+                u,
+                y,
+                weight: &w[k],
+                offset_col: k,
+                history: &history[k],
+                gain: 1.0,
+                drift: &[],
+            })
+            .collect();
+        let dense = fit_everett(&grid, &dense_runs, curves.len(), opts).unwrap();
+        let large_runs: Vec<EverettFoldRun<'_>> = dense_runs
+            .iter()
+            .map(|r| EverettFoldRun {
+                u: r.u,
+                y: r.y,
+                weight: r.weight,
+                fold: &[],
+                offset_col: r.offset_col,
+                history: r.history,
+                gain: 1.0,
+                drift: &[],
+            })
+            .collect();
+        let large = EverettRows::new(&grid, &large_runs, curves.len(), 0)
+            .unwrap()
+            .fit(opts)
+            .unwrap();
+        assert!(large.converged, "kkt {}", large.kkt_violation);
+        let span = truth.everett(-1.0, 1.0);
+        let worst = dense
+            .model
+            .node_values()
+            .iter()
+            .zip(large.model.node_values())
+            .map(|(a, b)| (a - b).abs())
+            .fold(0.0, f64::max);
+        assert!(
+            worst < 1e-5 * span,
+            "smoothing {smoothing}: node values differ by {worst} of {span}"
+        );
+        let worst = dense
+            .offsets
+            .iter()
+            .zip(&large.offsets)
+            .map(|(a, b)| (a - b).abs())
+            .fold(0.0, f64::max);
+        assert!(worst < 1e-5 * span, "offsets differ by {worst} of {span}");
+        assert!(
+            (dense.rss - large.rss).abs() <= 1e-5 * dense.rss,
+            "{} vs {}",
+            dense.rss,
+            large.rss
+        );
+        assert_eq!(dense.n_rows, large.n_rows);
+    }
+}
+
+#[test]
+fn a_table_past_the_dense_limit_identifies_and_the_new_limit_is_a_clear_error() {
+    // 92 intervals: 4278 cells, past the dense solver's unknowns.
+    let grid = EverettGrid::uniform(-1.0, 1.0, 92).unwrap();
+    assert!(grid.n_cells() > MAX_EVERETT_UNKNOWNS);
+    let truth = plant(&grid);
+    let curves = forc_runs(&truth, 80, 80, 5);
+    let w: Vec<Vec<f64>> = curves.iter().map(|(u, _)| vec![1.0; u.len()]).collect();
+    let history: Vec<[f64; 2]> = curves.iter().map(|(u, _)| [1.0, u[0]]).collect();
+    let runs: Vec<EverettRun<'_>> = curves
+        .iter()
+        .enumerate()
+        .map(|(k, (u, y))| EverettRun {
+            u,
+            y,
+            weight: &w[k],
+            offset_col: 0,
+            history: &history[k],
+            gain: 1.0,
+            drift: &[],
+        })
+        .collect();
+    let opts = EverettFitOptions {
+        smoothing: 1e-3,
+        ..Default::default()
+    };
+    let fit = fit_everett(&grid, &runs, 1, opts).unwrap();
+    assert!(fit.model.is_monotone());
+    // The noise is 0.05: the fit reaches it, not far below (overfitting) nor above (an unsolved problem).
+    assert!(fit.rms > 0.04 && fit.rms < 0.06, "rms {}", fit.rms);
+    // Held out: curves between the measured reversals.
+    let span = truth.everett(-1.0, 1.0);
+    let mut worst = 0.0f64;
+    for k in 0..10 {
+        let turn = -0.9 + 0.17 * k as f64;
+        let u: Vec<f64> = (0..=50)
+            .map(|i| turn + (1.0 - turn) * i as f64 / 50.0)
+            .collect();
+        let a = truth.simulate_from(&[1.0, turn], &u, None);
+        let b = fit.model.simulate_from(&[1.0, turn], &u, None);
+        worst = a
+            .iter()
+            .zip(&b)
+            .map(|(x, y)| (x - y).abs())
+            .fold(worst, f64::max);
+    }
+    assert!(
+        worst < 0.01 * span,
+        "held-out curves off by {worst} of a {span} span"
+    );
+    // Cross-validation takes the same path.
+    let folds: Vec<Vec<usize>> = curves
+        .iter()
+        .enumerate()
+        .map(|(k, (u, _))| vec![k % 2; u.len()])
+        .collect();
+    let fold_runs: Vec<EverettFoldRun<'_>> = runs
+        .iter()
+        .zip(&folds)
+        .map(|(r, f)| EverettFoldRun {
+            u: r.u,
+            y: r.y,
+            weight: r.weight,
+            fold: f,
+            offset_col: 0,
+            history: r.history,
+            gain: 1.0,
+            drift: &[],
+        })
+        .collect();
+    let mut cv = EverettFolds::new(&grid, &fold_runs, 1, 2).unwrap();
+    assert!(cv.is_large());
+    let scores = cv.score(opts, None).unwrap();
+    let rms = (scores.iter().map(|s| s.sse).sum::<f64>()
+        / scores.iter().map(|s| s.weight).sum::<f64>())
+    .sqrt();
+    // Every other curve held out: its reversal row of cells has no data of its own, the smoothing fills it in.
+    assert!(
+        rms > 0.04 && rms < 1e-3 * span,
+        "cross-validated rms {rms} on a {span} span"
+    );
+
+    // Past the matrix-free path's unknowns: the limit error names what was asked, before anything is allocated.
+    let n = (1..)
+        .find(|&n: &usize| n * (n + 1) / 2 > MAX_EVERETT_LARGE_UNKNOWNS)
+        .unwrap();
+    let huge = EverettGrid::uniform(-1.0, 1.0, n).unwrap();
+    match fit_everett(&huge, &runs, 1, opts) {
+        Err(IdentificationError::Limit(e)) => {
+            assert_eq!(e.limit, MAX_EVERETT_LARGE_UNKNOWNS);
+            assert!(e.to_string().contains("unknowns of the Everett fit"), "{e}");
+        }
+        other => panic!("expected the limit error, got {other:?}"),
+    }
 }
 
 mod properties {

@@ -259,7 +259,8 @@ def identify(
     nonnegative otherwise), ``"nonnegative"`` or ``"signed"``. A signed table is the model's forward core
     (``model.signed_table``); the model's CBH tables are then the nonnegative fit at the same setting, and the
     model refuses a compensator (no exact inverse). The loops' orientation and the density are in
-    ``model.identification.lstsq``.
+    ``model.identification.lstsq``; with ``"auto"`` the table choice's cross-validation also takes the signed table
+    when it predicts held-out blocks clearly better (``model.identification.table_choice.density``).
     ``n_intervals``, ``smoothing``: the least-squares table's resolution (grid intervals over the input range) and
     the weight of its density's smoothness; each one not given is chosen by cross-validation over time blocks of
     the training runs, trusted only where whole sweeps held out are predicted from the rest (else the default is
@@ -328,10 +329,12 @@ def identify(
                                            smoothing=smoothing, offsets=offsets, gains=gains,
                                            initial_state=initial_state, drift=drift, grid=grid, density=density)
             n_intervals, smoothing = choice.n_intervals, choice.smoothing
+            density = choice.density or density
             times["table_choice"] = time.perf_counter() - t
         reference = choice.reference if choice is not None else None
         if reference is not None and (reference.n_intervals, reference.settings["smoothing"]) == (n_intervals,
-                                                                                                   smoothing):
+                                                                                                   smoothing) \
+                and (choice is None or choice.density is None):
             tables = reference  # the folds' reference fit is the fit at the setting chosen
         else:
             tables = fit_tables_lstsq(train, friction, n_intervals=n_intervals, smoothing=smoothing,

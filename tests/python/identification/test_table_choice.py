@@ -13,7 +13,7 @@ from bmr.identification.prediction import predict
 from bmr.identification.signals import run_input, run_output
 from bmr.identification.spans import SATURATION_TOL, evaluation_start, input_range_of
 from bmr.identification.table_choice import (DEFAULT_INTERVALS, DEFAULT_SMOOTHING, block_folds,
-                                             choose_table_settings, sweep_folds, sweeps)
+                                             choose_table_settings, distinct_reversals, sweep_folds, sweeps)
 
 import independent_preisach as P
 
@@ -147,6 +147,9 @@ def test_the_chosen_setting_predicts_held_out_loops_at_least_as_well_as_the_defa
     # Minor loops inside the major one: the rest predicts whole held-out sweeps, so the ranking is trusted.
     assert choice.undecided is None and choice.sweep_rms < 0.2 * choice.sweep_spread
     assert len(choice.candidates) >= 4  # the default and its neighbours in smoothing and resolution
+    # Loops and minor loops, not a family of first-order reversal curves: no signed density is tried.
+    assert choice.density is None and not np.isfinite(choice.nonnegative_cv_rms)
+    assert not chosen.identification.lstsq.signed
     rms_chosen, rms_default = predict(chosen, held).rms, predict(default, held).rms
     print(choice, "held out:", round(rms_chosen, 3), "default:", round(rms_default, 3))
     assert rms_chosen <= 1.05 * rms_default
@@ -154,6 +157,15 @@ def test_the_chosen_setting_predicts_held_out_loops_at_least_as_well_as_the_defa
     record = chosen.meta["identification"]["table_choice"]
     assert record["n_intervals"] == choice.n_intervals and record["folds"] == 3 and record["undecided"] is None
     assert "TableChoice(" in repr(chosen.identification)
+
+
+def test_distinct_reversals_count_each_curve_start_and_merge_close_inputs():
+    # Five first-order reversal curves (each starts at its reversal), two of them 1e-4 of the range apart, and one
+    # run that reverses twice inside: 4 + 2 distinct reversal inputs.
+    curves = [np.linspace(r, 1.0, 50) for r in (-0.9, -0.5, -0.1, -0.1 + 2e-4, 0.3)]
+    loop = np.concatenate([np.linspace(0.0, 0.8, 40), np.linspace(0.8, -0.6, 60), np.linspace(-0.6, 0.2, 30)])
+    assert distinct_reversals(curves + [loop], -1.0, 1.0) == 4 + 3  # the loop's start (0.0) counts as well
+    assert distinct_reversals([], -1.0, 1.0) == 0
 
 
 def test_a_given_setting_is_kept_and_only_the_other_is_searched(loops):

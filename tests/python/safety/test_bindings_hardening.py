@@ -53,7 +53,7 @@ def test_curve_counts_are_bounded_before_anything_is_allocated(curves: int) -> N
     (lambda: core.VirtualActuator().theta_ahead(10**12), "angle samples"),
     (lambda: core.VirtualActuator().theta_ahead(2**62), "angle samples"),
     (lambda: core.fit_friction_order(np.linspace(0, 9, 50), np.zeros(50), 2**63), "harmonic order"),
-    (lambda: core.fit_everett(np.linspace(-1, 1, 9), [(np.zeros(5), np.zeros(5), np.ones(5), 0)], n_offsets=10**5),
+    (lambda: core.fit_everett(np.linspace(-1, 1, 9), [(np.zeros(5), np.zeros(5), np.ones(5), 0)], n_offsets=10**6),
      "unknowns"),
     (lambda: core.fit_everett(np.linspace(-1, 1, 10**6), [(np.zeros(5), np.zeros(5), np.ones(5), 0)]),
      "grid intervals"),
@@ -69,7 +69,8 @@ def test_user_sizes_raise_resource_limit_errors(call, match: str) -> None:
 def test_limits_are_documented_in_the_module() -> None:
     assert core.LIMITS["curves_per_family"] == 4096
     assert set(core.LIMITS) >= {"max_nodes", "table_values_per_family", "magnitude", "generated_samples",
-                                "friction_fit_order", "everett_intervals", "everett_unknowns"}
+                                "friction_fit_order", "everett_intervals", "everett_unknowns",
+                                "everett_large_unknowns", "everett_entries"}
 
 
 def test_table_errors_have_their_own_class_and_speak_the_users_terms() -> None:
