@@ -403,14 +403,15 @@ impl<S: AsRef<[f64]>, const N: usize, const K: usize> Compensator<S, N, K> {
             Some(r) => r.step(field_a),
             None => field_a,
         };
-        let core_in = match &mut self.stages.creep {
-            Some(c) if commanded => c.core_input(pushed),
-            Some(c) => c.core_input(core_in),
-            None => core_in,
-        };
         // Exact: the core reaches the inverse's input (the fluctuation field may not let it, see
-        // `FluctuationField::input_for`).
-        let exact = commanded && core_in == input;
+        // `FluctuationField::input_for`); without creep a commanded input is reached.
+        let (core_in, exact) = match &mut self.stages.creep {
+            Some(c) => {
+                let reached = c.core_input(if commanded { pushed } else { core_in });
+                (reached, commanded && reached == input)
+            }
+            None => (core_in, commanded),
+        };
         if let Some(t) = &mut self.stages.thermal {
             t.commit(limited);
         }
