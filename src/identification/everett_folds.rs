@@ -280,9 +280,9 @@ fn training_part(
     Ok(TrainingPart { rhs: train.rhs, q })
 }
 
-/// The passive set of the solve whose smoothing is nearest to `smoothing` in log scale (0 counts as the
-/// smallest).
-fn nearest(warm: &[(f64, Vec<bool>)], smoothing: f64) -> Option<&[bool]> {
+/// What the solve whose smoothing is nearest to `smoothing` in log scale kept for a warm start (its passive set,
+/// or its solution), 0 counting as the smallest smoothing.
+pub(super) fn nearest<T>(warm: &[(f64, Vec<T>)], smoothing: f64) -> Option<&[T]> {
     let log = |s: f64| libm::log(s.max(f64::MIN_POSITIVE));
     warm.iter()
         .min_by(|a, b| {
@@ -292,7 +292,7 @@ fn nearest(warm: &[(f64, Vec<bool>)], smoothing: f64) -> Option<&[bool]> {
             );
             da.total_cmp(&db)
         })
-        .map(|(_, p)| p.as_slice())
+        .map(|(_, kept)| kept.as_slice())
 }
 
 #[cfg(test)]

@@ -26,7 +26,7 @@ use super::error::{IdentificationError, RunError};
 use super::everett_fit::{
     DensityDifference, EverettFit, EverettFitOptions, EverettModel, check_options, smoothness_pairs,
 };
-use super::everett_folds::{EverettFoldRun, FoldScore};
+use super::everett_folds::{EverettFoldRun, FoldScore, nearest};
 use super::everett_regressors::{EverettGrid, RunColumns, regressor_rows};
 use crate::limits::{self, MAX_EVERETT_ENTRIES, MAX_EVERETT_LARGE_UNKNOWNS, MAX_EVERETT_UNKNOWNS};
 
@@ -461,20 +461,6 @@ fn node_of(first: &[usize], n: usize, index: usize) -> (usize, usize) {
     let i = first.partition_point(|&s| s <= index) - 1;
     debug_assert!(i < n);
     (i, i + 1 + index - first[i])
-}
-
-/// The solution of the solve whose smoothing is nearest to `smoothing` in log scale.
-fn nearest(warm: &[(f64, Vec<f64>)], smoothing: f64) -> Option<&[f64]> {
-    let log = |s: f64| libm::log(s.max(f64::MIN_POSITIVE));
-    warm.iter()
-        .min_by(|a, b| {
-            let (da, db) = (
-                (log(a.0) - log(smoothing)).abs(),
-                (log(b.0) - log(smoothing)).abs(),
-            );
-            da.total_cmp(&db)
-        })
-        .map(|(_, x)| x.as_slice())
 }
 
 /// How an iterative bound-constrained solve ended.
