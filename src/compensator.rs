@@ -275,17 +275,42 @@ impl<S: AsRef<[f64]>, const N: usize, const K: usize> Compensator<S, N, K> {
     /// [`Self::step_ahead`] when they are known.
     #[inline]
     pub fn step(&mut self, torque_ref_nmm: f64, theta_rad: f64) -> Command {
+        self.step_sharing(torque_ref_nmm, theta_rad, None)
+    }
+
+    /// [`Self::step`] given `sincos = crate::trig::sincos(theta_rad)`, computed by a loop that owns the angle and
+    /// needs it elsewhere too (the plant's friction): the same command to the bit, one `sincos` fewer. A
+    /// predicted angle (`time_delay`) is not `theta_rad` and gets its own.
+    #[inline]
+    pub fn step_with_sincos(
+        &mut self,
+        torque_ref_nmm: f64,
+        theta_rad: f64,
+        sincos: (f64, f64),
+    ) -> Command {
+        self.step_sharing(torque_ref_nmm, theta_rad, Some(sincos))
+    }
+
+    #[inline(always)]
+    fn step_sharing(
+        &mut self,
+        torque_ref_nmm: f64,
+        theta_rad: f64,
+        sincos: Option<(f64, f64)>,
+    ) -> Command {
         if !(torque_ref_nmm.is_finite() && theta_rad.is_finite()) {
             return self.fault();
         }
         if !self.extended {
-            return self.step_base(torque_ref_nmm, theta_rad);
+            return self.step_base(torque_ref_nmm, theta_rad, sincos);
         }
-        let (r, th) = match &mut self.stages.time_delay {
-            Some(p) => p.predict(torque_ref_nmm, theta_rad),
-            None => (torque_ref_nmm, theta_rad),
-        };
-        self.step_extended(r, th)
+        match &mut self.stages.time_delay {
+            Some(p) => {
+                let (r, th) = p.predict(torque_ref_nmm, theta_rad);
+                self.step_extended(r, th, None)
+            }
+            None => self.step_extended(torque_ref_nmm, theta_rad, sincos),
+        }
     }
 
     /// One control period given the reference torque and rotor angle of the sample this command will act on:
@@ -296,15 +321,23 @@ impl<S: AsRef<[f64]>, const N: usize, const K: usize> Compensator<S, N, K> {
             return self.fault();
         }
         if !self.extended {
-            return self.step_base(torque_ref_ahead_nmm, theta_ahead_rad);
+            return self.step_base(torque_ref_ahead_nmm, theta_ahead_rad, None);
         }
-        self.step_extended(torque_ref_ahead_nmm, theta_ahead_rad)
+        self.step_extended(torque_ref_ahead_nmm, theta_ahead_rad, None)
     }
 
-    /// The paper's compensator: friction feedforward, CBH inverse, limit.
-    #[inline]
-    fn step_base(&mut self, torque_ref_nmm: f64, theta_rad: f64) -> Command {
-        self.friction_nmm = self.friction.eval(theta_rad);
+    /// The paper's compensator: friction feedforward, CBH inverse, limit. `sincos`: of `theta_rad`, if known.
+    #[inline(always)]
+    fn step_base(
+        &mut self,
+        torque_ref_nmm: f64,
+        theta_rad: f64,
+        sincos: Option<(f64, f64)>,
+    ) -> Command {
+        self.friction_nmm = match sincos {
+            Some(sc) => self.friction.eval_from(sc),
+            None => self.friction.eval(theta_rad),
+        };
         let target = torque_ref_nmm - self.friction_nmm;
         if !target.is_finite() {
             return self.fault();
@@ -330,9 +363,18 @@ impl<S: AsRef<[f64]>, const N: usize, const K: usize> Compensator<S, N, K> {
     }
 
     /// The extended compensator (module doc), for the reference and angle of the sample the command acts on.
+    /// `sincos`: of `theta_rad`, if known.
     #[inline(always)]
-    fn step_extended(&mut self, torque_ref_nmm: f64, theta_rad: f64) -> Command {
-        let terms = self.friction.angle_terms(theta_rad);
+    fn step_extended(
+        &mut self,
+        torque_ref_nmm: f64,
+        theta_rad: f64,
+        sincos: Option<(f64, f64)>,
+    ) -> Command {
+        let terms = match sincos {
+            Some(sc) => self.friction.angle_terms_from(sc),
+            None => self.friction.angle_terms(theta_rad),
+        };
         let current_a = self.stages.friction_current.map_or(0.0, |f| f.current_a());
         self.friction_nmm = self.friction.with_terms(&terms, current_a);
         let mut gain = 1.0;

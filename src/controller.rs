@@ -339,6 +339,30 @@ impl<S: AsRef<[f64]>, const N: usize, const K: usize> Controller<S, N, K> {
     /// at the previous sample (N·mm; NaN/inf: no new value).
     #[inline]
     pub fn step(&mut self, reference_nmm: f64, theta_rad: f64, measured_nmm: f64) -> Command {
+        self.step_sharing(reference_nmm, theta_rad, measured_nmm, None)
+    }
+
+    /// [`Self::step`] given `sincos = crate::trig::sincos(theta_rad)`, computed by a loop that owns the angle
+    /// (see [`Compensator::step_with_sincos`]): the same command to the bit.
+    #[inline]
+    pub fn step_with_sincos(
+        &mut self,
+        reference_nmm: f64,
+        theta_rad: f64,
+        measured_nmm: f64,
+        sincos: (f64, f64),
+    ) -> Command {
+        self.step_sharing(reference_nmm, theta_rad, measured_nmm, Some(sincos))
+    }
+
+    #[inline(always)]
+    fn step_sharing(
+        &mut self,
+        reference_nmm: f64,
+        theta_rad: f64,
+        measured_nmm: f64,
+        sincos: Option<(f64, f64)>,
+    ) -> Command {
         let d = &self.design;
         let st = &mut self.state;
         let mut increment = 0.0;
@@ -381,7 +405,10 @@ impl<S: AsRef<[f64]>, const N: usize, const K: usize> Controller<S, N, K> {
         } else {
             (reference_nmm + correction - est.beta * d.full_torque_nmm) / est.gain
         };
-        let command = self.compensator.step(target, theta_rad);
+        let command = match sincos {
+            Some(sc) => self.compensator.step_with_sincos(target, theta_rad, sc),
+            None => self.compensator.step(target, theta_rad),
+        };
         let st = &mut self.state;
         // Anti-windup: a saturated command keeps the correction only where it pulls back from the saturation
         // (a torque above reach needs more current in the direction of the current's sign).

@@ -226,7 +226,13 @@ impl<const K: usize> Friction<K> {
     /// The angle-dependent part at `theta` (rad): one `sincos`.
     #[inline(always)]
     pub fn angle_terms(&self, theta: f64) -> AngleTerms {
-        let (sin1, cos1) = crate::trig::sincos(theta);
+        self.angle_terms_from(crate::trig::sincos(theta))
+    }
+
+    /// The angle-dependent part from `(sin θ, cos θ)` already computed (a loop that owns the angle shares one
+    /// `sincos` between the plant and the compensator).
+    #[inline(always)]
+    pub fn angle_terms_from(&self, (sin1, cos1): (f64, f64)) -> AngleTerms {
         let n = self.order.min(K);
         AngleTerms {
             sin1,
@@ -249,6 +255,15 @@ impl<const K: usize> Friction<K> {
         }
         let t = self.angle_terms(theta);
         self.c0 + t.harmonics_nmm
+    }
+
+    /// [`Self::eval`] from `(sin θ, cos θ)` already computed.
+    #[inline]
+    pub fn eval_from(&self, sincos: (f64, f64)) -> f64 {
+        if self.order == 0 {
+            return self.c0;
+        }
+        self.c0 + self.angle_terms_from(sincos).harmonics_nmm
     }
 
     /// Friction torque at rotor angle `theta` (rad) and current `current_a` (A).

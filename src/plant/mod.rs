@@ -7,6 +7,7 @@
 //! [`seal_friction`] (angle-periodic, θ from [`rotor_drive`]) → [`torque_sensor`] (lever, noise, quantisation).
 //! [`presets`] holds calibrated configurations; [`virtual_actuator`] wires the stages together.
 
+pub mod closed_loop;
 pub mod converter;
 pub mod device;
 pub mod effects;
@@ -20,6 +21,7 @@ pub mod steel_preisach;
 pub mod torque_sensor;
 pub mod virtual_actuator;
 
+pub use closed_loop::run_closed_loop;
 pub use device::{
     DEVICE_PRESETS, DEVICE_SETTABLE, DeviceConfig, DeviceSample, VirtualDevice, device_preset,
 };

@@ -765,6 +765,13 @@ impl VirtualActuator {
     /// Advance one sample with commanded nominal current `current_cmd_a` (A). A non-finite command applies the
     /// safe command 0 A and is flagged in the sample.
     pub fn step(&mut self, current_cmd_a: f64) -> Sample {
+        self.step_with_sincos(current_cmd_a, crate::trig::sincos(self.drive.theta_rad()))
+    }
+
+    /// [`Self::step`] given `sincos = crate::trig::sincos(self.theta_rad())`, computed by a loop that needs it
+    /// elsewhere too (a compensator's friction feedforward at the same angle): the same sample to the bit.
+    #[inline]
+    pub fn step_with_sincos(&mut self, current_cmd_a: f64, sincos: (f64, f64)) -> Sample {
         let valid = current_cmd_a.is_finite();
         let cmd = if valid { current_cmd_a } else { 0.0 };
         let t_s = self.time_s();
@@ -789,7 +796,7 @@ impl VirtualActuator {
 
         let theta_rad = self.drive.theta_rad();
         // One `sincos` of the angle for the friction, the torque ripple and the drive's speed ripple.
-        let angle = self.friction.angle_terms(theta_rad);
+        let angle = self.friction.angle_terms_from(sincos);
         let speed_rad_s = self.drive.speed_at_sin(angle.sin1);
         let fluid = &self.config.fluid;
         let yield1 = self.output_map(fluid.yield_stress_kpa(b1_t) * self.torque_per_kpa);

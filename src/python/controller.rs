@@ -9,6 +9,7 @@ use crate::compensator::{Command, Compensator};
 use crate::controller::{Controller, ControllerDesign, ControllerSettings, ControllerState};
 use crate::friction::MAX_ORDER;
 use crate::limits::{MAX_GENERATED_SAMPLES, check};
+use crate::plant::run_closed_loop;
 use crate::python::arrays::{extract_f64_array, to_numpy};
 use crate::python::compensator::PyCompensator;
 use crate::python::compensator::command::CommandSlots;
@@ -408,15 +409,10 @@ fn _simulate_closed_loop<'py>(
         // Columns sized up front and written in place (cheaper per sample than pushing ten columns).
         let mut cols: [Vec<f64>; 8] = std::array::from_fn(|_| vec![0.0; n]);
         let mut flags: [Vec<bool>; 2] = std::array::from_fn(|_| vec![false; n]);
-        let mut measured = f64::NAN;
-        for (i, &r) in refs.iter().enumerate() {
-            let th = thetas.as_ref().map_or_else(|| sim.theta_rad(), |t| t[i]);
-            let c = ctl.step(r, th, measured);
-            let s = sim.step(c.current_a);
-            measured = s.torque_nmm;
+        run_closed_loop(ctl, sim, &refs, thetas.as_deref(), |i, c, s, ctl| {
             for (col, v) in cols.iter_mut().zip([
                 s.t_s,
-                r,
+                refs[i],
                 s.torque_nmm,
                 s.torque_true_nmm,
                 c.current_a,
@@ -428,7 +424,7 @@ fn _simulate_closed_loop<'py>(
             }
             flags[0][i] = c.saturated;
             flags[1][i] = c.fault;
-        }
+        });
         (cols, flags)
     });
     let (cols, flags) = run;

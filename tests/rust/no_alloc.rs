@@ -163,7 +163,12 @@ fn extended_compensator_step_does_not_allocate() {
     let mut y = f64::NAN;
     for (i, &r) in scaled.iter().enumerate() {
         let measured = if i % 50 < 8 { f64::NAN } else { y };
-        let c = ctl.step(if i % 300 < 20 { 5000.0 } else { r }, thetas[i], measured);
+        let r = if i % 300 < 20 { 5000.0 } else { r };
+        let c = if i % 2 == 0 {
+            ctl.step(r, thetas[i], measured)
+        } else {
+            ctl.step_with_sincos(r, thetas[i], measured, bmr::trig::sincos(thetas[i]))
+        };
         y = 0.9 * ctl.compensator().model_torque_nmm() + 2.0;
         acc += c.current_a;
     }

@@ -2,7 +2,7 @@
 //! instructions per step with callgrind (`benches/callgrind.sh`). Usage: `step_count N [hysteresis|compensator|
 //! extended|controller]` (`extended`: every extension stage on; `controller`: the closed loop around it, measuring
 //! 0.95 × the model's torque plus 2 N·mm; `closed_loop`: that controller driving the `rig_preisach` virtual
-//! actuator with a coil lag and heating, as `bmr.simulate_closed_loop` does, controller and plant per sample).
+//! actuator with a coil lag and heating through `bmr::plant::run_closed_loop`, as `bmr.simulate_closed_loop` does).
 use bmr_bench as workload;
 
 use bmr::plant::VirtualActuator;
@@ -59,13 +59,14 @@ fn main() {
             ];
             let mut plant =
                 VirtualActuator::from_preset("rig_preisach", 1000.0, &effects, 1).unwrap();
-            let thetas = plant.theta_ahead(refs.len()).unwrap();
-            let mut y = f64::NAN;
-            for i in 0..n {
-                let k = i % refs.len();
-                let cmd = c.step(black_box(refs[k]), black_box(thetas[k]), y);
-                y = plant.step(cmd.current_a).torque_nmm;
-                acc += y;
+            // The reference repeated until `n` samples, each pass one `run_closed_loop` (the plant's own angle).
+            let mut left = n;
+            while left > 0 {
+                let m = left.min(refs.len());
+                bmr::plant::run_closed_loop(&mut c, &mut plant, &refs[..m], None, |_, _, s, _| {
+                    acc += s.torque_nmm;
+                });
+                left -= m;
             }
         }
         "compensator" | "extended" => {
