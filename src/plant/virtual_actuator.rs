@@ -770,7 +770,7 @@ impl VirtualActuator {
 
     /// [`Self::step`] given `sincos = crate::trig::sincos(self.theta_rad())`, computed by a loop that needs it
     /// elsewhere too (a compensator's friction feedforward at the same angle): the same sample to the bit.
-    #[inline]
+    #[inline(always)]
     pub fn step_with_sincos(&mut self, current_cmd_a: f64, sincos: (f64, f64)) -> Sample {
         let valid = current_cmd_a.is_finite();
         let cmd = if valid { current_cmd_a } else { 0.0 };
@@ -874,7 +874,7 @@ impl VirtualActuator {
 /// One circuit's flux density (any Preisach core's output): the input through the dynamic field (rate
 /// dependence) and the thermal fluctuation field (creep's log-time after-effect) into the core, then the
 /// relaxations (creep).
-#[inline]
+#[inline(always)]
 pub(super) fn preisach_flux(
     steel: &mut PreisachSteel,
     rate: &mut Option<RateDependence>,
