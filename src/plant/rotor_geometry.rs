@@ -58,16 +58,24 @@ impl RotorGeometry {
 
     /// Viscous torque (N·mm) of a rotor at relative speed `omega_rad_s` in a fluid of viscosity `eta_pa_s`.
     pub fn viscous_torque_nmm(&self, eta_pa_s: f64, omega_rad_s: f64) -> f64 {
-        let (rs, rd, l, h) = (
+        self.viscous_drag(eta_pa_s).torque_nmm(omega_rad_s)
+    }
+
+    /// The speed-independent factors of the viscous torque in a fluid of viscosity `eta_pa_s`, computed once
+    /// for a simulator whose fluid and geometry are fixed.
+    pub fn viscous_drag(&self, eta_pa_s: f64) -> ViscousDrag {
+        let (rs, rd, l) = (
             self.shaft_radius_mm,
             self.disc_radius_mm,
             self.drum_width_mm,
-            self.gap_mm,
         );
-        // eta in N·s/mm² is 1e-6 × Pa·s.
-        let eta = eta_pa_s * 1e-6;
         let (rd3, rs3) = (rd * rd * rd, rs * rs * rs);
-        eta * omega_rad_s * (PI * (rd3 * rd - rs3 * rs) + 2.0 * PI * rd3 * l) / h
+        ViscousDrag {
+            // eta in N·s/mm² is 1e-6 × Pa·s.
+            eta_ns_per_mm2: eta_pa_s * 1e-6,
+            geometry_mm4: PI * (rd3 * rd - rs3 * rs) + 2.0 * PI * rd3 * l,
+            gap_mm: self.gap_mm,
+        }
     }
 }
 
@@ -82,5 +90,22 @@ mod tests {
         assert!((550.0..700.0).contains(&t), "{t}");
         let v = g.viscous_torque_nmm(0.11, 2.0 * PI);
         assert!(v > 0.05 && v < 2.0, "{v}");
+    }
+}
+
+/// A rotor's viscous drag: `T = η·ω·G/h` with the fluid's viscosity `η` (N·s/mm²), the faces' and drum's
+/// geometric factor `G = π(rd⁴ − rs⁴) + 2π·rd³·l` (mm⁴) and the gap `h` (mm).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ViscousDrag {
+    eta_ns_per_mm2: f64,
+    geometry_mm4: f64,
+    gap_mm: f64,
+}
+
+impl ViscousDrag {
+    /// Viscous torque (N·mm) at relative speed `omega_rad_s` (rad/s).
+    #[inline]
+    pub fn torque_nmm(&self, omega_rad_s: f64) -> f64 {
+        self.eta_ns_per_mm2 * omega_rad_s * self.geometry_mm4 / self.gap_mm
     }
 }

@@ -314,6 +314,7 @@ impl PreisachSteel {
     }
 
     /// Apply an input; returns the normalised Preisach output in [−1, 1].
+    #[inline(always)]
     pub fn apply_normalised(&mut self, current_a: f64) -> f64 {
         let r = self.params.range_a;
         // NaN is treated as "no change" so the memory can never be corrupted.

@@ -12,6 +12,7 @@ use super::mr_fluid::MrFluid;
 use super::rng::Rng;
 use super::rotor_drive::{DriveParams, RotorDrive};
 use super::rotor_geometry::RotorGeometry;
+use super::rotor_geometry::ViscousDrag;
 use super::seal_friction::SealFriction;
 use super::steel_preisach::{PreisachSteel, SteelParams};
 use super::torque_sensor::SensorParams;
@@ -367,6 +368,7 @@ pub struct VirtualActuator {
     dt_s: f64,
     fx: ActiveEffects,
     torque_per_kpa: f64,
+    viscous_drag: ViscousDrag,
     /// The seal friction with the extra harmonic and the current growth, in the compensator's evaluated form.
     friction: Friction<MAX_ORDER>,
     ripple: Option<Ripple>,
@@ -466,6 +468,7 @@ impl VirtualActuator {
             run_offset_nmm,
             calibration_rng,
             torque_per_kpa: config.geometry.yield_torque_per_kpa(),
+            viscous_drag: config.geometry.viscous_drag(config.fluid.viscosity_pa_s),
             friction,
             ripple,
             delay_line: DelayLine::new(vec![0.0; fx.delay_samples], fx.delay_samples, 0.0)
@@ -801,10 +804,7 @@ impl VirtualActuator {
         let fluid = &self.config.fluid;
         let yield1 = self.output_map(fluid.yield_stress_kpa(b1_t) * self.torque_per_kpa);
         let yield2 = self.output_map(fluid.yield_stress_kpa(b2_t) * self.torque_per_kpa);
-        let viscous_nmm = self
-            .config
-            .geometry
-            .viscous_torque_nmm(fluid.viscosity_pa_s, speed_rad_s);
+        let viscous_nmm = self.viscous_drag.torque_nmm(speed_rad_s);
         // Both rotors turn at the same speed in opposite directions: their viscous drags oppose.
         let mut field = (yield2 + viscous_nmm) - (yield1 + viscous_nmm);
         // The field the steel sees: the coils' core inputs recombined as a nominal current.
