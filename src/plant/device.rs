@@ -3,8 +3,9 @@
 //! one generator.
 //!
 //! Per sample: command → (`time_delay`) → (`coil_lag`: the drive's first-order lag, amplifier bandwidth) →
-//! (`rate_dependence`: dynamic field) → Preisach core (a physical switching-field density, fields in input
-//! units, output normalised to ±1) → (`creep`) → output scale and offset → (`non_congruent` output map,
+//! (`rate_dependence`: dynamic field) → (`non_congruent`'s mean field: plus feedback × the core's last
+//! normalised output) → Preisach core (a physical switching-field density, fields in input units, output
+//! normalised to ±1) → (`creep`) → output scale and offset → (`non_congruent` output map,
 //! `accommodation`, `thermal_drift`: self-heating by (u/u_full)²) → sensor: (`leakage` integral,
 //! `run_gain_offset`, `sensor_drift`), noise, quantisation.
 //!
