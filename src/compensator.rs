@@ -2,7 +2,7 @@
 //! (eq 8), limited, and converted to converter voltages; optionally extended by the stages of a diagnosed model
 //! ([`crate::stages`]): `time_delay` preview or prediction, current-dependent friction and extra harmonics in the
 //! one friction feedforward, the thermal and ripple field gains, the `non_congruent` output-map inverse before
-//! the CBH inverse and the `coil_lag` lead after it.
+//! the CBH inverse, its mean field (the core's last output fed back) taken off after it, and the `coil_lag` lead.
 //!
 //! Safety invariants (property-tested): never both coils energised; `|I| <= limit`; a NaN/inf reference or angle,
 //! or any non-finite intermediate, gives zero current with `fault` set (no panic); the forward memory and every
@@ -409,11 +409,18 @@ impl<S: AsRef<[f64]>, const N: usize, const K: usize> Compensator<S, N, K> {
         }
         let inv = self.inverse_input(target);
         let (input, saturated) = (inv.input, inv.saturated);
-        // The input before creep's fluctuation field that gives that core input, the field current that brings it
-        // there (rate dependence), then the coil command (lag).
+        // The mean field adds its share of the core's last output to whatever reaches the core: the stages before
+        // it must bring `wanted`. Then the input before creep's fluctuation field that gives that, the field
+        // current that brings it there (rate dependence), then the coil command (lag).
+        // (Off: `fed` is +0.0, and `x − 0.0` is `x` to the bit.)
+        let fed = match &self.stages.mean_field {
+            Some(m) => m.shift(self.forward.output()),
+            None => 0.0,
+        };
+        let wanted = input - fed;
         let pushed = match &self.stages.creep {
-            Some(c) => c.applied_input_for(input),
-            None => input,
+            Some(c) => c.applied_input_for(wanted),
+            None => wanted,
         };
         let field_wanted = match &self.stages.rate {
             Some(r) => r.input_for(pushed),
@@ -450,10 +457,13 @@ impl<S: AsRef<[f64]>, const N: usize, const K: usize> Compensator<S, N, K> {
         let (core_in, exact) = match &mut self.stages.creep {
             Some(c) => {
                 let reached = c.core_input(if commanded { pushed } else { core_in });
-                (reached, commanded && reached == input)
+                (reached, commanded && reached == wanted)
             }
             None => (core_in, commanded),
         };
+        // What the core sees (when exact the inverse's `input`, up to the rounding of the sum). Written as
+        // `− (0 − fed)` so that off (`fed` = +0.0) it is `core_in` to the bit, a −0.0 included.
+        let core_in = core_in - (0.0 - fed);
         if let Some(t) = &mut self.stages.thermal {
             t.commit(limited);
         }
@@ -461,8 +471,8 @@ impl<S: AsRef<[f64]>, const N: usize, const K: usize> Compensator<S, N, K> {
             f.commit(field_a);
         }
         let core_out = if exact && matches!(self.inverse, InverseKind::Exact) {
-            // Exact means the core reaches `input` (= core_in): the inverse's cell applies.
-            self.forward.commit(core_in, target, &inv);
+            // Exact means the core reaches `input`: the inverse's cell applies.
+            self.forward.commit(input, target, &inv);
             target
         } else {
             self.forward.step_made(core_in, inv.turn.as_ref())
@@ -501,6 +511,10 @@ impl<S: AsRef<[f64]>, const N: usize, const K: usize> Compensator<S, N, K> {
         };
         let core_in = match &mut self.stages.creep {
             Some(c) => c.core_input(core_in),
+            None => core_in,
+        };
+        let core_in = match &self.stages.mean_field {
+            Some(m) => core_in + m.shift(self.forward.output()),
             None => core_in,
         };
         let y = self.forward.step(core_in);

@@ -158,6 +158,10 @@ impl<S: AsRef<[f64]>, D: AsRef<[f64]> + AsMut<[f64]>, const N: usize, const K: u
             Some(c) => c.core_input(core_a),
             None => core_a,
         };
+        let core_a = match &self.stages.mean_field {
+            Some(m) => core_a + m.shift(self.core.output()),
+            None => core_a,
+        };
         let core_nmm = self.core.step(core_a);
         let mut field = self.stages.after_core(core_nmm, core_a);
         let terms = self.friction.angle_terms(theta_rad);

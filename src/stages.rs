@@ -3,14 +3,16 @@
 //!
 //! The forward chain (the extended simulation, [`crate::simulation`]) is
 //!
-//! `command → time_delay → coil_lag → rate_dependence → CBH core + viscous loss → creep → non_congruent output map
+//! `command → time_delay → coil_lag → rate_dependence → creep's fluctuation field → + non_congruent mean field
+//! (its feedback × the core's last output / S) → CBH core + viscous loss → creep → non_congruent output map
 //! → + accommodation shift → × thermal gain × ripple gain → + friction(θ, |field current|)`
 //! (`friction_harmonics` and `friction_current` live in the one [`crate::friction::Friction`]),
 //!
 //! and the compensator ([`crate::compensator`]) walks it backwards once per step:
 //!
 //! `reference (time_delay: taken delay ahead) − friction → ÷ (thermal gain × ripple gain) − accommodation
-//! shift → output-map inverse → creep inverse → implicit viscous solve → CBH inverse → rate-dependence inverse →
+//! shift → output-map inverse → creep inverse → implicit viscous solve → CBH inverse → − mean field →
+//! fluctuation-field inverse → rate-dependence inverse →
 //! coil_lag lead (limited)
 //! → command`.
 //!
@@ -418,6 +420,31 @@ impl OutputMap {
     }
 }
 
+/// `non_congruent`'s mean field (the moving Preisach model): the core sees its input plus `per_output` times its
+/// own output of the sample before. Stateless: that output is the core's.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct MeanField {
+    per_output: f64,
+}
+
+impl MeanField {
+    /// Feedback `feedback` (input units per full-scale output) over full scale `scale` (output units); `None`
+    /// when the feedback is 0 (off) or the ratio is not finite.
+    pub fn new(feedback: f64, scale: f64) -> Option<Self> {
+        let per_output = feedback / scale;
+        (feedback != 0.0 && per_output.is_finite()).then_some(MeanField { per_output })
+    }
+    /// Input units added per output unit.
+    pub fn per_output(&self) -> f64 {
+        self.per_output
+    }
+    /// The field added to the core's input when its last output was `last_out`.
+    #[inline(always)]
+    pub fn shift(&self, last_out: f64) -> f64 {
+        self.per_output * last_out
+    }
+}
+
 /// The smallest `x > 0` where the odd map `n(1 + c|n| + k·n²)` stops rising (`1 + 2c·x + 3k·x² = 0`), if any.
 fn turning_point(c: f64, k: f64) -> Option<f64> {
     if k == 0.0 {
@@ -714,6 +741,9 @@ macro_rules! stage_list {
             $($(#[$doc])* pub $field: Option<$ty>,)*
             /// `leakage`: measured output added per unit of input-time (output/(input·s)); measurement only.
             pub leak_per_s: f64,
+            /// `non_congruent`'s mean field: stateless, it acts between the stages before the core and the core
+            /// (after the output map in the list: one effect).
+            pub mean_field: Option<MeanField>,
         }
 
         /// The state of the stages (part of a compensator snapshot).
@@ -728,15 +758,15 @@ macro_rules! stage_list {
 
             /// Whether any stage is on.
             pub fn any(&self) -> bool {
-                false $(|| self.$field.is_some())*
+                false $(|| self.$field.is_some())* || self.mean_field.is_some()
             }
 
             /// Whether the stage of `kind` is on.
             pub fn has(&self, kind: EffectKind) -> bool {
-                $(if kind == <$ty as Stage>::KIND {
-                    return self.$field.is_some();
+                $(if kind == <$ty as Stage>::KIND && self.$field.is_some() {
+                    return true;
                 })*
-                false
+                kind == EffectKind::NonCongruent && self.mean_field.is_some()
             }
 
             /// The stages that are on, in loop order.
@@ -951,6 +981,12 @@ impl Stages {
                     }
                     if v[0] != 0.0 || v[2] != 0.0 {
                         st.output_map = Some(OutputMap::polynomial(v[0], v[2], scale)?);
+                    }
+                    if v[3] != 0.0 {
+                        st.mean_field = Some(
+                            MeanField::new(v[3], scale)
+                                .ok_or(StageError::Scale("mean-field feedback per output", v[3]))?,
+                        );
                     }
                 }
                 EffectKind::FrictionHarmonics => fr.harmonic = Some((v[0] as usize, v[1], v[2])),

@@ -222,8 +222,12 @@ vocabulary! {
          + cubic n^2) / (1 + curvature + cubic) with n = T / S and S the full-scale torque, an odd map through \
          (0, 0) and (S, S): curvature bends it like a square, cubic like the yield stress of an MR fluid that is \
          a cubic function of the steel's flux. The compensator inverts it exactly on a monotone table (up to the \
-         map's turning point when it is concave). Signature: error only after higher-order reversals (minor \
-         loops scale with the local slope).",
+         map's turning point when it is concave). Mean-field form (the moving Preisach model, Della Torre): the \
+         interaction of the hysterons feeds the core's own output back into its input, the core seeing \
+         u + feedback * y / S with y its output of the sample before (positive feedback: magnetizing, the loop \
+         steepens and tilts; negative: demagnetizing, it shears). The compensator inverts it exactly: the input \
+         the core needs less feedback times the output it already has. Signature: error only after \
+         higher-order reversals (minor loops scale with the local slope).",
         [p("curvature", "1", 1.0, -0.45, 5.0,
            "output nonlinearity strength (0 = off; >0 convex, <0 concave)"),
          zero_or_at_least(1e-3, p("scale_nmm", "N·mm", 0.0, 0.0, 1e9,
@@ -231,7 +235,12 @@ vocabulary! {
             largest |torque|; else at least 1e-3)")),
          p("cubic", "1", 0.0, -0.3, 3.0,
            "odd cubic term (0 = off; >0 stiffening towards full scale, <0 saturating; in this range the map \
-            rises over |n| <= 1 whenever curvature >= 0)")];
+            rises over |n| <= 1 whenever curvature >= 0)"),
+         p("feedback", "A", 0.0, -1e3, 1e3,
+           "mean-field interaction: input added per full-scale core output, y/S, of the sample before (input \
+            units; 0 = off, > 0 magnetizing). Physical only while the loop stays single-valued: feedback times \
+            the core's steepest normalised slope (max dy/du / S, per input unit) below 1, checked where the \
+            diagnosis accepts it")];
     Creep = "creep", Field, stage(5, PERIOD, "the relaxations' outputs (output units)"), NO_ANGLE,
         "After every change of the output (a reversal, a step, a dwell) a share of the change keeps arriving: the \
          magnetic after-effect of steel, the creep of a piezo stack. The core output v is the equilibrium and \

@@ -118,7 +118,7 @@ pub mod model {
         EffectValues { kind: 6, values: [0.006, 0.0, 0.0, 0.0, 0.0] },
         // coil_lag: tau_s=0.015 s
         EffectValues { kind: 0, values: [0.015, 0.0, 0.0, 0.0, 0.0] },
-        // non_congruent: curvature=1.2, scale_nmm=300.0 N·mm, cubic=0.3
+        // non_congruent: curvature=1.2, scale_nmm=300.0 N·mm, cubic=0.3, feedback=0.0 A
         EffectValues { kind: 7, values: [1.2, 300.0, 0.3, 0.0, 0.0] },
         // thermal_drift: gain_loss=0.08, tau_s=20.0 s
         EffectValues { kind: 1, values: [0.08, 20.0, 0.0, 0.0, 0.0] },

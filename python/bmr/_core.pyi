@@ -156,6 +156,11 @@ class Hysteresis:
         """``u`` through the rate-dependence stage (core-input lag of time constant ``tau_s`` scaled by the
         branch's differential slope over ``slope_ref``, default output span / input span), then the operator:
         ``(outputs, core_inputs)``."""
+    def run_mean_field(self, u: _ArrayLike, *, per_output: float, tau_s: float = 0.0, dt_s: float = 1.0,
+                       slope_ref: float | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """``u`` through the operator with ``non_congruent``'s mean field: the core sees ``u + per_output · y``, ``y``
+        its output of the sample before (after the rate-dependence stage when ``tau_s > 0``): ``(outputs,
+        core_inputs)``."""
     def __copy__(self) -> Hysteresis: ...
     def __deepcopy__(self, memo: dict[int, object]) -> Hysteresis: ...
     def reset(self, initial: _Initial | None = None) -> None: ...

@@ -3,8 +3,9 @@
 //! one generator.
 //!
 //! Per sample: command → (`time_delay`) → (`coil_lag`: the drive's first-order lag, amplifier bandwidth) →
-//! (`rate_dependence`: dynamic field) → Preisach core (a physical switching-field density, fields in input
-//! units, output normalised to ±1) → (`creep`) → output scale and offset → (`non_congruent` output map,
+//! (`rate_dependence`: dynamic field) → (`non_congruent`'s mean field: plus feedback × the core's last
+//! normalised output) → Preisach core (a physical switching-field density, fields in input units, output
+//! normalised to ±1) → (`creep`) → output scale and offset → (`non_congruent` output map,
 //! `accommodation`, `thermal_drift`: self-heating by (u/u_full)²) → sensor: (`leakage` integral,
 //! `run_gain_offset`, `sensor_drift`), noise, quantisation.
 //!
@@ -216,6 +217,9 @@ pub struct VirtualDevice {
     curvature: f64,
     /// Odd cubic term of the output map (`non_congruent`).
     cubic: f64,
+    /// Mean-field feedback of the core's normalised output into its normalised input (`non_congruent`'s
+    /// feedback over the input half span).
+    feedback: f64,
     accommodation: Option<Accommodation>,
     thermal_loss: f64,
     thermal_tau_s: f64,
@@ -243,6 +247,7 @@ impl VirtualDevice {
         let half = config.input_half_span;
         let (mut delay, mut lag_tau, mut rate_tau) = (0usize, 0.0, 0.0);
         let (mut creep, mut curvature, mut cubic, mut accommodation) = (None, 0.0, 0.0, None);
+        let mut feedback = 0.0;
         let (mut thermal_loss, mut thermal_tau_s, mut drift, mut leak) = (0.0, 0.0, 0.0, 0.0);
         let mut run_gain_offset = None;
         let mut viscous = (0.0, 0.0, 1.0);
@@ -266,8 +271,13 @@ impl VirtualDevice {
                 Effect::NonCongruent {
                     curvature: c,
                     cubic: k,
+                    feedback: f,
                     ..
-                } => (curvature, cubic) = (c, k),
+                } => {
+                    (curvature, cubic) = (c, k);
+                    // The core runs on the input normalised by its half span and gives ±1 at saturation.
+                    feedback = f / half;
+                }
                 Effect::Accommodation { kappa, cycles } => {
                     use crate::accommodation::{DEADBAND_SHARE, SATURATION_SHARE};
                     accommodation = Accommodation::new(
@@ -308,6 +318,7 @@ impl VirtualDevice {
             creep,
             curvature,
             cubic,
+            feedback,
             accommodation,
             thermal_loss,
             thermal_tau_s,
@@ -397,6 +408,7 @@ impl VirtualDevice {
             &mut self.core,
             &mut self.rate,
             &mut self.creep,
+            self.feedback,
             (driven - c) / self.config.input_half_span,
         );
         // The input the core saw, back in input units (accommodation follows it).

@@ -49,6 +49,7 @@ pub enum Effect {
         curvature: f64,
         scale_nmm: f64,
         cubic: f64,
+        feedback: f64,
     },
     Creep {
         fraction: f64,
@@ -137,6 +138,7 @@ impl Effect {
                 curvature: v[0],
                 scale_nmm: v[1],
                 cubic: v[2],
+                feedback: v[3],
             },
             EffectKind::Creep => {
                 if v[2] < v[1] {
@@ -189,7 +191,8 @@ impl Effect {
                 curvature,
                 scale_nmm,
                 cubic,
-            } => vec![curvature, scale_nmm, cubic],
+                feedback,
+            } => vec![curvature, scale_nmm, cubic, feedback],
             Effect::Creep {
                 fraction,
                 tau_min_s,

@@ -370,6 +370,11 @@ impl PreisachSteel {
         self.output
     }
 
+    /// The output at the current state normalised to saturation (±1).
+    pub fn normalised_output(&self) -> f64 {
+        self.output
+    }
+
     /// Flux density (T) at the current state.
     pub fn flux_t(&self) -> f64 {
         self.output * self.params.saturation_t

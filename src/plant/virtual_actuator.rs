@@ -272,6 +272,8 @@ struct ActiveEffects {
     curvature_scale_nmm: f64,
     /// Odd cubic term of the output map (`non_congruent`).
     cubic: f64,
+    /// Mean-field feedback of each circuit's flux into its field current (`non_congruent`): A per saturation flux.
+    feedback_a: f64,
     /// Creep of each circuit's flux density: (fraction, tau_min_s, tau_max_s, fluctuation field (A), tau0_s).
     creep: Option<(f64, f64, f64, f64, f64)>,
     rate_tau_s: f64,
@@ -303,6 +305,7 @@ impl ActiveEffects {
             curvature: 0.0,
             curvature_scale_nmm: 0.0,
             cubic: 0.0,
+            feedback_a: 0.0,
             creep: None,
             rate_tau_s: 0.0,
             run_gain_offset: None,
@@ -332,10 +335,12 @@ impl ActiveEffects {
                     curvature,
                     scale_nmm,
                     cubic,
+                    feedback,
                 } => {
                     a.curvature = curvature;
                     a.curvature_scale_nmm = scale_nmm;
                     a.cubic = cubic;
+                    a.feedback_a = feedback;
                 }
                 Effect::Creep {
                     fraction,
@@ -788,12 +793,14 @@ impl VirtualActuator {
             &mut self.steel1,
             &mut self.rate1,
             &mut self.creep1,
+            self.fx.feedback_a,
             field1_a,
         );
         let b2_t = preisach_flux(
             &mut self.steel2,
             &mut self.rate2,
             &mut self.creep2,
+            self.fx.feedback_a,
             field2_a,
         );
 
@@ -872,27 +879,36 @@ impl VirtualActuator {
 }
 
 /// One circuit's flux density (any Preisach core's output): the input through the dynamic field (rate
-/// dependence) and the thermal fluctuation field (creep's log-time after-effect) into the core, then the
-/// relaxations (creep).
+/// dependence), the thermal fluctuation field (creep's log-time after-effect) and the mean field (`feedback`
+/// input units per saturation flux times the core's output of the sample before: a moving Preisach model) into
+/// the core, then the relaxations (creep).
 #[inline(always)]
 pub(super) fn preisach_flux(
     steel: &mut PreisachSteel,
     rate: &mut Option<RateDependence>,
     creep: &mut Option<Creep>,
+    feedback: f64,
     field_current_a: f64,
 ) -> f64 {
+    let mut core_input = |steel: &PreisachSteel, h: f64| {
+        let h = creep.as_mut().map_or(h, |c| c.core_input(h));
+        if feedback != 0.0 {
+            h + feedback * steel.normalised_output()
+        } else {
+            h
+        }
+    };
     let b = match rate {
         Some(r) => {
-            let h = r.step(field_current_a);
-            let b = steel.apply(creep.as_mut().map_or(h, |c| c.core_input(h)));
+            let h = core_input(steel, r.step(field_current_a));
+            let b = steel.apply(h);
             r.observe(b);
             b
         }
-        None => steel.apply(
-            creep
-                .as_mut()
-                .map_or(field_current_a, |c| c.core_input(field_current_a)),
-        ),
+        None => {
+            let h = core_input(steel, field_current_a);
+            steel.apply(h)
+        }
     };
     match creep {
         Some(c) => c.step(b),

@@ -11,6 +11,7 @@ use crate::python::arrays::{DETACH_LEN, curves_to_py, extract_f64_array, to_nump
 use crate::python::table_report::{PyTableReport, congruency_dict};
 use crate::python::{BmrError, borrow, borrow_mut, bytes_to_words, table_err, words_to_bytes};
 use crate::rate_dependence::RateDependence;
+use crate::stages::MeanField;
 use crate::table_builder::{BuildOptions, BuildReport};
 
 /// Memory capacity (reversal points) of the Python operator.
@@ -374,6 +375,80 @@ impl PyHysteresis {
                 let c = stage.step(x);
                 let y = op.step(c);
                 stage.observe(y);
+                ys.push(y);
+                cores.push(c);
+            }
+            (ys, cores)
+        };
+        let (ys, cores) = if n > DETACH_LEN {
+            py.detach(scan)
+        } else {
+            scan()
+        };
+        Ok((to_numpy(py, ys), to_numpy(py, cores)))
+    }
+
+    /// Run ``u`` through the core with ``non_congruent``'s mean field (a moving Preisach model): the core sees
+    /// ``u + per_output · y`` with ``y`` its own output of the sample before (``per_output``: the feedback over
+    /// the full-scale output, input units per output unit), after the rate-dependence stage when ``tau_s > 0``
+    /// (sampled every ``dt_s``, as in :meth:`run_rate_dependent`), continuing from the current state. Returns
+    /// ``(outputs, core_inputs)``.
+    #[pyo3(signature = (u, *, per_output, tau_s=0.0, dt_s=1.0, slope_ref=None))]
+    #[allow(clippy::type_complexity)]
+    fn run_mean_field<'py>(
+        slf: &Bound<'py, Self>,
+        u: &Bound<'py, PyAny>,
+        per_output: f64,
+        tau_s: f64,
+        dt_s: f64,
+        slope_ref: Option<f64>,
+    ) -> PyResult<(Bound<'py, PyArray1<f64>>, Bound<'py, PyArray1<f64>>)> {
+        let py = slf.py();
+        let inputs = extract_f64_array(u, "u")?;
+        if let Some(i) = inputs.iter().position(|x| !x.is_finite()) {
+            return Err(BmrError::new_err(format!(
+                "u[{i}] = {} is not finite",
+                inputs[i]
+            )));
+        }
+        if !per_output.is_finite() {
+            return Err(BmrError::new_err(format!(
+                "per_output = {per_output} must be finite"
+            )));
+        }
+        let mut me = borrow_mut(slf)?;
+        let (lo, hi) = me.op.input_range();
+        let (ylo, yhi) = me.op.output_range();
+        let slope_ref = slope_ref.unwrap_or((yhi - ylo) / (hi - lo));
+        let u0 = inputs.first().copied().unwrap_or(0.0);
+        let mut rate = if tau_s > 0.0 {
+            Some(
+                RateDependence::new(tau_s, slope_ref, dt_s, hi - lo, u0, me.op.output()).ok_or_else(
+                    || {
+                        BmrError::new_err(format!(
+                            "rate dependence needs tau_s >= 0, slope_ref > 0 and dt_s > 0 (tau_s={tau_s}, \
+                             slope_ref={slope_ref}, dt_s={dt_s})"
+                        ))
+                    },
+                )?,
+            )
+        } else {
+            None
+        };
+        // The one mean-field stage of the compensator and the simulations (1 per unit output over a unit scale).
+        let mean = MeanField::new(per_output, 1.0);
+        let n = inputs.len();
+        let op = &mut me.op;
+        let mut scan = move || -> (Vec<f64>, Vec<f64>) {
+            let mut ys = Vec::with_capacity(n);
+            let mut cores = Vec::with_capacity(n);
+            for &x in &inputs {
+                let c = rate.as_mut().map_or(x, |r| r.step(x));
+                let c = mean.map_or(c, |m| c + m.shift(op.output()));
+                let y = op.step(c);
+                if let Some(r) = rate.as_mut() {
+                    r.observe(y);
+                }
                 ys.push(y);
                 cores.push(c);
             }

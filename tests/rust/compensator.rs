@@ -214,6 +214,7 @@ struct StageDraw {
     viscous_f_y: f64,
     viscous_v0: f64,
     creep_fluctuation: f64,
+    feedback: f64,
 }
 
 fn stage_draw() -> impl Strategy<Value = StageDraw> {
@@ -222,7 +223,7 @@ fn stage_draw() -> impl Strategy<Value = StageDraw> {
         (0.0f64..0.9, -4.0f64..4.0, -0.45f64..5.0, -0.3f64..3.0),
         (-0.5f64..5.0, 4u32..25, -50.0f64..50.0),
         (0.0f64..0.2, 0.0f64..0.02, -0.3f64..0.3, 0.0f64..5.0),
-        (0.0f64..40.0, 0.01f64..10.0, 0.0f64..0.01),
+        (0.0f64..40.0, 0.01f64..10.0, 0.0f64..0.01, -0.1f64..0.1),
     )
         .prop_map(
             |(
@@ -230,7 +231,7 @@ fn stage_draw() -> impl Strategy<Value = StageDraw> {
                 (eps, ripple_phase, curvature, cubic),
                 (gain_per_a, order, amplitude),
                 (creep_fraction, rate_tau_s, kappa, viscous_c),
-                (viscous_f_y, viscous_v0, creep_fluctuation),
+                (viscous_f_y, viscous_v0, creep_fluctuation, feedback),
             )| StageDraw {
                 tau_s,
                 delay_samples,
@@ -250,6 +251,7 @@ fn stage_draw() -> impl Strategy<Value = StageDraw> {
                 viscous_f_y,
                 viscous_v0,
                 creep_fluctuation,
+                feedback,
             },
         )
 }
@@ -274,7 +276,11 @@ fn effects(d: &StageDraw) -> Vec<Params> {
         ),
         p(
             EffectKind::NonCongruent,
-            &[("curvature", d.curvature), ("cubic", d.cubic)],
+            &[
+                ("curvature", d.curvature),
+                ("cubic", d.cubic),
+                ("feedback", d.feedback),
+            ],
         ),
         p(EffectKind::FrictionCurrent, &[("gain_per_a", d.gain_per_a)]),
         p(
@@ -332,6 +338,8 @@ proptest! {
         paper in any::<bool>(), limit in 0.2f64..2.0, ahead in any::<bool>(), d in stage_draw()) {
         let mut c = extended(paper, limit, &d);
         for (r, th) in refs {
+            // The mean field's share of the core's output before the step.
+            let fed = c.stages().mean_field.map_or(0.0, |m| m.shift(c.forward().output()));
             let cmd = if ahead { c.step_ahead(r, th) } else { c.step(r, th) };
             prop_assert!(cmd.coil1_a == 0.0 || cmd.coil2_a == 0.0, "both coils energised: {:?}", cmd);
             prop_assert!(cmd.current_a.abs() <= limit, "{:?} over limit {}", cmd, limit);
@@ -352,10 +360,21 @@ proptest! {
                 }
                 None => Ok(u),
             };
+            // Plus the mean field's share (the same sum up to its rounding).
+            let reached = |u: f64| -> Result<(), TestCaseError> {
+                let want = (pushed(u)? + fed).clamp(-1.25, 1.25);
+                let got = c.forward().state().input();
+                if fed == 0.0 {
+                    prop_assert_eq!(got, want);
+                } else {
+                    prop_assert!((got - want).abs() <= 1e-12, "{} vs {}", got, want);
+                }
+                Ok(())
+            };
             if let Some(r) = c.stages().rate {
-                prop_assert_eq!(c.forward().state().input(), pushed(r.core_input())?.clamp(-1.25, 1.25));
+                reached(r.core_input())?;
             } else if let Some(l) = c.stages().coil_lag {
-                prop_assert_eq!(c.forward().state().input(), pushed(l.field_a())?.clamp(-1.25, 1.25));
+                reached(l.field_a())?;
             }
         }
     }
@@ -475,6 +494,7 @@ fn extended_compensator_inverts_the_extended_simulation() {
         viscous_f_y: 20.0,
         viscous_v0: 0.5,
         creep_fluctuation: 0.0,
+        feedback: 0.08,
     };
     // With every stage on the error is what the estimated current of the current-dependent friction leaves
     // (smoothed over 10 ms: 0.3/A × ~37 N·mm × its lag); the plant's noise floor is ~1.5 N·mm.
@@ -494,9 +514,19 @@ fn extended_compensator_inverts_the_extended_simulation() {
         kappa: 0.0,
         viscous_c: 0.0,
         viscous_f_y: 0.0,
+        feedback: 0.0,
         ..d.clone()
     };
     let alone = [
+        // The mean field (a moving Preisach core), magnetizing and demagnetizing.
+        StageDraw {
+            feedback: 0.08,
+            ..off.clone()
+        },
+        StageDraw {
+            feedback: -0.1,
+            ..off.clone()
+        },
         StageDraw {
             tau_s: 0.02,
             ..off.clone()
@@ -590,6 +620,7 @@ fn the_viscous_stage_damps_reference_noise_instead_of_differencing_it() {
             viscous_f_y: 0.0,
             viscous_v0: 1.0,
             creep_fluctuation: 0.0,
+            feedback: 0.0,
         };
         let mut c = extended(false, 1.25, &d);
         let mut rng = common::Rng(5);
@@ -645,6 +676,7 @@ fn the_creep_fluctuation_field_is_inverted_wherever_the_core_input_is_reachable(
         viscous_f_y: 0.0,
         viscous_v0: 1.0,
         creep_fluctuation: 0.003,
+        feedback: 0.0,
     };
     let mut c = extended(false, 1.25, &d);
     let f = Friction::from_amplitude_phase(12.0, &[25.0, 8.0, 4.0], &[0.3, 1.1, -0.7]).unwrap();
@@ -914,4 +946,59 @@ fn every_stage_parameter_at_its_edges_gives_finite_commands_or_an_error() {
         }
     }
     assert!(built > 100, "only {built} compensators built");
+}
+
+#[test]
+fn the_mean_field_is_fed_back_one_sample_late_and_taken_off_exactly() {
+    // Forward: the extended simulation's core sees the field current plus feedback × its last output over the
+    // full scale (300 N·mm here), the very operator stepped by hand on that input.
+    let f = Friction::from_amplitude_phase(12.0, &[25.0, 8.0, 4.0], &[0.3, 1.1, -0.7]).unwrap();
+    let scales = Scales::of_core(&forward(), 1.25, 300.0);
+    let fx = [Params::new(
+        EffectKind::NonCongruent.spec(),
+        &[("curvature", 0.0), ("feedback", 0.1)],
+    )
+    .unwrap()];
+    let mut sim: Simulation<Vec<f64>, Vec<f64>, 16, 24> =
+        Simulation::new(forward(), f, &fx, DT, scales, |n| vec![0.0; n]).unwrap();
+    let mut core = forward();
+    let mut plain = forward();
+    let mut apart = 0.0f64;
+    for i in 0..3000 {
+        let u = 1.1 * (i as f64 * 0.004).sin() * (i as f64 * 0.0007).cos();
+        let s = sim.step(u, 0.0);
+        let want = core.step(u + 0.1 / 300.0 * core.output());
+        assert_eq!(s.core_nmm.to_bits(), want.to_bits(), "sample {i}");
+        apart = apart.max((want - plain.step(u)).abs());
+    }
+    // Without the feedback the loop is another one (N·mm).
+    assert!(
+        apart > 5.0,
+        "the mean field moves the output by {apart} N·mm only"
+    );
+    // Off, it is no stage at all: the compensator commands the bits of the one without the effect.
+    let build = |fx: &[Params]| {
+        let f = Friction::from_amplitude_phase(12.0, &[25.0, 8.0, 4.0], &[0.3, 1.1, -0.7]).unwrap();
+        Comp24::new(forward(), InverseKind::Exact, f, 0.125, 1.25)
+            .unwrap()
+            .with_extensions(fx, DT, 300.0)
+            .unwrap()
+    };
+    let off = [Params::new(
+        EffectKind::NonCongruent.spec(),
+        &[("curvature", 0.5), ("feedback", 0.0)],
+    )
+    .unwrap()];
+    let map_only = [Params::new(EffectKind::NonCongruent.spec(), &[("curvature", 0.5)]).unwrap()];
+    let (mut a, mut b) = (build(&off), build(&map_only));
+    assert!(a.stages().mean_field.is_none());
+    for i in 0..2000 {
+        let r = 250.0 * (i as f64 * 0.003).sin();
+        let th = 0.002 * i as f64;
+        assert_eq!(a.step(r, th), b.step(r, th));
+    }
+    // On alone, it is a stage (the extended path) and the vocabulary's effect is on.
+    let c = build(&fx);
+    assert!(c.stages().has(EffectKind::NonCongruent));
+    assert!(c.stages().mean_field.is_some() && c.stages().output_map.is_none());
 }

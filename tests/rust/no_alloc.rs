@@ -112,7 +112,7 @@ fn extended_compensator_step_does_not_allocate() {
         p(EffectKind::TorqueRipple, &[("eps", 0.05)]),
         p(
             EffectKind::NonCongruent,
-            &[("curvature", 1.5), ("cubic", 0.5)],
+            &[("curvature", 1.5), ("cubic", 0.5), ("feedback", 0.05)],
         ),
         p(EffectKind::FrictionCurrent, &[("gain_per_a", 0.4)]),
         p(EffectKind::FrictionHarmonics, &[("order", 7.0)]),

@@ -39,7 +39,7 @@ import numpy as np
 
 from bmr import _core
 from bmr._core import BmrError
-from bmr.diagnosis.field import REIDENTIFY_INTERVALS, FieldPath
+from bmr.diagnosis.field import REIDENTIFY_INTERVALS, FieldPath, steepest_slope
 from bmr.diagnosis.residuals import EvalData, reversal_order
 from bmr.identification.signals import running_integral
 
@@ -122,10 +122,16 @@ class Effect(ABC):
             return float(a), float(b), lambda x: x
         return None
 
-    def acts_on(self, fitter: Any) -> np.ndarray | None:
+    def outside_physics(self, path: FieldPath) -> list[str]:
+        """Why a field effect's fitted path is unphysical beyond its parameters' documented ranges (a condition on
+        the fitted tables as well), as ``"feedback=0.4 × steepest slope 3.1/A = 1.24 (must be below 1)"``; empty
+        when it is physical. Checked where a candidate is accepted, with the ranges."""
+        return []
+
+    def acts_on(self, fitter: Any, values: Any = None) -> np.ndarray | None:
         """The evaluated samples the mechanism acts on, when it acts on part of them only (None: on all): its
         held-out gain must then be consistent over the folds on those samples (elsewhere it has nothing to
-        explain), and positive on all of them."""
+        explain), and positive on all of them. ``values``: the grid values the folds chose, when known."""
         return None
 
     # signature_missing reads the configuration without the effect only (not ``after``): it is checked before the
@@ -189,10 +195,13 @@ class TimeDelay(Effect):
 class NonCongruent(Effect):
     """An output map after a congruent Preisach core, ``T = S·n(1 + c|n| + k·n²)/(1 + c + k)`` (``n`` the core
     torque over the full scale ``S``): curvature ``c`` (a square-law bend) or an odd cubic ``k`` (an MR fluid's
-    yield stress cubic in the steel's flux). The grid value is ``(curvature, cubic)`` with one of the two
-    nonzero. The core's tables are identified again by least squares on the core's side of the map (one right-hand
-    side per value: the input history is the nominal one), since the measured first-order curves already carry the
-    map and only the higher-order reversals show it."""
+    yield stress cubic in the steel's flux); or a mean field (a moving Preisach model), the core seeing
+    ``u + feedback · y/S`` with ``y`` its output of the sample before. The grid value is ``(curvature, cubic,
+    feedback)`` with one of the three nonzero (three families, each searched on its own). The core's tables are
+    identified again by least squares on the core's side of the map (one right-hand side per value: the input
+    history is the nominal one) or on the fed-back input (the measured output of the sample before: one input
+    history per value, so that family is short, a fraction of the full current each), since the measured
+    first-order curves already carry the map and only the higher-order reversals show it."""
 
     name = "non_congruent"
     excitation = "minor loops between the same input extremes at different histories (their size changes)"
@@ -202,6 +211,10 @@ class NonCongruent(Effect):
            "n = core torque/S")
     CURVATURES = (-0.4, -0.3, -0.2, -0.12, -0.06, 0.06, 0.12, 0.2, 0.35, 0.5, 0.75, 1.0, 1.5, 2.2, 3.2, 4.5)
     CUBICS = (-0.25, -0.12, 0.06, 0.12, 0.2, 0.3, 0.45, 0.65, 0.9, 1.3, 1.9, 2.8)
+    # Mean-field feedback as a share of the full current (input units per full-scale output); positive:
+    # magnetizing. Bounded above by the single-valued loop (see outside_physics). Every value is an input history
+    # of its own (a regression prepared again): a short family, scanned whole and refined by golden section.
+    FEEDBACKS = (-0.12, 0.06, 0.14, 0.24)
     # The residual's mean square on the higher-order reversal curves (reversal order 2 and above, the curves the
     # first-order tables do not measure) must exceed that on the major loop and the first-order curves by this
     # share of the noise floor's square.
@@ -209,29 +222,44 @@ class NonCongruent(Effect):
     signature_before_only = True
 
     def grid(self, data: EvalData) -> list[Any]:
-        # Two one-parameter families, each in order of its parameter.
-        return [(c, 0.0) for c in self.CURVATURES] + [(0.0, k) for k in self.CUBICS]
+        # Three one-parameter families, each in order of its parameter.
+        full = float(data.full_current_a)
+        return ([(c, 0.0, 0.0) for c in self.CURVATURES] + [(0.0, k, 0.0) for k in self.CUBICS]
+                + [(0.0, 0.0, f * full) for f in self.FEEDBACKS])
 
     def grid_families(self, data: EvalData) -> list[range] | None:
-        n = len(self.CURVATURES)
-        return [range(0, n), range(n, n + len(self.CUBICS))]
+        a, b = len(self.CURVATURES), len(self.CURVATURES) + len(self.CUBICS)
+        return [range(0, a), range(a, b), range(b, b + len(self.FEEDBACKS))]
 
     def apply(self, path, value, data, train):
-        return path.with_(curvature=float(value[0]), cubic=float(value[1]), reidentify=True)
+        return path.with_(curvature=float(value[0]), cubic=float(value[1]), feedback=float(value[2]),
+                          reidentify=True)
 
     def params(self, value, beta, path):
-        return {"curvature": float(path.curvature), "scale_nmm": float(path.scale_nmm), "cubic": float(path.cubic)}
+        return {"curvature": float(path.curvature), "scale_nmm": float(path.scale_nmm), "cubic": float(path.cubic),
+                "feedback": float(path.feedback)}
 
     def refine(self) -> bool:
         return True
 
     def along(self, a: Any, b: Any) -> tuple[float, float, Any] | None:
         # Between two values of the same family: its nonzero parameter.
-        if a[1] == 0.0 and b[1] == 0.0:
-            return float(a[0]), float(b[0]), lambda x: (x, 0.0)
-        if a[0] == 0.0 and b[0] == 0.0:
-            return float(a[1]), float(b[1]), lambda x: (0.0, x)
+        for i in range(3):
+            if all(a[j] == 0.0 and b[j] == 0.0 for j in range(3) if j != i):
+                return float(a[i]), float(b[i]), lambda x, i=i: tuple(x if j == i else 0.0 for j in range(3))
         return None
+
+    def outside_physics(self, path: FieldPath) -> list[str]:
+        """A mean field keeps the loop single-valued only while the feedback times the core's steepest normalised
+        slope (its tables' largest slope over the full scale) stays below 1: beyond, the output would jump
+        (a positive feedback's avalanche)."""
+        if path.feedback == 0.0:
+            return []
+        slope = steepest_slope(path.core_curves()) / path.scale_nmm
+        if path.feedback * slope < 1.0:
+            return []
+        return [f"feedback={path.feedback:.3g} × steepest normalised slope {slope:.3g}/input unit = "
+                f"{path.feedback * slope:.3g} (must be below 1: the loop would not be single-valued)"]
 
     def _order(self, fitter: Any) -> np.ndarray:
         """The reversal order of every evaluated sample (0 major loop, 1 first-order curves, 2 and above the
@@ -241,8 +269,11 @@ class NonCongruent(Effect):
         return data.cache.get("reversal_order", lambda: data.concat(
             [reversal_order(r.current_a, lo, hi)[r.start:] for r in data.runs]))
 
-    def acts_on(self, fitter: Any) -> np.ndarray | None:
+    def acts_on(self, fitter: Any, values: Any = None) -> np.ndarray | None:
         # The tables hold the major loop and the first-order curves: the map shows after further reversals only.
+        # A mean field shifts the core's input on every sample (the loop tilts and shears as a whole).
+        if values and all(v[2] != 0.0 for v in values):
+            return None
         return self._order(fitter) >= 2
 
     def signature_missing(self, fitter: Any, before: Any, after: Any) -> str:

@@ -5,8 +5,11 @@ The nominal path is the identified model's CBH operator on the commanded current
 ``coil_lag`` lags the current (time constant ``lag_tau_s``), ``time_delay`` delays it (``delay_s``),
 ``non_congruent`` puts an output map ``g(T) = S·n(1 + c|n| + k·n²)/(1 + c + k)`` (``n = T/S``, ``S`` the
 full-scale torque, curvature ``c``, cubic term ``k``) after a Preisach core whose tables are the measured curves
-mapped through ``g⁻¹`` (or identified again by least squares on the core's side of the map), and
-``table_resolution`` replaces the tables by least-squares refined ones.
+mapped through ``g⁻¹`` (or identified again by least squares on the core's side of the map), or (its mean-field
+form, a moving Preisach model) feeds the core's output back into its input, the core seeing
+``u + feedback · y/S`` with ``y`` its output of the sample before (``feedback`` in input units; the tables identified
+again on that input with the measured output), and ``table_resolution`` replaces the tables by least-squares refined
+ones.
 
 Re-identified tables (``reidentify=True``) come from a :class:`Reidentifier` that belongs to one diagnosis and
 is carried by the path (``FieldPath.reidentifier``): it keeps the least-squares problem of each input history
@@ -29,7 +32,8 @@ from bmr import _core
 from bmr._core import BmrError, Hysteresis
 from bmr.identification.spans import SATURATION_TOL, evaluation_start
 
-__all__ = ["FieldPath", "Reidentifier", "ProtocolRun", "lag", "delay", "output_map", "output_map_inverse"]
+__all__ = ["FieldPath", "Reidentifier", "ProtocolRun", "lag", "delay", "output_map", "output_map_inverse",
+           "steepest_slope"]
 
 # Least-squares re-identification: table intervals and regression rows (speed vs resolution).
 REIDENTIFY_INTERVALS = 40
@@ -78,6 +82,25 @@ def output_map_inverse(t: np.ndarray, curvature: float, scale_nmm: float, cubic:
     if curvature == 0.0 and cubic == 0.0:
         return t.copy()
     return _core.output_map_inverse(t, curvature, scale_nmm, cubic)
+
+
+def steepest_slope(curves: Curves) -> float:
+    """The steepest slope (output per input unit) of a core's first-order curves: the largest over their intervals
+    of the rise over the run (the slope a mean field multiplies)."""
+    best = 0.0
+    for family in curves:
+        for u, y in family:
+            du, dy = np.diff(np.asarray(u, dtype=float)), np.diff(np.asarray(y, dtype=float))
+            ok = du > 0
+            if np.any(ok):
+                best = max(best, float(np.max(np.abs(dy[ok] / du[ok]))))
+    return best
+
+
+def previous_sample(y: np.ndarray) -> np.ndarray:
+    """``y`` one sample back (its first value held): what a mean field feeds back."""
+    y = np.asarray(y, dtype=float)
+    return np.concatenate([y[:1], y[:-1]]) if y.size else y.copy()
 
 
 def _monotone(u: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -168,7 +191,8 @@ class Reidentifier:
         return math.sqrt(total / count) if count else 0.0
 
     def curves(self, path: "FieldPath") -> Curves:
-        key = (path.lag_tau_s, path.delay_s, path.rate_tau_s, path.curvature, path.cubic, path.corrections)
+        key = (path.lag_tau_s, path.delay_s, path.rate_tau_s, path.feedback, path.curvature, path.cubic,
+               path.corrections)
         if key in self._tables:
             self._tables.move_to_end(key)
             return self._tables[key]
@@ -179,8 +203,10 @@ class Reidentifier:
         return tables
 
     def _regression(self, path: "FieldPath") -> Any:
-        """The prepared least squares of the protocol runs under ``path``'s input stages."""
-        key = (path.lag_tau_s, path.delay_s, path.rate_tau_s)
+        """The prepared least squares of the protocol runs under ``path``'s input stages (with a mean field: the
+        core's input shifted by the feedback times the measured output of the sample before, mapped to the core's
+        side of the output map)."""
+        key = (path.lag_tau_s, path.delay_s, path.rate_tau_s, path.feedback)
         if self._kept is not None and self._kept[0] == key:
             return self._kept[1]
         if key in self._regressions:
@@ -200,7 +226,11 @@ class Reidentifier:
             s = evaluation_start(u, lo, hi, SATURATION_TOL * (hi - lo)) + int(np.ceil(5 * path.lag_tau_s / pr.dt))
             w = np.zeros(u.size)
             w[s:] = 1.0
-            inputs.append(np.ascontiguousarray(path.core_input(u, pr.dt, rate_core=self.model.hysteresis)))
+            core_u = path.core_input(u, pr.dt, rate_core=self.model.hysteresis)
+            if path.feedback != 0.0:
+                core_y = output_map_inverse(pr.torque, path.curvature, path.scale_nmm, path.cubic)
+                core_u = core_u + path.feedback / path.scale_nmm * previous_sample(core_y)
+            inputs.append(np.ascontiguousarray(core_u))
             weights.append(w)
         total = sum(int(np.count_nonzero(w)) for w in weights)
         stride = max(1, int(np.ceil(total / REIDENTIFY_ROWS)))
@@ -250,6 +280,8 @@ class FieldPath:
     rate_tau_s: float = 0.0
     curvature: float = 0.0
     cubic: float = 0.0  # non_congruent: the output map's odd cubic term
+    # non_congruent: the mean field, input added per full-scale core output y/S of the sample before (input units).
+    feedback: float = 0.0
     tables: Any = None
     scale_nmm: float = 600.0
     protocol: tuple = ()  # identification runs for re-identification: (bmr.Run, start time in the bundle (s))
@@ -268,8 +300,8 @@ class FieldPath:
         return replace(self, **kwargs)
 
     def key(self) -> tuple:
-        return (self.lag_tau_s, self.delay_s, self.rate_tau_s, self.curvature, self.cubic, id(self.tables),
-                self.reidentify, self.corrections)
+        return (self.lag_tau_s, self.delay_s, self.rate_tau_s, self.feedback, self.curvature, self.cubic,
+                id(self.tables), self.reidentify, self.corrections)
 
     def core_curves(self) -> Curves:
         """First-order curves of the Preisach core (the model's, mapped through ``g⁻¹``, or the refined ones)."""
@@ -344,7 +376,10 @@ class FieldPath:
         for i, r in enumerate(runs):
             h.reset(initial="negative")
             u = inputs[i] if inputs is not None else np.ascontiguousarray(self.drive_input(r.current_a, r.dt_s))
-            if self.rate_tau_s > 0.0:
+            if self.feedback != 0.0:
+                core, _ = h.run_mean_field(u, per_output=self.feedback / self.scale_nmm, tau_s=self.rate_tau_s,
+                                           dt_s=r.dt_s)
+            elif self.rate_tau_s > 0.0:
                 core, _ = h.run_rate_dependent(u, tau_s=self.rate_tau_s, dt_s=r.dt_s)
             else:
                 core = h.run(u)
@@ -360,4 +395,5 @@ class FieldPath:
 
     def params(self) -> dict[str, float]:
         return {"lag_tau_s": self.lag_tau_s, "delay_s": self.delay_s, "rate_tau_s": self.rate_tau_s,
-                "curvature": self.curvature, "cubic": self.cubic, "scale_nmm": self.scale_nmm}
+                "curvature": self.curvature, "cubic": self.cubic, "feedback": self.feedback,
+                "scale_nmm": self.scale_nmm}

@@ -585,10 +585,10 @@ def evaluate(fitter: Fitter, config: Configuration, eff: Effect, before: Heldout
     with np.errstate(divide="ignore", invalid="ignore"):
         train_sse = n_train * np.log(np.maximum(train_sse, 1e-300) / n_train) + widths[:, None] * np.log(n_train)
     reidentifies = type(eff).update_path is not Effect.update_path
-    mask = eff.acts_on(fitter)
+    best = [int(np.argmin(train_sse[:, k])) for k in range(data.folds)]
+    mask = eff.acts_on(fitter, [grid[i] for i in best])
     local_before = _masked_test_sse(fitter, compared.path, compared.linear, mask) if mask is not None else None
     local_after = np.zeros(data.folds)
-    best = [int(np.argmin(train_sse[:, k])) for k in range(data.folds)]
     assert all(fits[i] is not None for i in best)  # the best of each fold was evaluated
 
     def gain(k: int, ff: FoldFit) -> float:
@@ -890,10 +890,12 @@ def _config_params(fitter: Fitter, config: Configuration, field_effects: Sequenc
 
 
 def _unphysical(fitter: Fitter, config: Configuration, field_effects: Sequence[Effect]) -> dict[str, list[str]]:
-    """The effects of ``config`` with parameters outside the vocabulary's range, and which."""
+    """The effects of ``config`` with parameters outside the vocabulary's range or a fitted path outside their
+    physics (``Effect.outside_physics``), and which."""
     bad = {}
+    physics = {eff.name: eff.outside_physics(config.path) for eff in field_effects}
     for name, params in _config_params(fitter, config, field_effects).items():
-        v = out_of_range(name, params)
+        v = out_of_range(name, params) + physics.get(name, [])
         if v:
             bad[name] = v
     return bad

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from bmr.diagnosis import discrepancy, selection
-from bmr.diagnosis.effects import LIBRARY
+from bmr.diagnosis.effects import LIBRARY, NonCongruent
 from bmr.diagnosis.procedure import nominal_model
 from bmr.diagnosis.residuals import prepare
 from bmr.diagnosis.selection import Configuration, Fitter, evaluate, heldout
@@ -189,14 +189,16 @@ def _evaluate_fresh(fitter: Fitter, name: str):
 def test_the_output_maps_families_are_searched_coarse_to_fine_with_every_folds_choice_kept(creep_fitter,
                                                                                          monkeypatch) -> None:
     # Each family of the output map (curvature, cubic) coarse to fine: every fold chooses the value the whole grid
-    # gives it, for a fraction of the re-identifications.
+    # gives it, for a fraction of the re-identifications. (The mean field's short family is scanned whole either
+    # way.)
     fast, fits_fast = _evaluate_fresh(creep_fitter, "non_congruent")
     monkeypatch.setattr(selection, "_scan", lambda *args: None)
     full, fits_full = _evaluate_fresh(creep_fitter, "non_congruent")
     assert fast.values == full.values
     np.testing.assert_array_equal(fast.fold_gains, full.fold_gains)
     assert fast.accepted == full.accepted
-    assert 3 * fits_fast <= 2 * fits_full, (fits_fast, fits_full)
+    whole = len(NonCongruent.FEEDBACKS)
+    assert 3 * (fits_fast - whole) <= 2 * (fits_full - whole), (fits_fast, fits_full)
 
 
 @pytest.fixture(scope="module")

@@ -31,6 +31,8 @@ CELLS: dict[str, str | None] = {
     "log_after_effect": None,
     # Named with the output map's cubic term, judged on the higher-order reversal curves where the map shows.
     "cubic_yield": None,
+    # Named with the mean field (a moving Preisach core): the tables identified again on the fed-back input.
+    "moving_preisach": None,
 }
 
 
@@ -111,3 +113,18 @@ def test_heating_and_a_warming_sensor_are_not_named_a_per_run_calibration(heatin
                           "noise 1.48)")
 def test_heating_and_a_warming_sensor_are_both_named(heating_and_warming_sensor):
     _assert_named(heating_and_warming_sensor, PAIR)
+
+
+@pytest.mark.slow
+def test_a_moving_preisach_is_non_congruent_with_its_mean_field():
+    # The core sees h + feedback_a·y/S (S = 600 N·mm): named non_congruent by its mean field alone, the feedback per
+    # unit output (what the tables' own full scale leaves comparable) within 30 % of the plant's, and physical: the
+    # loop stays single-valued.
+    truth = ip.at_size("moving_preisach", 1.0)
+    bundle = ip.independent_bundle({"moving_preisach": truth}, seed=SEED)
+    d = bmr.diagnose(bundle, progress=False, closed_loop=False)
+    assert _physical(d) == ["non_congruent"], d.to_dict()["effects"]
+    got = next(e["params"] for e in d.effects if e["name"] == "non_congruent")
+    assert got["curvature"] == 0.0 and got["cubic"] == 0.0, got
+    per_output, true_per_output = got["feedback"] / got["scale_nmm"], truth["feedback_a"] / ip.FULL_SCALE_NMM
+    assert abs(per_output - true_per_output) <= 0.3 * true_per_output, (got, per_output, true_per_output)

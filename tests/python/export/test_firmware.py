@@ -138,6 +138,26 @@ def test_c_program_with_creeps_fluctuation_field_matches_python_bit_for_bit(tmp_
 
 
 @pytest.mark.slow
+def test_c_program_with_a_mean_field_matches_python_bit_for_bit(tmp_path):
+    # non_congruent's mean field (a moving Preisach core): the core's last output times feedback/S is taken off
+    # the command, in C as in Python.
+    m = bmr.Model.load(MODEL)
+    m.extensions = [{**e, "params": {**e["params"], "feedback": 0.05}} if e["name"] == "non_congruent" else e
+                    for e in m.extensions]
+    path = m.save(tmp_path / "mean_field_model.json")
+    exe = _c_program(tmp_path, "run_model", path)
+    ref, theta = reference()
+    python = bmr.Model.load(path).compensator(DT_S).run(ref, theta)["current_a"]
+    text = f"{ref.size}\n" + "".join(f"{r.hex()} {a.hex()}\n" for r, a in zip(ref, theta))
+    out = subprocess.run([str(exe), repr(DT_S)], input=text, capture_output=True, text=True, check=True)
+    c = np.array([float.fromhex(v) for v in out.stdout.split()])
+    assert np.array_equal(c.view(np.uint64), python.view(np.uint64)), np.flatnonzero(c != python)[:5]
+    # The mean field changed the commands.
+    without = bmr.Model.load(MODEL).compensator(DT_S).run(ref, theta)["current_a"]
+    assert np.max(np.abs(c - without)) > 1e-3
+
+
+@pytest.mark.slow
 def test_c_controller_matches_python_bit_for_bit(tmp_path):
     exe = _c_program(tmp_path, "run_controller")
     ref, theta = reference()

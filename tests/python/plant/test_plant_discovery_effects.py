@@ -193,3 +193,31 @@ def test_virtual_device_viscous_loss_is_c_times_the_input_rate():
         d = dev.run(u)["output_true"] - ref.run(u)["output_true"]
         np.testing.assert_allclose(d[60:], 0.01 * rate, rtol=1e-9)
         assert np.all(d[1:50] == 0.0)
+
+
+def test_a_mean_field_steepens_or_shears_the_loop_and_is_nothing_when_off():
+    # non_congruent's mean field (a moving Preisach core): the core sees u + feedback·y/S. Off (0), the very bits
+    # of the plant without it; magnetizing (> 0), the core sees more than u where the output is positive, so the
+    # loop reaches higher and rises faster through zero; demagnetizing (< 0), the other way.
+    u = ramp_path(0.0, [90.0, -90.0, 90.0, -90.0], 100.0 / FS)
+    half = u.size // 2
+    rising = np.flatnonzero(np.diff(u[half:]) > 0) + half
+
+    def loop(feedback):
+        fx = None if feedback is None else {"non_congruent": {"curvature": 0.0, "feedback": feedback}}
+        return bmr.VirtualDevice("piezo", sample_rate_hz=FS, effects=fx).run(u)["output_true"]
+
+    def steepest_rise(y):
+        return float(np.max(np.diff(y)[rising[:-1]]))
+
+    plain = loop(None)
+    np.testing.assert_array_equal(loop(0.0), plain)
+    up, down = loop(9.0), loop(-9.0)
+    assert up.max() > plain.max() + 0.3 > down.max() + 0.6
+    assert steepest_rise(up) > steepest_rise(plain) > steepest_rise(down)
+    # The actuator: each steel circuit fed back its own flux; off, the same bits.
+    i = ramp_path(0.0, [1.25, -1.25, 1.25, -1.25], 1.0 / FS)
+    a, b = _pair({"non_congruent": {"curvature": 0.0, "feedback": 0.0}}, i)
+    np.testing.assert_array_equal(a["torque_nmm"], b["torque_nmm"])
+    a, c = _pair({"non_congruent": {"curvature": 0.0, "feedback": 0.1}}, i)
+    assert np.max(np.abs(c["b1_t"] - a["b1_t"])) > 0.01

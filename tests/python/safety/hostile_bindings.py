@@ -113,6 +113,7 @@ def _targets() -> list[tuple[str, object, dict[str, object]]]:
         ("Hysteresis.reset", _hysteresis().reset, {}),
         ("Hysteresis.compressed", _hysteresis().compressed, {}),
         ("Hysteresis.run_rate_dependent", _hysteresis().run_rate_dependent, {"tau_s": 0.01}),
+        ("Hysteresis.run_mean_field", _hysteresis().run_mean_field, {"per_output": 1e-3}),
         ("VirtualActuator.start_run", core.VirtualActuator().start_run, {}),
         ("VirtualDevice", core.VirtualDevice, {"preset": "piezo", "sample_rate_hz": None}),
         ("VirtualDevice.run", core.VirtualDevice().run, {"u": 50 * U}),
