@@ -85,13 +85,8 @@ def candidate_library(runs: Sequence[Any], deadband: float, *, harmonics: int = 
     ``u`` (input), ``y`` (model output), ``theta`` (angle, rad, or None) over the whole run and ``start`` (first
     evaluated sample); signals are built on the whole run (integrals and reversal times from its start) and cut to
     the evaluated span."""
-    blocks = []
     with_angle = all(r.theta is not None for r in runs)
     h = harmonics if with_angle else 0
-    for r in runs:
-        m = _core.candidate_signals(r.t_s, r.u, r.y, deadband=deadband,
-                                    theta_rad=r.theta if with_angle else None, harmonics=h)
-        blocks.append(m[r.start:])
     names = [c[0] for c in _core.CANDIDATES]
     units = [c[1] for c in _core.CANDIDATES]
     docs = [c[2] for c in _core.CANDIDATES]
@@ -99,7 +94,18 @@ def candidate_library(runs: Sequence[Any], deadband: float, *, harmonics: int = 
         names += [f"sin({k}θ)", f"cos({k}θ)"]
         units += ["1", "1"]
         docs += [f"angle harmonic {k}", f"angle harmonic {k}"]
-    return CandidateLibrary(np.vstack(blocks) if blocks else np.zeros((0, len(names))), names, units, docs)
+    # Each run's block is copied into the library as soon as it is made: a list of every run's whole-run block
+    # stacked at the end would hold the library twice (with the openings) at the diagnosis's peak of memory.
+    matrix = np.empty((sum(max(r.u.size - r.start, 0) for r in runs), len(names)))
+    pos = 0
+    for r in runs:
+        m = _core.candidate_signals(r.t_s, r.u, r.y, deadband=deadband,
+                                    theta_rad=r.theta if with_angle else None, harmonics=h)
+        part = m[r.start:]
+        matrix[pos:pos + part.shape[0]] = part
+        pos += part.shape[0]
+        del m, part
+    return CandidateLibrary(matrix, names, units, docs)
 
 
 @dataclass

@@ -605,6 +605,13 @@ def _run_input(r: Any) -> np.ndarray:
     return r.current_a
 
 
+def nominal_field_full(data: Any, model: Any) -> list[np.ndarray]:
+    """The nominal core's output along every evaluation run, whole runs from negative saturation (made once and
+    kept in the diagnosis's cache: both creep forms read it for every grid value)."""
+    return data.cache.get("nominal_field_full",
+                          lambda: FieldPath.nominal(model).simulate(data.runs, copy.copy(model.hysteresis)))
+
+
 class Creep(Effect):
     """After each change of the core output, a share ``fraction`` keeps arriving through relaxations with time
     constants spread evenly in ``log τ`` from ``tau_min_s`` to ``tau_max_s`` (creep logarithmic in time between
@@ -679,8 +686,7 @@ class Creep(Effect):
         def make() -> np.ndarray:
             # Relaxations carry the run's whole history: before the evaluated span (the opening excursion) the
             # nominal core's output stands in for the path's, from rest at the run's first sample.
-            before = data.cache.get("nominal_field_full",
-                                    lambda: FieldPath.nominal(model).simulate(data.runs, copy.copy(model.hysteresis)))
+            before = nominal_field_full(data, model)
             cols = []
             for y, v0, r in zip(_split(data, y_field), before, data.runs):
                 v = np.concatenate([v0[:r.start], y])
@@ -690,15 +696,17 @@ class Creep(Effect):
         return data.cache.get(("creep", _fingerprint(y_field), tuple(taus)), make)
 
     @staticmethod
-    def _fluctuation_response(hysteresis: Any, u: np.ndarray, field: float, tau0_s: float, dt_s: float
-                              ) -> np.ndarray:
+    def _fluctuation_response(hysteresis: Any, u: np.ndarray, field: float, tau0_s: float, dt_s: float,
+                              plain: np.ndarray | None = None) -> np.ndarray:
         """The core's output change (from negative saturation) when a fluctuation field ``field`` (input units per
-        e-fold of time) pushes its input ``u``."""
+        e-fold of time) pushes its input ``u``. ``plain``: the core's output on ``u`` itself when the caller has
+        it (the nominal field, the same for every onset and field)."""
         u = np.ascontiguousarray(u, dtype=float)
         pushed = np.ascontiguousarray(u + field * _core.creep_fluctuation_shift(u, tau0_s, dt_s))
         h = copy.copy(hysteresis)
-        h.reset(initial="negative")
-        plain = np.asarray(h.run(u), dtype=float)
+        if plain is None:
+            h.reset(initial="negative")
+            plain = np.asarray(h.run(u), dtype=float)
         h.reset(initial="negative")
         return np.asarray(h.run(pushed), dtype=float) - plain
 
@@ -706,8 +714,10 @@ class Creep(Effect):
         def make() -> np.ndarray:
             lo, hi = model.hysteresis.input_range
             eps = self.LINEARISE_SHARE * (hi - lo)
+            plain = nominal_field_full(data, model)
             return np.concatenate([self._fluctuation_response(model.hysteresis, _run_input(r), eps, tau0_s,
-                                                              r.dt_s)[r.start:] / eps for r in data.runs])[:, None]
+                                                              r.dt_s, v)[r.start:] / eps
+                                   for r, v in zip(data.runs, plain)])[:, None]
 
         return data.cache.get(("creep_fluctuation", tau0_s), make)
 
@@ -717,7 +727,7 @@ class Creep(Effect):
             # The nominal core's response to the field (a share of the input span) along the run.
             lo, hi = run.model.hysteresis.input_range
             return y - cls._fluctuation_response(run.model.hysteresis, run.current, beta[0] * (hi - lo),
-                                                 float(value[1]), run.dt)
+                                                 float(value[1]), run.dt, run.nominal_field())
         # The relaxation of the measured output approximates that of the core output (second order in fraction).
         return y - beta[0] * _core.creep_relaxation(np.asarray(y, dtype=float), cls._spectrum(value), run.dt)
 

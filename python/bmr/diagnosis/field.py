@@ -111,8 +111,8 @@ def _monotone(u: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 class ProtocolRun:
     """One protocol run as re-identification reads it: signals extracted once, the nominal friction removed from
     the torque, and what a correction's ``remove`` may need (``theta``, ``current``, ``t``, ``t0_s`` its start in
-    the bundle, ``friction()``, ``context`` the diagnosis's evaluation data, ``bundle_index`` its place in the
-    bundle)."""
+    the bundle, ``friction()``, ``nominal_field()``, ``context`` the diagnosis's evaluation data, ``bundle_index``
+    its place in the bundle)."""
 
     def __init__(self, run: Any, t0_s: float, model: Any, context: Any = None) -> None:
         self.run = run
@@ -128,6 +128,7 @@ class ProtocolRun:
         names = list(getattr(context, "run_start_s", {}) or {})
         self.bundle_index = names.index(run.name) if run.name in names else None
         self._friction: np.ndarray | None = None
+        self._nominal_field: np.ndarray | None = None
         self._harmonic: tuple[Any, tuple[np.ndarray, np.ndarray]] | None = None
         self.torque = run.output - self.friction()
 
@@ -137,6 +138,15 @@ class ProtocolRun:
         if self._harmonic is None or self._harmonic[0] != order:
             self._harmonic = (order, (np.sin(order * self.theta), np.cos(order * self.theta)))
         return self._harmonic[1]
+
+    def nominal_field(self) -> np.ndarray:
+        """The nominal core's output on the run's current from negative saturation (computed once: every creep
+        correction's response to its fluctuation field is taken against it)."""
+        if self._nominal_field is None:
+            h = copy.copy(self.model.hysteresis)
+            h.reset(initial="negative")
+            self._nominal_field = np.asarray(h.run(np.ascontiguousarray(self.current, dtype=float)), dtype=float)
+        return self._nominal_field
 
     def friction(self) -> np.ndarray:
         """The nominal model's friction (output units) along the run (computed once; zero without an angle)."""

@@ -276,6 +276,9 @@ def diagnose(bundle: Bundle | str | Path, model: Any = None, *, folds: int = 5, 
     # Residuals on all data (nominal with its offset, extended) for the figures and the structure study.
     r_nom, _ = fitter.fit(FieldPath.nominal(model), [])
     r_ext, _ = fitter.fit(config.path, config.linear)
+    # The model's entries (its core tables) while the configuration's input history is still prepared: tables the
+    # search's cache no longer holds are then one solve, not a new regression after the release.
+    extensions = extensions_from_selection(config, accepted)
     fitter.release()  # every fit is made: free the regressions and caches before the library is built
     split = np.cumsum([r.n_eval for r in data.runs])[:-1]
     nom_runs, ext_runs = np.split(r_nom, split), np.split(r_ext, split)
@@ -305,7 +308,6 @@ def diagnose(bundle: Bundle | str | Path, model: Any = None, *, folds: int = 5, 
         "rate": data.concat([np.gradient(r.current_a, r.dt_s)[r.start:] for r in data.runs]),
         "nominal": r_nom, "extended": r_ext,
     }
-    extensions = extensions_from_selection(config, accepted)
     if learned is not None and learned["accepted"]:
         extensions.append({"name": "learned_discrepancy", "params": {},
                            "terms": [{k: t[k] for k in ("name", "coefficient", "unit", "coefficient_unit")}

@@ -44,8 +44,8 @@ def one_blas_thread(fn: F) -> F:
 
     return wrapper  # type: ignore[return-value]
 
-__all__ = ["EvalRun", "EvalData", "BoundedCache", "prepare", "noise_floor", "reversal_order", "signal_label", "structure",
-           "SIGNALS", "MAX_FIT_ROWS"]
+__all__ = ["EvalRun", "EvalData", "BoundedCache", "return_freed_memory", "prepare", "noise_floor", "reversal_order",
+           "signal_label", "structure", "SIGNALS", "MAX_FIT_ROWS"]
 
 # Signals the residual structure is studied against.
 SIGNALS = ("angle", "time", "input_level", "input_rate", "reversal_order", "time_since_reversal")
@@ -57,6 +57,29 @@ def signal_label(signal: str, quantities: Any) -> str:
     name = quantities.input.name
     return {"input_level": f"{name} level", "input_rate": f"{name} rate",
             "time_since_reversal": "time since the last reversal"}.get(signal, signal.replace("_", " "))
+
+@functools.cache
+def _malloc_trim() -> Callable[[int], int] | None:
+    """glibc's ``malloc_trim`` (None elsewhere)."""
+    import ctypes
+    import platform
+
+    if platform.system() != "Linux" or platform.libc_ver()[0] != "glibc":
+        return None
+    try:
+        return ctypes.CDLL(None).malloc_trim  # type: ignore[no-any-return]
+    except (OSError, AttributeError):
+        return None
+
+
+def return_freed_memory() -> None:
+    """Give the freed pages of the heap back to the operating system (glibc; elsewhere nothing). Arrays freed in
+    the middle of the heap stay resident otherwise, and the steps after a search (the learned library, the closed
+    loop) would add their memory on top of the search's."""
+    trim = _malloc_trim()
+    if trim is not None:
+        trim(0)
+
 
 MAX_FIT_ROWS = 200_000
 """Rows used by the least-squares fits of the selection (an even stride in every fold block when the evaluated

@@ -72,7 +72,7 @@ from bmr._core import BmrError, effect_parameters
 
 from bmr.diagnosis.effects import LIBRARY, Effect
 from bmr.diagnosis.field import FieldPath, Reidentifier
-from bmr.diagnosis.residuals import BoundedCache, EvalData
+from bmr.diagnosis.residuals import BoundedCache, EvalData, return_freed_memory
 
 __all__ = ["Configuration", "Fitter", "FoldFit", "Candidate", "Alternative", "forward_selection", "out_of_range",
            "coarse_to_fine", "coordinate_scan", "MIN_GAIN", "NOISE_MARGIN"]
@@ -216,14 +216,16 @@ class Fitter:
         self.simulations = 0  # field paths simulated (for the benchmarks)
 
     def release(self) -> None:
-        """Free what only further fits would read (prepared regressions, simulated fields, fits, derived columns):
-        called once the configuration is chosen, before the memory-heavy steps that follow."""
+        """Free what only further fits would read (prepared regressions, simulated fields, fits, derived columns)
+        and give the freed heap back to the system: called once the configuration is chosen, before the
+        memory-heavy steps that follow."""
         self.reidentifier.release()
         self._fields.clear()
         self._reused.clear()
         self._drives.clear()
         self._fits.clear()
         self.data.cache.clear()
+        return_freed_memory()
 
     def nominal_path(self) -> FieldPath:
         return FieldPath.nominal(self.model, self.reidentifier.protocol, self.reidentifier)
