@@ -129,4 +129,5 @@ def test_a_micromag_major_loop_is_predicted_from_the_forc_file_alone(tmp_path, c
     fields = np.concatenate([t.columns["Field"] for t in bmr.read_tables(forc)])
     window = (float(fields.min()), float(fields.max()))
     pct = _window_rms_pct(model, bundle, loop, window)
+    print(f"held-out curves {ratio:.2f}x the noise floor; major loop {pct:.4f} % of its span in {window} Oe")
     assert pct < 0.14, pct  # measured 0.123 % of the loop's span inside the FORCs' field window
