@@ -11,6 +11,7 @@ and creeps during dwells), and a recording that starts from whatever state earli
 from __future__ import annotations
 
 import math
+from typing import Callable
 
 import numpy as np
 import pandas as pd
@@ -24,13 +25,18 @@ class Plant:
     """Preisach plant on ``[LO, HI]`` with output about ±``scale``/2 (``scale``: major-loop height)."""
 
     def __init__(self, *, coercivity: float = 0.4, coercivity_width: float = 0.03, interaction_width: float = 0.1,
-                 reversible: float = 0.05, scale: float = 1070.0, lag_s: float = 0.0, cells: int = 1000) -> None:
+                 reversible: float = 0.05, scale: float = 1070.0, lag_s: float = 0.0, cells: int = 1000,
+                 density: Callable[[np.ndarray, np.ndarray], np.ndarray] | None = None) -> None:
+        """``density(hc, hi)``: the Preisach density over coercivity and interaction field instead of the Gaussians;
+        it may be negative somewhere (interacting particles), and then so may the Everett function."""
         g = np.linspace(LO, HI, cells + 1)
         c = 0.5 * (g[:-1] + g[1:])
         h = g[1] - g[0]
         alpha, beta = np.meshgrid(c, c, indexing="xy")  # [row = beta index, column = alpha index]
         hc, hi = (alpha - beta) / 2, (alpha + beta) / 2
-        mu = np.exp(-((hc - coercivity) / coercivity_width) ** 2) * np.exp(-((hi / interaction_width) ** 2))
+        mu = (np.exp(-((hc - coercivity) / coercivity_width) ** 2) * np.exp(-((hi / interaction_width) ** 2))
+              if density is None else density(hc, hi))
+        self.signed = density is not None
         mass = np.where(beta < alpha, mu, np.where(beta == alpha, 0.5 * mu, 0.0)) * h * h
         # E[i, j]: mass with beta >= g_i and alpha < g_j (the rise from reversal g_i up to g_j, halved).
         col = np.cumsum(np.cumsum(mass, axis=1)[::-1], axis=0)[::-1]
@@ -56,7 +62,7 @@ class Plant:
         t = fj - j
         e = self.table
         v = (1 - s) * ((1 - t) * e[i, j] + t * e[i, j + 1]) + s * ((1 - t) * e[i + 1, j] + t * e[i + 1, j + 1])
-        return np.where(alpha > beta, np.maximum(v, 0.0), 0.0) * 2 * self.k
+        return np.where(alpha > beta, v if self.signed else np.maximum(v, 0.0), 0.0) * 2 * self.k
 
     def _reversible(self, u: np.ndarray | float) -> np.ndarray | float:
         return self.k * self.reversible * float(self.table[0, self.cells]) * np.tanh(np.asarray(u) / 0.6)

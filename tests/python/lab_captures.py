@@ -6,7 +6,10 @@
   on its last sample while the stack lags; each recording's sensor offset differs (about 0.14 V);
 - an aixACCT analyzer's first-order reversal curves of a ferroelectric capacitor measured in one go, whose
   polarization integrates a leakage current through the sample (a drift of tens of % of the span over the file),
-  and a repeat measurement of the same protocol with its own integration."""
+  and a repeat measurement of the same protocol with its own integration;
+- a Princeton MicroMag VSM's FORC file and hysteresis-loop export of one magnetic sample of interacting particles
+  (a Preisach density with a negative region below its coercivity peak), in cgs, with the instrument's moment gain
+  drifting slowly over each measurement."""
 from __future__ import annotations
 
 from pathlib import Path
@@ -14,7 +17,8 @@ from pathlib import Path
 import numpy as np
 
 import independent_preisach as ip
-from lab_files import Piezo, write_aixacct, write_controldesk
+from lab_files import (Piezo, write_aixacct, write_controldesk, write_micromag_forc_measurement,
+                       write_micromag_hysteresis)
 
 # ------------------------------------------------------------------------------------------ ControlDesk piezo rig
 RIG_HZ = 10_000.0
@@ -117,3 +121,95 @@ def write_leaky_forcs(folder: Path, seed: int = 0) -> tuple[Path, Path]:
     forc = write_aixacct(folder / "forc.dat", [_fe_table(plant, ip.forc_vertices("ascending", 16), rng)])
     repeat = write_aixacct(folder / "repeat.dat", [_fe_table(plant, ip.forc_vertices("ascending", 11), rng)])
     return forc, repeat
+
+
+# ------------------------------------------------------------------------------------------ MicroMag FORCs and loop
+OE_PER_UNIT = 8000.0  # the plant's input unit in Oe: its range ±1.25 is ±10 kOe
+MS_EMU = 1.28e-3  # saturation moment (emu)
+H_SAT, H_CAL = 10_000.0, 6_800.0  # saturating field and the calibration field (Oe)
+HR_TOP, HR_BOTTOM, H_STEP = 1_600.0, -6_400.0, 80.0  # reversal fields and the field step (Oe)
+HC2, CURVE_TOP = 6_000.0, 6_400.0  # a curve ends at Hc = HC2 or at CURVE_TOP, whichever comes first (Oe)
+MOMENT_NOISE = 1e-4 * MS_EMU  # emu
+FIELD_NOISE = 0.05  # Oe, the Hall probe's reading
+AVERAGING_S, PAUSE_S, SLEW_OE_PER_S = 0.2, 1.0, 10_000.0
+
+
+def interacting_density(hc: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    """Switching fields spread about a 3.2 kOe coercivity, and the interactions' negative region below and left of
+    the peak (smaller coercivity, negative interaction field; 3.5 % of the positive mass); in plant units."""
+    peak = np.exp(-((hc - 0.4) / 0.09) ** 2) * np.exp(-((hi / 0.10) ** 2))
+    negative = -0.05 * np.exp(-((hc - 0.2) / 0.1) ** 2) * np.exp(-(((hi + 0.15) / 0.08) ** 2))
+    return peak + negative
+
+
+def magnetic_sample() -> ip.Plant:
+    """The sample: an independent Preisach plant with the interacting density and a reversible part, moment ±1."""
+    return ip.Plant(density=interacting_density, reversible=0.3, scale=2.0)
+
+
+class _Vsm:
+    """The magnetometer's moment reading: the sample's moment × ``MS_EMU`` × a gain drifting with time (a thermal
+    settling, ``gain(t) = g0 + dg·(1 - exp(-t/tau))``), plus white noise; the field read with its own noise."""
+
+    def __init__(self, sample: ip.Plant, rng: np.random.Generator, g0: float, dg: float, tau_s: float):
+        self.sample, self.rng, self.g0, self.dg, self.tau_s = sample, rng, g0, dg, tau_s
+        self.t = 0.0
+
+    def gain(self, t: np.ndarray | float) -> np.ndarray | float:
+        return self.g0 + self.dg * (1.0 - np.exp(-np.asarray(t) / self.tau_s))
+
+    def sweep_to(self, h_oe: float) -> None:
+        """Move the field without measuring (slew and pause)."""
+        self.t += abs(h_oe - self.sample.x * OE_PER_UNIT) / SLEW_OE_PER_S + PAUSE_S
+        self.sample.drive(np.array([h_oe / OE_PER_UNIT]), 1.0)
+
+    def measure(self, h_oe: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        m = self.sample.drive(np.asarray(h_oe, float) / OE_PER_UNIT, 1.0)
+        t = self.t + AVERAGING_S * (1 + np.arange(np.size(h_oe)))
+        self.t = float(t[-1])
+        moment = MS_EMU * m * self.gain(t) + self.rng.normal(0.0, MOMENT_NOISE, np.size(h_oe))
+        return np.asarray(h_oe, float) + self.rng.normal(0.0, FIELD_NOISE, np.size(h_oe)), moment
+
+
+def forc_fields() -> list[np.ndarray]:
+    """Each curve's fields: from its reversal field up in ``H_STEP`` steps to Hc = HC2 or ``CURVE_TOP``."""
+    out = []
+    for hr in np.arange(HR_TOP, HR_BOTTOM - 0.5 * H_STEP, -H_STEP):
+        top = min(hr + 2.0 * HC2, CURVE_TOP)
+        out.append(hr + H_STEP * np.arange(int(round((top - hr) / H_STEP)) + 1))
+    return out
+
+
+def write_micromag_sample(folder: Path, seed: int = 0, drift: float = -0.0025,
+                          loop_drift: tuple[float, float] = (1.0015, -0.0012)) -> tuple[Path, Path]:
+    """The sample's FORC measurement (``sample.frc``: after each saturation at ``H_SAT``, the calibration point
+    at ``H_CAL``, then the curve) and, later, its hysteresis loop (``sample.hys``: from ``H_SAT`` down to
+    ``-H_SAT`` and back, ``H_STEP`` apart). ``drift``: the gain change over the FORC measurement (a settling with a
+    time constant of half of it); ``loop_drift``: the loop's own gain at its start and its change over the loop."""
+    rng = np.random.default_rng(seed)
+    fields = forc_fields()
+    points = sum(f.size + 1 for f in fields)
+    duration = points * AVERAGING_S + len(fields) * (3 * PAUSE_S + 2 * (H_SAT - HR_BOTTOM) / SLEW_OE_PER_S)
+    sample = magnetic_sample()
+    vsm = _Vsm(sample, rng, 1.0, drift / (1.0 - np.exp(-2.0)), 0.5 * duration)
+    curves, calibration = [], []
+    for h in fields:
+        vsm.sweep_to(H_SAT)
+        vsm.sweep_to(H_CAL)
+        hc, mc = vsm.measure(np.array([H_CAL]))
+        calibration.append((float(hc[0]) + 3.8, float(mc[0])))  # the Hall probe reads the set field 3.8 Oe high
+        vsm.sweep_to(float(h[0]))
+        curves.append(vsm.measure(h))
+    settings = [("Averaging time", AVERAGING_S), ("Hb1", -3000.0), ("Hb2", 3000.0), ("Hc1", 0.0), ("Hc2", HC2),
+                ("HCal", H_CAL), ("HNcr", H_STEP), ("HSat", H_SAT), ("PauseCal", PAUSE_S), ("PauseNtl", PAUSE_S),
+                ("PauseSat", PAUSE_S), ("SlewRate", SLEW_OE_PER_S), ("Smoothing", 3.0)]
+    forc = write_micromag_forc_measurement(folder / "sample.frc", curves, calibration, settings)
+    down = np.arange(H_SAT, -H_SAT - 0.5 * H_STEP, -H_STEP)
+    loop_time = 2 * down.size * AVERAGING_S
+    loop = _Vsm(sample, rng, loop_drift[0], loop_drift[1] / (1.0 - np.exp(-2.0)), 0.5 * loop_time)
+    loop.sweep_to(H_SAT)
+    branches = [loop.measure(down), loop.measure(down[::-1])]
+    hys = write_micromag_hysteresis(folder / "sample.hys", branches, [
+        ("Averaging time", AVERAGING_S), ("Field increment", H_STEP), ("Field range", H_SAT),
+        ("PauseSat", PAUSE_S), ("SlewRate", SLEW_OE_PER_S)])
+    return forc, hys

@@ -73,6 +73,46 @@ def write_micromag(path: Path, curves: Sequence[tuple[np.ndarray, np.ndarray]], 
     return path
 
 
+def _micromag_header(kind: str, settings: list[tuple[str, float]], ndata: int) -> list[str]:
+    """The header of a MicroMag 2900/3900 export as the instrument writes it (the real FeCo file's layout)."""
+    lines = ["MicroMag 2900/3900 Data File (Series 0015)", kind, "Configuration   :  VSM", "Hardware version:  0004",
+             "Software version:  09/27/2005 D", "Units of measure:  cgs", "Temperature in  :  Kelvin",
+             "03/14/2016  09:12", '"CoFe interacting particles, OOP"', ""]
+    lines += [f"{k:<15}= {v:+.6E}" for k, v in settings] + [""]
+    lines += ["Field range    = +1.000000E+04", "Moment range   = +2.000000E-03", "Temperature    = N/A",
+              "Orientation    =  0.000000E+00", "Slope corr.    = N/A", "Saturation     = N/A",
+              f"NData          = {ndata}", ""]
+    return lines
+
+
+def write_micromag_forc_measurement(path: Path, curves: Sequence[tuple[np.ndarray, np.ndarray]],
+                                    calibration: Sequence[tuple[float, float]],
+                                    settings: Sequence[tuple[str, float]]) -> Path:
+    """A MicroMag FORC file as the instrument writes it: the full header (``HCal``, ``HSat``, ``NCrv``, pauses ...;
+    no column header, like the FeCo file), then per curve a one-point segment at the calibration field (as measured:
+    its field reading too) and the curve, blank-line separated, cgs, CRLF."""
+    rows = sum(1 + len(h) for h, _ in curves)
+    lines = _micromag_header("First-order reversal curves", [*settings, ("NCrv", float(len(curves)))], rows)
+    for (h, m), (hc, mc) in zip(curves, calibration):
+        lines += [f"{hc:+.6E},{mc:+.6E}", ""]
+        lines += [f"{a:+.6E},{b:+.6E}" for a, b in zip(h, m)] + [""]
+    lines.append("MicroMag 2900/3900 Data File ends")
+    path.write_bytes("\r\n".join(lines).encode("latin-1"))
+    return path
+
+
+def write_micromag_hysteresis(path: Path, branches: Sequence[tuple[np.ndarray, np.ndarray]],
+                              settings: Sequence[tuple[str, float]]) -> Path:
+    """A MicroMag hysteresis-loop export: the header, then the loop's branches as blank-line separated segments
+    (from the maximum field down, then up), cgs, CRLF."""
+    lines = _micromag_header("Hysteresis loop", list(settings), sum(len(h) for h, _ in branches))
+    for h, m in branches:
+        lines += [f"{a:+.6E},{b:+.6E}" for a, b in zip(h, m)] + [""]
+    lines.append("MicroMag 2900/3900 Data File ends")
+    path.write_bytes("\r\n".join(lines).encode("latin-1"))
+    return path
+
+
 def write_lakeshore(path: Path, curves: Sequence[tuple[np.ndarray, np.ndarray]], *, h_cal: float,
                     m_cal: Sequence[float], dt: float = 0.1) -> Path:
     """A Lake Shore VSM FORC export: settings, ``##DATA TABLE``, a Latin-1 header with ``µ0H`` and ``A·m²``, rows

@@ -38,6 +38,7 @@ from bmr.identification.signals import run_input, run_output, running_integral
 from bmr.identification.spans import SATURATION_TOL, evaluation_start, input_range_of
 
 __all__ = ["RunCalibration", "LstsqTables", "fit_tables_lstsq", "row_weights", "INITIAL_STATES", "DRIFTS", "GRIDS",
+           "descending_top", "reversible_above", "FALL_SHARE",
            "DENSITIES", "CLOCKWISE_SHARE", "loop_orientation", "resolved_density",
            "DEFAULT_GRID", "table_nodes", "resolved_grid", "saturation_closure", "Conditioning", "OPEN_BRANCH_SHARE", "MAX_ROWS"]
 
@@ -55,6 +56,8 @@ DRIFTS = ("none", "leakage", "auto")
 OPEN_BRANCH_SHARE = 0.02
 # Regression rows above which the runs are thinned uniformly.
 MAX_ROWS = 2_000_000
+# A fall is a sweep down by more than this share of the input range (input noise is not).
+FALL_SHARE = 0.01
 BEFORE_KNOWN_STATE = "before the run's state is known (initial_state='saturation')"
 THINNED = "thinned to max_rows (every k-th sample kept)"
 HELD_OUT = "held out (cross-validation)"
@@ -546,7 +549,8 @@ def fit_tables_lstsq(
     offs = res.offsets
     run_offsets = offs if per_run else np.full(len(runs), offs[0])
     common = float(np.mean(run_offsets))
-    everett = _core.EverettModel(model.grid, model.masses, common, signed)
+    masses = reversible_above(np.asarray(model.grid), np.asarray(model.masses), descending_top(us, lo, hi))
+    everett = _core.EverettModel(model.grid, masses, common, signed)
     calib = []
     for k, (r, u, y, w) in enumerate(zip(runs, us, ys, weights)):
         part = run_gains[k] * everett.simulate(u, 0.0, histories[k])
@@ -581,6 +585,44 @@ def fit_tables_lstsq(
                        leakage_rate=rate if integrals is not None else None, closure=closure,
                        conditioning=Conditioning.of(res), passive=np.asarray(res.passive),
                        orientation=orientation, density=density)
+
+
+def descending_top(us: Sequence[np.ndarray], lo: float, hi: float) -> float:
+    """The highest input the runs reach on a fall (a sweep down between two reversals beyond :data:`FALL_SHARE`
+    of the range, the run's start counting as one): every row of the Everett table the runs read lies at or below
+    it."""
+    deadband = FALL_SHARE * (hi - lo)
+    top = lo
+    for u in us:
+        u = np.asarray(u, dtype=float)
+        if u.size < 2:
+            continue
+        ends = [0, *[int(i) for i in _core.find_reversals(np.ascontiguousarray(u), deadband)], u.size - 1]
+        for a, b in zip(ends[:-1], ends[1:]):
+            if b > a and u[b] < u[a]:
+                top = max(top, float(u[a + 1:b + 1].max()))
+    return top
+
+
+def reversible_above(grid: np.ndarray, masses: np.ndarray, top: float) -> np.ndarray:
+    """The cell masses with every cell whose down-switching field lies above the cells the runs read (``top``,
+    :func:`descending_top`) moved onto the diagonal at its up-switching field.
+
+    The runs change those cells only together with the diagonal cell of their column (each falls below them at
+    once), so the data fix the column's sum and not its split: the fit's split is the smoothing's. Nothing the runs
+    show switches irreversibly above their highest fall (a FORC file's curves reverse below its calibration field),
+    so the column's mass is taken as reversible there; every output along the runs is unchanged, and the major
+    loop's descending branch above the highest reversal follows the measured reversible slope."""
+    n = grid.size - 1
+    p_top = int(np.clip(np.searchsorted(grid, top, side="right") - 1, 0, n - 1))
+    out = np.array(masses, dtype=float)
+    for p in range(p_top + 1, n):
+        for q in range(p + 1, n):
+            k = p * n - p * (p + 1) // 2 + q
+            d = q * n - q * (q + 1) // 2 + q
+            out[d] += out[k]
+            out[k] = 0.0
+    return out
 
 
 def _fit_gains(model: Any, us: Sequence[np.ndarray], ys: Sequence[np.ndarray], weights: Sequence[np.ndarray],

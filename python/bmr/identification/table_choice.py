@@ -33,9 +33,9 @@ resolution fits it (FeCo nanowire FORCs: 3.9x the noise floor at 80 intervals, 3
 Resolutions are capped by the data: a table finer than the default gets at most one cell per
 :data:`ROWS_PER_CELL` regression rows (a short recording does not pay for tables it cannot inform), and every table
 stays within the solver's unknowns. A family of first-order reversal curves measures its Everett function directly
-at every reversal input, so when the runs reverse at :data:`FINE_MIN_REVERSALS` distinct inputs or more the list
-goes on with :data:`FINE_RESOLUTIONS` (one row per cell enough; tables past the dense solver's unknowns are solved
-matrix-free). Cross-validation is skipped (the default kept, the reason reported) when the
+at every reversal input, so when the runs reverse at :data:`FINE_MIN_REVERSALS` distinct inputs or more one row
+per cell is enough for every resolution and the list goes on with :data:`FINE_RESOLUTIONS` (tables past the dense
+solver's unknowns are solved matrix-free). Cross-validation is skipped (the default kept, the reason reported) when the
 runs have fewer than :data:`MIN_ROWS_PER_BLOCK` rows per time block or fewer than two folds hold anything out.
 """
 from __future__ import annotations
@@ -61,9 +61,10 @@ __all__ = ["TableCandidate", "TableChoice", "choose_table_settings", "block_fold
 DEFAULT_INTERVALS = 48
 DEFAULT_SMOOTHING = 1e-4
 RESOLUTIONS = (24, 32, 48, 64, 80)
-# Finer tables tried for runs that reverse at many distinct inputs (a FORC family), and how many they need.
+# Finer tables tried for runs that reverse at many distinct inputs (a FORC family), and how many they need (half of
+# a file of about a hundred curves, the other half held out: a sharp switching-field peak needs 80 intervals).
 FINE_RESOLUTIONS = (112, 144)
-FINE_MIN_REVERSALS = 64
+FINE_MIN_REVERSALS = 48
 # Reversal inputs closer than this share of the input range count as one.
 DISTINCT_SHARE = 1e-3
 SMOOTHINGS = (1e-6, 1e-5, 1e-4, 1e-3, 1e-2, 1e-1)
@@ -309,9 +310,10 @@ def choose_table_settings(runs: Sequence[Run], friction: Any = None, *, input_ra
     rows = sum(int(np.count_nonzero(w)) for w in weights)
     held = sum(1 for fold in masks if any(np.count_nonzero(w[m]) for w, m in zip(weights, fold)))
     # Resolutions the data can carry (finer than the default: enough rows per cell) within the solver's unknowns.
-    resolutions = [n for n in resolutions
-                   if (n <= n0 or cells(n) * ROWS_PER_CELL <= rows) and cells(n) + n_off + 1 <= MAX_UNKNOWNS]
     many_reversals = distinct_reversals(us, lo, hi) >= FINE_MIN_REVERSALS
+    per_cell = 1 if many_reversals else ROWS_PER_CELL
+    resolutions = [n for n in resolutions
+                   if (n <= n0 or cells(n) * per_cell <= rows) and cells(n) + n_off + 1 <= MAX_UNKNOWNS]
     if n_intervals is None and many_reversals:
         resolutions += [n for n in FINE_RESOLUTIONS if cells(n) <= rows and cells(n) + n_off + 1 <= MAX_UNKNOWNS]
 
