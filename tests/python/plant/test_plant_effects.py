@@ -41,7 +41,7 @@ def test_vocabulary_and_parameter_listing():
     expected = {"coil_lag": {"tau_s"}, "thermal_drift": {"gain_loss", "tau_s"}, "friction_current": {"gain_per_a"},
                 "friction_harmonics": {"order", "amplitude_nmm", "phase_rad"},
                 "torque_ripple": {"eps", "phase_rad"}, "sensor_drift": {"rate_nmm_per_s"},
-                "time_delay": {"delay_s"}, "non_congruent": {"curvature", "scale_nmm", "cubic"},
+                "time_delay": {"delay_s"}, "non_congruent": {"curvature", "scale_nmm", "cubic", "feedback"},
                 "creep": {"fraction", "tau_min_s", "tau_max_s", "fluctuation", "tau0_s"}, "rate_dependence": {"tau_s"},
                 "run_gain_offset": {"gain_sd", "offset_sd"}, "leakage": {"rate_per_s"},
                 "accommodation": {"kappa", "cycles"}, "viscous": {"c", "f_y", "v0"}}
