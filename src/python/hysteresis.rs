@@ -346,46 +346,7 @@ impl PyHysteresis {
         dt_s: f64,
         slope_ref: Option<f64>,
     ) -> PyResult<(Bound<'py, PyArray1<f64>>, Bound<'py, PyArray1<f64>>)> {
-        let py = slf.py();
-        let inputs = extract_f64_array(u, "u")?;
-        if let Some(i) = inputs.iter().position(|x| !x.is_finite()) {
-            return Err(BmrError::new_err(format!(
-                "u[{i}] = {} is not finite",
-                inputs[i]
-            )));
-        }
-        let mut me = borrow_mut(slf)?;
-        let (lo, hi) = me.op.input_range();
-        let (ylo, yhi) = me.op.output_range();
-        let slope_ref = slope_ref.unwrap_or((yhi - ylo) / (hi - lo));
-        let u0 = inputs.first().copied().unwrap_or(0.0);
-        let mut stage = RateDependence::new(tau_s, slope_ref, dt_s, hi - lo, u0, me.op.output())
-            .ok_or_else(|| {
-                BmrError::new_err(format!(
-                    "rate dependence needs tau_s >= 0, slope_ref > 0 and dt_s > 0 (tau_s={tau_s}, \
-                     slope_ref={slope_ref}, dt_s={dt_s})"
-                ))
-            })?;
-        let n = inputs.len();
-        let op = &mut me.op;
-        let mut scan = move || -> (Vec<f64>, Vec<f64>) {
-            let mut ys = Vec::with_capacity(n);
-            let mut cores = Vec::with_capacity(n);
-            for &x in &inputs {
-                let c = stage.step(x);
-                let y = op.step(c);
-                stage.observe(y);
-                ys.push(y);
-                cores.push(c);
-            }
-            (ys, cores)
-        };
-        let (ys, cores) = if n > DETACH_LEN {
-            py.detach(scan)
-        } else {
-            scan()
-        };
-        Ok((to_numpy(py, ys), to_numpy(py, cores)))
+        run_core_stages(slf, u, Some((tau_s, dt_s, slope_ref)), 0.0)
     }
 
     /// Run ``u`` through the core with ``non_congruent``'s mean field (a moving Preisach model): the core sees
@@ -403,63 +364,13 @@ impl PyHysteresis {
         dt_s: f64,
         slope_ref: Option<f64>,
     ) -> PyResult<(Bound<'py, PyArray1<f64>>, Bound<'py, PyArray1<f64>>)> {
-        let py = slf.py();
-        let inputs = extract_f64_array(u, "u")?;
-        if let Some(i) = inputs.iter().position(|x| !x.is_finite()) {
-            return Err(BmrError::new_err(format!(
-                "u[{i}] = {} is not finite",
-                inputs[i]
-            )));
-        }
         if !per_output.is_finite() {
             return Err(BmrError::new_err(format!(
                 "per_output = {per_output} must be finite"
             )));
         }
-        let mut me = borrow_mut(slf)?;
-        let (lo, hi) = me.op.input_range();
-        let (ylo, yhi) = me.op.output_range();
-        let slope_ref = slope_ref.unwrap_or((yhi - ylo) / (hi - lo));
-        let u0 = inputs.first().copied().unwrap_or(0.0);
-        let mut rate = if tau_s > 0.0 {
-            Some(
-                RateDependence::new(tau_s, slope_ref, dt_s, hi - lo, u0, me.op.output()).ok_or_else(
-                    || {
-                        BmrError::new_err(format!(
-                            "rate dependence needs tau_s >= 0, slope_ref > 0 and dt_s > 0 (tau_s={tau_s}, \
-                             slope_ref={slope_ref}, dt_s={dt_s})"
-                        ))
-                    },
-                )?,
-            )
-        } else {
-            None
-        };
-        // The one mean-field stage of the compensator and the simulations (1 per unit output over a unit scale).
-        let mean = MeanField::new(per_output, 1.0);
-        let n = inputs.len();
-        let op = &mut me.op;
-        let mut scan = move || -> (Vec<f64>, Vec<f64>) {
-            let mut ys = Vec::with_capacity(n);
-            let mut cores = Vec::with_capacity(n);
-            for &x in &inputs {
-                let c = rate.as_mut().map_or(x, |r| r.step(x));
-                let c = mean.map_or(c, |m| c + m.shift(op.output()));
-                let y = op.step(c);
-                if let Some(r) = rate.as_mut() {
-                    r.observe(y);
-                }
-                ys.push(y);
-                cores.push(c);
-            }
-            (ys, cores)
-        };
-        let (ys, cores) = if n > DETACH_LEN {
-            py.detach(scan)
-        } else {
-            scan()
-        };
-        Ok((to_numpy(py, ys), to_numpy(py, cores)))
+        let rate = (tau_s > 0.0).then_some((tau_s, dt_s, slope_ref));
+        run_core_stages(slf, u, rate, per_output)
     }
 
     /// Forget the memory and start from `initial` ("negative", "positive", ("ascending", u), ("descending", u)).
@@ -608,4 +519,70 @@ pub(crate) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(_rebuild_hysteresis, m)?)?;
     m.add_function(wrap_pyfunction!(_rebuild_hysteresis_state, m)?)?;
     Ok(())
+}
+
+/// ``u`` through the core, continuing from its state: after the rate-dependence stage when ``rate`` holds its
+/// ``(tau_s, dt_s, slope_ref)`` (the stage at rest at ``u[0]``; ``slope_ref`` default the major loop's mean slope)
+/// and with ``non_congruent``'s mean field (``per_output`` input units per output unit of the sample before; 0 is
+/// off). Returns ``(outputs, core_inputs)``.
+#[allow(clippy::type_complexity)]
+fn run_core_stages<'py>(
+    slf: &Bound<'py, PyHysteresis>,
+    u: &Bound<'py, PyAny>,
+    rate: Option<(f64, f64, Option<f64>)>,
+    per_output: f64,
+) -> PyResult<(Bound<'py, PyArray1<f64>>, Bound<'py, PyArray1<f64>>)> {
+    let py = slf.py();
+    let inputs = extract_f64_array(u, "u")?;
+    if let Some(i) = inputs.iter().position(|x| !x.is_finite()) {
+        return Err(BmrError::new_err(format!(
+            "u[{i}] = {} is not finite",
+            inputs[i]
+        )));
+    }
+    let mut me = borrow_mut(slf)?;
+    let (lo, hi) = me.op.input_range();
+    let (ylo, yhi) = me.op.output_range();
+    let u0 = inputs.first().copied().unwrap_or(0.0);
+    let mut rate = match rate {
+        Some((tau_s, dt_s, slope_ref)) => {
+            let slope_ref = slope_ref.unwrap_or((yhi - ylo) / (hi - lo));
+            Some(
+                RateDependence::new(tau_s, slope_ref, dt_s, hi - lo, u0, me.op.output()).ok_or_else(
+                    || {
+                        BmrError::new_err(format!(
+                            "rate dependence needs tau_s >= 0, slope_ref > 0 and dt_s > 0 (tau_s={tau_s}, \
+                             slope_ref={slope_ref}, dt_s={dt_s})"
+                        ))
+                    },
+                )?,
+            )
+        }
+        None => None,
+    };
+    // The one mean-field stage of the compensator and the simulations (1 per unit output over a unit scale).
+    let mean = MeanField::new(per_output, 1.0);
+    let n = inputs.len();
+    let op = &mut me.op;
+    let mut scan = move || -> (Vec<f64>, Vec<f64>) {
+        let mut ys = Vec::with_capacity(n);
+        let mut cores = Vec::with_capacity(n);
+        for &x in &inputs {
+            let c = rate.as_mut().map_or(x, |r| r.step(x));
+            let c = mean.map_or(c, |m| c + m.shift(op.output()));
+            let y = op.step(c);
+            if let Some(r) = rate.as_mut() {
+                r.observe(y);
+            }
+            ys.push(y);
+            cores.push(c);
+        }
+        (ys, cores)
+    };
+    let (ys, cores) = if n > DETACH_LEN {
+        py.detach(scan)
+    } else {
+        scan()
+    };
+    Ok((to_numpy(py, ys), to_numpy(py, cores)))
 }
