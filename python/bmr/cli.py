@@ -97,8 +97,10 @@ def _parser() -> argparse.ArgumentParser:
                         "first-order reversal curves, uniform otherwise")
     i.add_argument("--density", choices=DENSITIES, default="auto",
                    help="least-squares table: a Preisach density (nonnegative: loops run counter-clockwise, exact "
-                        "inverse) or masses free in sign (signed: loops run clockwise, the output leads the input; "
-                        "no compensator); auto (the default): signed when the training loops run clockwise")
+                        "inverse) or masses free in sign (signed: loops that run clockwise, the output leading the "
+                        "input, or negative density regions); auto (the default): signed when the training loops run "
+                        "clockwise (no compensator), or when a family of first-order reversal curves is predicted "
+                        "clearly better by it (the compensator inverts the nonnegative table beside it)")
     i.add_argument("-o", "--out", required=True,
                    help="model file to write (bmr-model/2 JSON: tables, friction, the bundle's quantities and units)")
 

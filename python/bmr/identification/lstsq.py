@@ -227,10 +227,14 @@ class LstsqTables:
 
     def orientation_note(self) -> str:
         """The loops' direction in words, and what was identified for it."""
-        if self.signed:
+        if self.signed and self.orientation >= CLOCKWISE_SHARE:
             return (f"loops run clockwise (rising above falling by {100 * self.orientation:.3g} % of the output "
                     f"span): output leads input, a rate-driven output (force from a velocity); a signed density "
                     f"was identified (no exact inverse)")
+        if self.signed:
+            return (f"loops run counter-clockwise (rising minus falling output {100 * self.orientation:.3g} % of "
+                    f"the output span); a signed density was identified: a Preisach system with negative regions "
+                    f"in its density (interacting particles); a compensator inverts the nonnegative table beside it")
         turn = "clockwise" if self.orientation > 0 else "counter-clockwise"
         return f"loops run {turn} (rising minus falling output {100 * self.orientation:.3g} % of the output span)"
 

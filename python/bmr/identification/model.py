@@ -26,10 +26,13 @@ that cannot be read back is refused before anything is written: every model that
 the same bytes.
 
 ``hysteresis.signed_table`` (optional) is a Preisach table whose cell masses are free in sign, identified where the
-loops run clockwise (the output leads the input; ``bmr.identification.lstsq``): the forward core of
-:meth:`Model.simulate`, on its grid ``nodes`` (input unit), from negative saturation at output ``offset``. The
-curves beside it are the nonnegative table's (the monotone operator the stages and the diagnosis run). A signed
-table has no exact inverse: such a model refuses a compensator and a firmware export.
+loops run clockwise (the output leads the input; ``bmr.identification.lstsq``) or where a family of first-order
+reversal curves is predicted clearly better with negative regions in the density (interacting particles;
+``bmr.identification.table_choice``): the forward core of :meth:`Model.simulate`, on its grid ``nodes`` (input
+unit), from negative saturation at output ``offset``. The curves beside it are the nonnegative table's (the
+monotone operator the stages and the diagnosis run). A signed table has no exact inverse: where its loops run
+clockwise the model refuses a compensator and a firmware export; where they run counter-clockwise the compensator
+inverts the nonnegative table beside it, with a warning (:meth:`Model.signed_loops_turn_clockwise`).
 
 ``extensions`` are the effects a diagnosis added (names and parameters from the effect vocabulary,
 ``bmr.effect_parameters(model_entries=True)``; an unknown name or an out-of-range parameter is an error at load
@@ -56,6 +59,7 @@ from bmr._core import BmrError, Compensator, Hysteresis, ModelFileError, Resourc
 from bmr.data.files import jsonable, read_json, write_text
 from bmr.data.quantities import ACTUATOR, Quantities
 from bmr.identification.friction import FrictionFit
+from bmr.identification.lstsq import CLOCKWISE_SHARE, loop_orientation
 
 __all__ = ["FORMAT", "LOOP_STAGES", "Model"]
 
@@ -217,11 +221,27 @@ class Model:
                            f"got {initial!r}")
         return np.concatenate([np.asarray(start, dtype=float), history])
 
+    def signed_loops_turn_clockwise(self) -> bool:
+        """Whether the signed table's own major loop runs clockwise (the output leads the input: a rate-driven
+        output with no hysteretic inverse), measured on the table, not read from how it was identified. False
+        without a signed table; a signed table whose loops run counter-clockwise is a Preisach system with
+        negative regions in its density (interacting particles in a FORC diagram)."""
+        if self.signed_table is None:
+            return False
+        lo, hi = self.hysteresis.input_range
+        u = np.concatenate([np.linspace(lo, hi, 201), np.linspace(hi, lo, 201)[1:]])
+        y = np.asarray(self.signed_table.simulate(u, None, self._table_history("negative", np.zeros(0))), dtype=float)
+        return loop_orientation([u], [y]) >= CLOCKWISE_SHARE
+
     def _refuse_signed(self, what: str) -> None:
-        if self.signed_table is not None:
-            raise BmrError(f"no {what}: this model's core is a signed Preisach table (its loops run clockwise: the "
+        if self.signed_loops_turn_clockwise():
+            raise BmrError(f"no {what}: this model's core is a signed Preisach table whose loops run clockwise (the "
                            "output leads the input, a rate-driven output); exact inversion needs a nonnegative "
                            "density, whose branches are monotone")
+        if self.signed_table is not None:
+            warnings.warn(f"the {what} inverts the nonnegative table fitted beside this model's signed core (exact "
+                          "inversion needs monotone branches): the signed density's negative regions are not "
+                          "compensated", stacklevel=3)
 
     def extension(self, name: str) -> dict[str, Any] | None:
         """The extension entry ``name`` (None if the model has none)."""
@@ -335,7 +355,8 @@ class Model:
         ``stages``: see :meth:`stage_plan` (default: every extension the closed-loop check did not find
         harmful; the ones left off, or asked for although they hurt, are named in a warning). ``kwargs`` pass
         through to ``bmr.Compensator`` (e.g. ``inverse="paper"``, ``initial``). A model with a signed table
-        (loops that run clockwise) has no exact inverse: a ``BmrError`` says so."""
+        whose loops run clockwise has no hysteretic inverse: a ``BmrError`` says so; with a signed table whose loops
+        run counter-clockwise the compensator inverts the nonnegative table fitted beside it (a warning says so)."""
         self._refuse_signed("compensator")
         friction = self.friction.to_friction() if self.friction is not None else None
         kwargs.setdefault("converter_gain", self.converter_gain_a_per_v)

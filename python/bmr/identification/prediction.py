@@ -274,6 +274,15 @@ def _offset_prior(model: Any) -> dict[str, float] | None:
     return {k: float(v) for k, v in values.items()}
 
 
+def _core_name(model: Model) -> str:
+    """What ran as the model's core: its CBH tables, or its signed table and why it is signed."""
+    if model.signed_table is None:
+        return "core tables"
+    if model.signed_loops_turn_clockwise():
+        return "signed table (loops run clockwise)"
+    return "signed table (negative density regions)"
+
+
 def _identified_leakage(model: Any) -> float | None:
     """The leakage rate (output per input·s) least squares fitted with the tables, when the model holds one: the
     tables alone describe the sample, the measured output also integrates the leakage current."""
@@ -611,7 +620,7 @@ def predict(
             baseline=base + friction, sigma=sigma, scored=scored))
     return Prediction(out, model.quantities, span, out_of_range, model_source, bundle_source,
                       ran=parts(model) if extended else
-                      [("signed table (loops run clockwise)" if model.signed_table is not None else "core tables")]
+                      [_core_name(model)]
                       + (["leakage identified with the tables"] if leakage is not None else []))
 
 

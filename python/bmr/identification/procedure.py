@@ -257,8 +257,9 @@ def identify(
     :func:`~bmr.identification.lstsq.table_nodes`). ``density``: the least-squares table's cell masses,
     ``"auto"`` (default: free in sign when the training loops run clockwise, the output leading the input;
     nonnegative otherwise), ``"nonnegative"`` or ``"signed"``. A signed table is the model's forward core
-    (``model.signed_table``); the model's CBH tables are then the nonnegative fit at the same setting, and the
-    model refuses a compensator (no exact inverse). The loops' orientation and the density are in
+    (``model.signed_table``); the model's CBH tables are then the nonnegative fit at the same setting, which a
+    compensator inverts where the loops run counter-clockwise (a signed table has no exact inverse; with loops
+    that run clockwise the model refuses a compensator). The loops' orientation and the density are in
     ``model.identification.lstsq``; with ``"auto"`` the table choice's cross-validation also takes the signed table
     when it predicts held-out blocks clearly better (``model.identification.table_choice.density``).
     ``n_intervals``, ``smoothing``: the least-squares table's resolution (grid intervals over the input range) and

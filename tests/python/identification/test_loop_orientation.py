@@ -1,8 +1,11 @@
 """Loops that run clockwise are a finding, not a reason to keep the default table: a force driven by the rate of a
 displacement (a damper: viscous and yield force) leads the displacement, which no nonnegative Preisach density can
 produce. The orientation is measured, a signed table is identified and predicts held-out runs, and the model says it
-has no exact inverse."""
+has no exact inverse. A signed table on loops that run counter-clockwise (a Preisach system with negative density
+regions) is said to be that, and its compensator inverts the nonnegative table beside it."""
 from __future__ import annotations
+
+import copy
 
 import numpy as np
 import pytest
@@ -12,6 +15,8 @@ from bmr._core import BmrError
 from bmr.cli import main as cli_main
 from bmr.identification.lstsq import CLOCKWISE_SHARE, loop_orientation, resolved_density
 from damper_runs import damper_bundle as _damper_bundle
+
+import independent_preisach as P
 
 def test_loop_orientation_tells_clockwise_from_counter_clockwise_and_single_valued() -> None:
     t = np.linspace(0.0, 4.0, 801)
@@ -82,3 +87,29 @@ def test_a_damaged_signed_table_in_a_model_file_is_a_model_file_error(tmp_path) 
         (tmp_path / "m.json").write_text(json.dumps(content))
         with pytest.raises(bmr.ModelFileError, match="signed_table"):
             bmr.Model.load(tmp_path / "m.json")
+
+
+def test_a_signed_table_on_counter_clockwise_loops_is_named_so_and_compensated_on_its_nonnegative_table() -> None:
+    rng = np.random.default_rng(5)
+    plant = P.Plant()
+    plant.reset()
+    runs = [P.record(plant, "major", "custom", [0.0, P.HI, P.LO, P.HI, P.LO, P.HI], rng, fs=100.0, fresh=False)]
+    for k in range(2):
+        v = [float(x) for x in np.random.default_rng(20 + k).uniform(-1.1, 1.1, 8)]
+        runs.append(P.record(plant, f"minor{k}", "custom", [0.0] + v, rng, fs=100.0, fresh=False))
+    bundle = bmr.Bundle("loops", 100.0, runs)
+    model = bmr.identify(bundle, method="lstsq", density="signed", n_intervals=24, smoothing=1e-3)
+    tables = model.identification.lstsq
+    assert tables.signed and tables.orientation < -CLOCKWISE_SHARE, tables
+    assert "counter-clockwise" in repr(tables) and "negative regions" in repr(tables)
+    assert model.signed_table is not None and not model.signed_loops_turn_clockwise()
+    assert bmr.predict(model, bundle).ran == ["signed table (negative density regions)"]
+    with pytest.warns(UserWarning, match="inverts the nonnegative table fitted beside"):
+        comp = model.compensator()
+    # The very compensator of the nonnegative table beside the signed one.
+    beside = copy.copy(model)
+    beside.signed_table = None
+    plain = beside.compensator()
+    lo, hi = model.hysteresis.output_range
+    ref = np.interp(np.linspace(0.0, 3.0, 150), [0.0, 1.0, 2.0, 3.0], [0.0, 0.8 * hi, 0.6 * lo, 0.2 * hi])
+    np.testing.assert_array_equal([comp.step(r, 0.0).current_a for r in ref], [plain.step(r, 0.0).current_a for r in ref])
