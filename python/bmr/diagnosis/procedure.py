@@ -16,7 +16,8 @@ held-out gain; ``bmr diagnose`` on the command line.
 JSON (``bmr-diagnosis/2``, every value in the bundle's declared output unit, named in ``units``): ``cause`` (the
 accepted physical effect that removed the most held-out RMS; ``table_resolution`` when only the tables were at
 fault; ``"none"``), ``effects`` (accepted in order: ``name``, ``params``, ``heldout_rms_before``,
-``heldout_rms_after``, ``gain``, ``folds_positive``), ``rejected`` (the same; ``folds_evaluated`` below the
+``heldout_rms_after``, ``gain``, ``folds_positive``; ``paired_with``: the effect it was accepted together
+with, each judged once the other was in, when neither passed alone), ``rejected`` (the same; ``folds_evaluated`` below the
 number of folds when the candidate was clearly not accepted on its first folds), ``noise_floor``,
 ``residual_rms`` (held-out RMS of the extended model), ``unexplained`` (``signal``, ``strength`` RMS),
 ``alternatives`` (pairs of effects the excitation could not tell apart, with what would separate them),
@@ -70,7 +71,8 @@ _ROW_KEYS = {"name": "name", "params": "params", "heldout_rms_before": "heldout_
              "heldout_rms_after": "heldout_rms_after_nmm", "gain": "gain", "folds_positive": "folds_positive",
              "gain_interval": "gain_interval", "gain_interval_bootstrap": "gain_interval_bootstrap",
              "fold_gains": "fold_gains", "folds_evaluated": "folds_evaluated",
-             "excess_explained": "excess_explained", "round": "round", "reason": "reason"}
+             "excess_explained": "excess_explained", "round": "round", "reason": "reason",
+             "paired_with": "paired_with"}
 
 
 @dataclass(eq=False, repr=False)
@@ -538,7 +540,9 @@ def run_cli(args: Any) -> int:
           f"{d.wall_time_s:.1f} s")
     for e in d.effects:
         params = ", ".join(f"{k}={v:.4g}" for k, v in e["params"].items())
-        print(f"  accepted {e['name']}: gain {100 * e['gain']:.1f} % ({e['folds_positive']}/{d.folds} folds), "
+        pair = f" (accepted together with {e['paired_with']}: each is needed once the other is in)" \
+            if e.get("paired_with") else ""
+        print(f"  accepted {e['name']}: gain {100 * e['gain']:.1f} % ({e['folds_positive']}/{d.folds} folds){pair}, "
               f"{params}")
     for r in d.rejected:
         why = f"; {r['reason']}" if r.get("reason", "").startswith("parameters outside") else ""

@@ -13,7 +13,10 @@ without it is compared on the test block. An effect is **accepted** when
   fitting the last table errors of noise-free data, say — does not name a physical effect).
 
 The best accepted candidate joins the model (its parameters refitted on all evaluation data), and the round
-repeats until nothing is accepted or the held-out RMS is within :data:`NOISE_MARGIN` of the noise floor.
+repeats until nothing is accepted or the held-out RMS is within :data:`NOISE_MARGIN` of the noise floor. When no
+candidate of a round is accepted alone, two that improve most folds are tried together: both join when each is
+accepted by the same rule once the other is in (two effects of one session, e.g. a heating and a sensor drift,
+each of which the other hides in some folds; :func:`_needed_pair`).
 
 A named effect is physical: a candidate whose parameters, refitted on all data, fall outside the documented range
 of the effect vocabulary (``bmr.effect_parameters()``) — or that pushes an effect already accepted outside its
@@ -80,6 +83,8 @@ __all__ = ["Configuration", "Fitter", "FoldFit", "Candidate", "Alternative", "fo
 MIN_GAIN = 0.02
 MIN_EXCESS = 0.25
 NOISE_MARGIN = 1.03
+# Candidates of a round tried in pairs when none is accepted alone (:func:`_needed_pair`).
+PAIR_CANDIDATES = 3
 # Two-sided 95 % Student t quantiles by degrees of freedom.
 _T975 = {1: 12.706, 2: 4.303, 3: 3.182, 4: 2.776, 5: 2.571, 6: 2.447, 7: 2.365, 8: 2.306, 9: 2.262, 10: 2.228}
 # Relative eigenvalue below which a direction of the scaled normal equations is treated as rank deficient.
@@ -813,14 +818,7 @@ def forward_selection(fitter: Fitter, *, library: Sequence[Effect] = LIBRARY, ma
         for c in cands:
             last[c.effect.name] = c
             c.round = rounds
-        ok = [c for c in cands if c.accepted]
-        if not ok:
-            if candidates and candidates[0].name == "table_resolution":
-                # A large physical effect can hide what finer tables give: try them again in later rounds.
-                remaining.append(candidates[0])
-                continue
-            break
-        ok.sort(key=lambda c: -c.mean_gain)
+        ok = sorted((c for c in cands if c.accepted), key=lambda c: -c.mean_gain)
         best = None
         for c in ok:
             trial, params = refit(fitter, config, c.effect)
@@ -835,10 +833,26 @@ def forward_selection(fitter: Fitter, *, library: Sequence[Effect] = LIBRARY, ma
             best = c
             break
         if best is None:
-            if candidates[0].name == "table_resolution":
+            if candidates and candidates[0].name == "table_resolution":
+                # A large physical effect can hide what finer tables give: try them again in later rounds.
                 remaining.append(candidates[0])
                 continue
-            break
+            pair = _needed_pair(fitter, config, cands, field_effects)
+            if pair is None:
+                break
+            config, steps = pair
+            for c, params in steps:
+                if c.effect.field:
+                    field_effects.append(c.effect)
+                row = c.row()
+                row["params"] = params
+                row["round"] = rounds
+                row["paired_with"] = next(o.effect.name for o, _ in steps if o is not c)
+                accepted.append(row)
+                last[c.effect.name] = c
+                remaining = [e for e in remaining if e is not c.effect]
+            before = heldout(fitter, config)
+            continue
         pending.extend(_alternatives(fitter, config, best, [c for c in ok if c is not best and not c.unphysical
                                                             and not c.no_signature],
                                      field_effects))
@@ -880,6 +894,38 @@ def forward_selection(fitter: Fitter, *, library: Sequence[Effect] = LIBRARY, ma
     alternatives = [a for a in pending if a.other not in names]
     return {"config": config, "accepted": accepted, "rejected": rejected, "nominal_heldout_rms_nmm": nominal_rms,
             "final_heldout_rms_nmm": before.rms(), "heldout": before, "alternatives": alternatives}
+
+
+def _needed_pair(fitter: Fitter, config: Configuration, cands: Sequence[Candidate], field_effects: Sequence[Effect]
+                 ) -> tuple[Configuration, list[tuple[Candidate, dict[str, float]]]] | None:
+    """Two effects that each pass the acceptance rule once the other is in, where neither passed alone (two drifts
+    of one session, each of which looks like noise in the folds the other dominates). Tried among the round's
+    :data:`PAIR_CANDIDATES` candidates with the most gain that improve most folds without being accepted;
+    both must keep physical parameters and show their mechanism signature. Returns the configuration with both
+    and each one's candidate (judged given the other) with its parameters, or None."""
+    hopeful = sorted((c for c in cands if c.fold_gains.size and c.folds_positive * 2 > c.fold_gains.size
+                      and c.mean_gain >= MIN_GAIN and not c.no_signature and not c.unphysical),
+                     key=lambda c: -c.mean_gain)[:PAIR_CANDIDATES]
+    for i, a in enumerate(hopeful):
+        for b in hopeful[i + 1:]:
+            with_a, _ = refit(fitter, config, a.effect)
+            b_given_a = evaluate(fitter, with_a, b.effect, heldout(fitter, with_a))
+            if not b_given_a.accepted:
+                continue
+            with_b, _ = refit(fitter, config, b.effect)
+            a_given_b = evaluate(fitter, with_b, a.effect, heldout(fitter, with_b))
+            if not a_given_b.accepted:
+                continue
+            both, params_b = refit(fitter, with_a, b.effect)
+            fields = list(field_effects) + [e.effect for e in (a, b) if e.effect.field]
+            if _unphysical(fitter, both, fields):
+                continue
+            if b.effect.signature_missing(fitter, with_a, both) or a.effect.signature_missing(fitter, with_b, both):
+                continue
+            params = linear_params(fitter, both)
+            a_params = a.effect.params(None, None, both.path) if a.effect.field else params.get(a.effect.name, {})
+            return both, [(a_given_b, a_params), (b_given_a, params_b)]
+    return None
 
 
 def _config_params(fitter: Fitter, config: Configuration, field_effects: Sequence[Effect]) -> dict[str, dict]:

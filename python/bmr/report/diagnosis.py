@@ -113,7 +113,8 @@ def html_section(d: Any) -> str:
                  f"{html.escape(f(d.residual_rms, 4))} (extended); noise floor "
                  f"{html.escape(f(d.noise_floor, 4))} ({html.escape(noise['detail'])}); {d.folds} blocked "
                  f"folds; {d.wall_time_s:.1f} s.</p>")
-    rows = [[e["name"], "accepted", f"{e['gain'] * 100:.1f} %", f"{e['folds_positive']}/{d.folds}",
+    rows = [[e["name"], f"accepted with {e['paired_with']}" if e.get("paired_with") else "accepted",
+             f"{e['gain'] * 100:.1f} %", f"{e['folds_positive']}/{d.folds}",
              f"{e['heldout_rms_before_nmm']:.4g} → {e['heldout_rms_after_nmm']:.4g}", _fmt_params(e["params"])]
             for e in d.effects]
     rows += [[r["name"], "rejected", f"{r['gain'] * 100:.1f} %",
