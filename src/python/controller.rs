@@ -1,6 +1,7 @@
 //! `bmr.Controller`: the closed loop around a `bmr.Compensator` (integral feedback on the measured torque and
 //! gain/offset adaptation, see `crate::controller`), its `ControllerDesign`, and the batch closed loop on a
 //! `bmr.VirtualActuator` (`bmr.simulate_closed_loop` wraps it into a typed result).
+use numpy::{PyArray1, PyArrayMethods};
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyTuple};
 
@@ -400,38 +401,11 @@ fn _simulate_closed_loop<'py>(
         }
         None => None,
     };
-    let mut ctl = busy(controller)?;
-    let ctl = &mut ctl.core;
-    let mut sim = plant.sim()?;
-    let sim = &mut *sim;
     let n = refs.len();
-    let run = py.detach(move || {
-        // Columns sized up front and written in place (cheaper per sample than pushing ten columns).
-        let mut cols: [Vec<f64>; 8] = std::array::from_fn(|_| vec![0.0; n]);
-        let mut flags: [Vec<bool>; 2] = std::array::from_fn(|_| vec![false; n]);
-        run_closed_loop(ctl, sim, &refs, thetas.as_deref(), |i, c, s, ctl| {
-            for (col, v) in cols.iter_mut().zip([
-                s.t_s,
-                refs[i],
-                s.torque_nmm,
-                s.torque_true_nmm,
-                c.current_a,
-                ctl.correction_nmm(),
-                ctl.gain(),
-                ctl.offset_nmm(),
-            ]) {
-                col[i] = v;
-            }
-            flags[0][i] = c.saturated;
-            flags[1][i] = c.fault;
-        });
-        (cols, flags)
-    });
-    let (cols, flags) = run;
-    let out = PyDict::new(py);
-    const NAMES: [&str; 8] = [
+    // The columns are numpy arrays from the start, each written once per sample (numpy's allocator gives long
+    // columns huge pages: far fewer page faults than a zero-filled vector per column).
+    const NAMES: [&str; 7] = [
         "t_s",
-        "reference_nmm",
         "torque_nmm",
         "torque_true_nmm",
         "current_a",
@@ -439,11 +413,64 @@ fn _simulate_closed_loop<'py>(
         "gain",
         "offset_nmm",
     ];
-    for (name, v) in NAMES.iter().zip(cols) {
-        out.set_item(*name, to_numpy(py, v))?;
+    // SAFETY: every element is written below before the arrays reach Python.
+    let floats: [Bound<'py, PyArray1<f64>>; 7] =
+        std::array::from_fn(|_| unsafe { PyArray1::<f64>::new(py, n, false) });
+    let flags: [Bound<'py, PyArray1<bool>>; 2] =
+        std::array::from_fn(|_| unsafe { PyArray1::<bool>::new(py, n, false) });
+    {
+        let mut float_views: Vec<_> = floats.iter().map(|a| a.readwrite()).collect();
+        let mut flag_views: Vec<_> = flags.iter().map(|a| a.readwrite()).collect();
+        let mut cols: Vec<&mut [f64]> = float_views
+            .iter_mut()
+            .map(|v| {
+                v.as_slice_mut()
+                    .map_err(|_| BmrError::new_err("column not contiguous"))
+            })
+            .collect::<PyResult<_>>()?;
+        let mut bits: Vec<&mut [bool]> = flag_views
+            .iter_mut()
+            .map(|v| {
+                v.as_slice_mut()
+                    .map_err(|_| BmrError::new_err("column not contiguous"))
+            })
+            .collect::<PyResult<_>>()?;
+        let mut ctl = busy(controller)?;
+        let ctl = &mut ctl.core;
+        let mut sim = plant.sim()?;
+        let sim = &mut *sim;
+        let refs = &refs;
+        py.detach(move || {
+            let [t_s, torque, torque_true, current, correction, gain, offset] = &mut cols[..]
+            else {
+                unreachable!("seven float columns")
+            };
+            let [saturated, fault] = &mut bits[..] else {
+                unreachable!("two flag columns")
+            };
+            run_closed_loop(ctl, sim, refs, thetas.as_deref(), |i, c, s, ctl| {
+                t_s[i] = s.t_s;
+                torque[i] = s.torque_nmm;
+                torque_true[i] = s.torque_true_nmm;
+                current[i] = c.current_a;
+                correction[i] = ctl.correction_nmm();
+                gain[i] = ctl.gain();
+                offset[i] = ctl.offset_nmm();
+                saturated[i] = c.saturated;
+                fault[i] = c.fault;
+            });
+        });
     }
-    for (name, v) in ["saturated", "fault"].iter().zip(flags) {
-        out.set_item(*name, numpy::PyArray1::from_vec(py, v))?;
+    let out = PyDict::new(py);
+    let [t_s, rest @ ..] = floats;
+    out.set_item(NAMES[0], t_s)?;
+    // The reference column is the copy of the input the loop read.
+    out.set_item("reference_nmm", to_numpy(py, refs))?;
+    for (name, a) in NAMES[1..].iter().zip(rest) {
+        out.set_item(*name, a)?;
+    }
+    for (name, a) in ["saturated", "fault"].iter().zip(flags) {
+        out.set_item(*name, a)?;
     }
     Ok(out)
 }
