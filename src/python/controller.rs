@@ -377,7 +377,21 @@ fn _simulate_closed_loop<'py>(
     reference_nmm: &Bound<'py, PyAny>,
     theta_rad: Option<&Bound<'py, PyAny>>,
 ) -> PyResult<Bound<'py, PyDict>> {
-    let refs = extract_f64_array(reference_nmm, "reference_nmm")?;
+    // The reference column: a copy of the input (numpy's allocator, as the other columns), which the loop reads.
+    let contiguous = reference_nmm.cast::<PyArray1<f64>>().ok().and_then(|a| {
+        a.readonly()
+            .as_slice()
+            .ok()
+            .map(|s| PyArray1::from_slice(py, s))
+    });
+    let ref_col = match contiguous {
+        Some(c) => c,
+        None => to_numpy(py, extract_f64_array(reference_nmm, "reference_nmm")?),
+    };
+    let ref_view = ref_col.readonly();
+    let refs = ref_view
+        .as_slice()
+        .map_err(|_| BmrError::new_err("reference column not contiguous"))?;
     check(
         "samples in one closed-loop simulation",
         refs.len(),
@@ -439,7 +453,6 @@ fn _simulate_closed_loop<'py>(
         let ctl = &mut ctl.core;
         let mut sim = plant.sim()?;
         let sim = &mut *sim;
-        let refs = &refs;
         py.detach(move || {
             let [t_s, torque, torque_true, current, correction, gain, offset] = &mut cols[..]
             else {
@@ -464,8 +477,8 @@ fn _simulate_closed_loop<'py>(
     let out = PyDict::new(py);
     let [t_s, rest @ ..] = floats;
     out.set_item(NAMES[0], t_s)?;
-    // The reference column is the copy of the input the loop read.
-    out.set_item("reference_nmm", to_numpy(py, refs))?;
+    drop(ref_view);
+    out.set_item("reference_nmm", ref_col)?;
     for (name, a) in NAMES[1..].iter().zip(rest) {
         out.set_item(*name, a)?;
     }
