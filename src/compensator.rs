@@ -385,7 +385,13 @@ impl<S: AsRef<[f64]>, const N: usize, const K: usize> Compensator<S, N, K> {
             gain *= r.gain(&terms);
         }
         self.field_gain = gain.max(MIN_FIELD_GAIN);
-        let mut field = (torque_ref_nmm - self.friction_nmm) / self.field_gain;
+        // Without a thermal or ripple stage the gain is exactly 1 and `x / 1` is `x`: no division.
+        let wanted = torque_ref_nmm - self.friction_nmm;
+        let mut field = if self.field_gain == 1.0 {
+            wanted
+        } else {
+            wanted / self.field_gain
+        };
         if let Some(a) = &self.stages.accommodation {
             // The shift of the state before this sample (it moves by a small share of a cycle per sample).
             field -= a.shift();

@@ -79,6 +79,19 @@ impl Converter {
         self.lag.step(target)
     }
 
+    /// [`Self::step`] with the voltage for coil current command `current_a` (A): `step(voltage_for(current_a))`
+    /// to the bit. The coil that carries no current (every sample one of the two) skips the division: a zero
+    /// command gives its own zero back through the gain and the clamp.
+    #[inline]
+    pub fn step_current(&mut self, current_a: f64) -> f64 {
+        let target = if current_a == 0.0 {
+            current_a
+        } else {
+            (self.params.gain_a_per_v * self.voltage_for(current_a)).clamp(0.0, self.params.limit_a)
+        };
+        self.lag.step(target)
+    }
+
     pub fn reset(&mut self) {
         self.lag.set_output(0.0);
     }
@@ -106,5 +119,31 @@ mod tests {
         assert_eq!(c.step(10.0), 1.25);
         assert_eq!(c.step(100.0), 1.5);
         assert_eq!(c.step(-3.0), 0.0);
+    }
+
+    /// A current command gives the bits of its voltage stepped, zeros of both signs included, with and without a
+    /// bandwidth limit.
+    #[test]
+    fn a_current_command_is_its_voltage_to_the_bit() {
+        for bandwidth_hz in [None, Some(200.0)] {
+            let params = ConverterParams {
+                gain_a_per_v: 0.3,
+                bandwidth_hz,
+                ..ConverterParams::default()
+            };
+            let (mut by_voltage, mut by_current) = (
+                Converter::new(params.clone(), 1e-3),
+                Converter::new(params, 1e-3),
+            );
+            for i in 0..400 {
+                let a = match i % 5 {
+                    0 => 0.0,
+                    1 => -0.0,
+                    _ => 2.0 * libm::sin(0.37 * i as f64),
+                };
+                let v = by_voltage.step(by_voltage.voltage_for(a));
+                assert_eq!(v.to_bits(), by_current.step_current(a).to_bits(), "{a}");
+            }
+        }
     }
 }

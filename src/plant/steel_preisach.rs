@@ -285,7 +285,7 @@ impl PreisachSteel {
     }
 
     /// Staircase segment contribution to the "up" mass: rising a→b adds F(b, a), falling a→b removes F(a, b).
-    #[inline]
+    #[inline(always)]
     fn segment(&mut self, from: f64, to: f64, rising: bool) -> f64 {
         let bits = from.to_bits();
         if self.from_cell.0 != bits {

@@ -785,8 +785,8 @@ impl VirtualActuator {
         let t_s = self.time_s();
         let applied = self.delay_line.step(cmd);
         let (c1, c2) = coil_split(applied);
-        let coil1_a = self.converter1.step(self.converter1.voltage_for(c1));
-        let coil2_a = self.converter2.step(self.converter2.voltage_for(c2));
+        let coil1_a = self.converter1.step_current(c1);
+        let coil2_a = self.converter2.step_current(c2);
         let field1_a = self.field1.step(coil1_a);
         let field2_a = self.field2.step(coil2_a);
         let b1_t = preisach_flux(

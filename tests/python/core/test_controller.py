@@ -180,6 +180,33 @@ def test_simulate_closed_loop_is_stepping_by_hand():
         bmr.simulate_closed_loop(ctl, act, ref, theta[:10])
 
 
+def test_simulate_closed_loop_writes_every_column_of_every_sample():
+    """Every column, of a reference given as a contiguous array, a strided view and a list, equals stepping by
+    hand (the columns are written into arrays that start uninitialised)."""
+    base = reference(1201)
+    for ref in (base, np.repeat(base, 2)[::2], base.tolist()):
+        ctl = bmr.Controller.from_model(MODEL, dt_s=DT_S)
+        act = plant()
+        ctl2, plant2 = copy.copy(ctl), copy.copy(act)
+        run = bmr.simulate_closed_loop(ctl, act, ref)
+        theta = plant2.theta_ahead(len(ref))
+        y = math.nan
+        want: dict[str, list] = {k: [] for k in ("t_s", "torque_nmm", "torque_true_nmm", "current_a",
+                                                  "correction_nmm", "gain", "offset_nmm", "saturated", "fault")}
+        for i in range(len(ref)):
+            c = ctl2.step(float(base[i]), float(theta[i]), y)
+            s = plant2.step(c.current_a)
+            y = s.torque_nmm
+            for k, v in (("t_s", s.t_s), ("torque_nmm", y), ("torque_true_nmm", s.torque_true_nmm),
+                         ("current_a", c.current_a), ("correction_nmm", ctl2.correction_nmm), ("gain", ctl2.gain),
+                         ("offset_nmm", ctl2.offset_nmm), ("saturated", c.saturated), ("fault", c.fault)):
+                want[k].append(v)
+        for k, v in want.items():
+            np.testing.assert_array_equal(getattr(run, k), np.array(v), err_msg=k)
+        np.testing.assert_array_equal(run.reference_nmm, base)
+        assert run.reference_nmm.dtype == np.float64 and run.reference_nmm.flags.c_contiguous
+
+
 @pytest.mark.slow
 def test_closed_loop_beats_the_open_loop_extended_compensator_on_a_heating_plant(tmp_path):
     from bmr.diagnosis.procedure import diagnose
