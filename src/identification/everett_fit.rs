@@ -483,7 +483,7 @@ pub(super) fn data_matrix(grid: &EverettGrid, ne: &NormalEquations) -> Vec<f64> 
     // The Gram matrix is symmetric to the bit (`NormalEquations::finish` mirrors it), so its rows are its
     // columns: T = G C row by row (row k = Cᵀ G[k, ..nn]), then B = Cᵀ G = Tᵀ on the node block and Q = B C.
     let mut t = alloc::vec![0.0; m * nn];
-    adjoint_rows(grid, &ne.gram, m, nn, &mut t);
+    adjoint_rows(grid, &ne.gram, m, nn, m, &mut t, nn);
     let mut b_nodes = alloc::vec![0.0; nn * nn]; // B = Cᵀ Gnn, row-major
     const BLOCK: usize = 32;
     for i0 in (0..nn).step_by(BLOCK) {
@@ -495,17 +495,18 @@ pub(super) fn data_matrix(grid: &EverettGrid, ne: &NormalEquations) -> Vec<f64> 
             }
         }
     }
-    let mut cbc = alloc::vec![0.0; nn * nn];
-    adjoint_rows(grid, &b_nodes, nn, nn, &mut cbc);
+    // Q's node block written in place (rows of length nn at stride m), then its offset rows and columns.
+    let mut q = alloc::vec![0.0; m * m];
+    adjoint_rows(grid, &b_nodes, nn, nn, nn, &mut q, m);
     drop(b_nodes);
-    let mut q: Vec<f64> = Vec::with_capacity(m * m);
     for k in 0..nn {
-        q.extend_from_slice(&cbc[k * nn..(k + 1) * nn]);
-        q.extend((nn..m).map(|o| t[o * nn + k]));
+        for o in nn..m {
+            q[k * m + o] = t[o * nn + k];
+        }
     }
     for o in nn..m {
-        q.extend_from_slice(&t[o * nn..(o + 1) * nn]);
-        q.extend_from_slice(&ne.gram[o * m + nn..(o + 1) * m]);
+        q[o * m..o * m + nn].copy_from_slice(&t[o * nn..(o + 1) * nn]);
+        q[o * m + nn..(o + 1) * m].copy_from_slice(&ne.gram[o * m + nn..(o + 1) * m]);
     }
     q
 }
@@ -537,23 +538,35 @@ pub(super) fn regularise(
     Ok(())
 }
 
-/// `out[k] = Cᵀ a[k, ..nn]` for every row `k` of the row-major `a` (row length `stride`), into the row-major
-/// `out` (row length `nn`), four rows at a time.
-fn adjoint_rows(grid: &EverettGrid, a: &[f64], stride: usize, nn: usize, out: &mut [f64]) {
+/// `out[k] = Cᵀ a[k, ..nn]` for the first `rows` rows `k` of the row-major `a` (row length `stride`), into the
+/// rows of `out` (row `k` at `k · out_stride`, `nn` long), four rows at a time.
+fn adjoint_rows(
+    grid: &EverettGrid,
+    a: &[f64],
+    stride: usize,
+    nn: usize,
+    rows: usize,
+    out: &mut [f64],
+    out_stride: usize,
+) {
     const L: usize = 4;
     let mut scratch = alloc::vec![0.0; L * grid.n_intervals()];
-    let mut chunks = out.chunks_exact_mut(L * nn);
     let mut k = 0;
-    for chunk in &mut chunks {
-        let (o0, rest) = chunk.split_at_mut(nn);
-        let (o1, rest) = rest.split_at_mut(nn);
-        let (o2, o3) = rest.split_at_mut(nn);
+    while k + L <= rows {
+        let block = &mut out[k * out_stride..];
+        let (o0, rest) = block.split_at_mut(out_stride);
+        let (o1, rest) = rest.split_at_mut(out_stride);
+        let (o2, o3) = rest.split_at_mut(out_stride);
         let g = core::array::from_fn(|r| &a[(k + r) * stride..(k + r) * stride + nn]);
-        grid.nodes_to_masses_adjoint_lanes::<L>(g, &mut [o0, o1, o2, o3], &mut scratch);
+        grid.nodes_to_masses_adjoint_lanes::<L>(
+            g,
+            &mut [&mut o0[..nn], &mut o1[..nn], &mut o2[..nn], &mut o3[..nn]],
+            &mut scratch,
+        );
         k += L;
     }
-    for (r, o) in chunks.into_remainder().chunks_exact_mut(nn).enumerate() {
-        let row = k + r;
+    for row in k..rows {
+        let o = &mut out[row * out_stride..row * out_stride + nn];
         grid.nodes_to_masses_adjoint_into(&a[row * stride..row * stride + nn], o, &mut scratch);
     }
 }
@@ -735,7 +748,6 @@ impl EverettRegression {
                 second_len: outputs.len(),
             });
         }
-        let mut flat = Vec::with_capacity(self.run_lengths.iter().sum());
         for (k, (y, &n)) in outputs.iter().zip(&self.run_lengths).enumerate() {
             if y.len() != n {
                 return Err(IdentificationError::Run {
@@ -747,7 +759,6 @@ impl EverettRegression {
                     },
                 });
             }
-            flat.extend_from_slice(y);
         }
         if let Some(w) = warm_start
             && w.len() != self.n_unknowns()
@@ -761,16 +772,23 @@ impl EverettRegression {
         }
         let mut rhs = alloc::vec![0.0; self.n_unknowns()];
         let mut yy = 0.0;
+        // The rows run through the runs in order: each run's rows read its output in place (no joined copy).
+        let mut run = 0;
+        let mut base = 0;
         for r in 0..self.row_sample.len() {
-            let i = self.row_sample[r];
-            let y = flat[i];
+            let mut i = self.row_sample[r] - base;
+            while i >= self.run_lengths[run] {
+                i -= self.run_lengths[run];
+                base += self.run_lengths[run];
+                run += 1;
+            }
+            let y = outputs[run][i];
             if !y.is_finite() {
-                let (run, sample) = self.locate(i);
                 return Err(IdentificationError::Run {
                     run,
                     error: RunError::NonFinite {
                         what: "output",
-                        sample,
+                        sample: i,
                         value: y,
                     },
                 });
@@ -783,17 +801,6 @@ impl EverettRegression {
         }
         let data = DataTerm::of(&self.normal, &rhs, yy);
         solve(&self.grid, &data, &self.q, self.options, warm_start)
-    }
-
-    fn locate(&self, flat: usize) -> (usize, usize) {
-        let mut i = flat;
-        for (k, &n) in self.run_lengths.iter().enumerate() {
-            if i < n {
-                return (k, i);
-            }
-            i -= n;
-        }
-        (self.run_lengths.len(), i)
     }
 }
 
@@ -1185,6 +1192,69 @@ mod tests {
         assert!(warm2.iterations <= cold2.iterations);
         assert!(reg.fit(&[&y2[1..]], None).is_err());
         assert!(reg.fit(&[&y2], Some(&[true; 3])).is_err());
+    }
+
+    #[test]
+    fn a_regression_reads_each_runs_output_in_place() {
+        // Three runs of different lengths, each with its offset: the rows read the outputs where they lie (the same
+        // fit as `fit_everett` on the runs), and a non-finite output is named by its run and sample, unless its row
+        // is weighted out.
+        let grid = EverettGrid::uniform(-1.0, 1.0, 6).unwrap();
+        let lengths = [310usize, 170, 250];
+        let us: Vec<Vec<f64>> = lengths
+            .iter()
+            .enumerate()
+            .map(|(k, &n)| {
+                (0..n)
+                    .map(|i| (0.7 + 0.1 * k as f64) * (i as f64 * 0.05 * (k + 1) as f64).sin())
+                    .collect()
+            })
+            .collect();
+        let ys: Vec<Vec<f64>> = us
+            .iter()
+            .enumerate()
+            .map(|(k, u)| u.iter().map(|v| v + 0.2 * v * v + k as f64).collect())
+            .collect();
+        let ws: Vec<Vec<f64>> = lengths
+            .iter()
+            .map(|&n| (0..n).map(|i| if i < 20 { 0.0 } else { 1.0 }).collect())
+            .collect();
+        let opts = EverettFitOptions::default();
+        let runs: Vec<EverettRun<'_>> = (0..3)
+            .map(|k| EverettRun {
+                u: &us[k],
+                y: &ys[k],
+                weight: &ws[k],
+                offset_col: k,
+                history: &[],
+                gain: 1.0,
+                drift: &[],
+            })
+            .collect();
+        let once = fit_everett(&grid, &runs, 3, opts).unwrap();
+        let inputs: Vec<EverettInput<'_>> = (0..3)
+            .map(|k| EverettInput {
+                u: &us[k],
+                weight: &ws[k],
+                offset_col: k,
+            })
+            .collect();
+        let reg = EverettRegression::new(&grid, &inputs, 3, opts).unwrap();
+        let views: Vec<&[f64]> = ys.iter().map(Vec::as_slice).collect();
+        let fit = reg.fit(&views, None).unwrap();
+        assert_eq!(fit.model, once.model);
+        assert_eq!(fit.offsets, once.offsets);
+        let mut bad = ys.clone();
+        bad[2][57] = f64::NAN;
+        bad[1][3] = f64::INFINITY; // weighted out: not a row
+        let views: Vec<&[f64]> = bad.iter().map(Vec::as_slice).collect();
+        match reg.fit(&views, None) {
+            Err(IdentificationError::Run {
+                run: 2,
+                error: RunError::NonFinite { sample: 57, .. },
+            }) => {}
+            other => panic!("expected run 2 sample 57 named, got {other:?}"),
+        }
     }
 
     #[test]

@@ -15,8 +15,10 @@ use alloc::vec::Vec;
 
 use super::error::IdentificationError;
 
-use faer::prelude::Solve;
-use faer::{Mat, Side};
+use faer::dyn_stack::{MemBuffer, MemStack};
+use faer::linalg::cholesky::llt;
+use faer::reborrow::{Reborrow, ReborrowMut};
+use faer::{Conj, Mat, Par};
 
 /// Projected coordinate-descent sweeps allowed after pivoting gave up (each sweep costs one product with `Q`).
 pub const MAX_DESCENT_SWEEPS: usize = 20_000;
@@ -89,6 +91,7 @@ pub fn nnls_gram_warm(
     let mut iterations = 0;
     let mut x = alloc::vec![0.0; n];
     let mut grad = alloc::vec![0.0; n];
+    let mut workspace = PassiveWorkspace::default();
     let mut passive = match warm_start {
         Some(w) => constrained.iter().zip(w).map(|(&c, &p)| !c || p).collect(),
         None => cold.clone(),
@@ -109,6 +112,7 @@ pub fn nnls_gram_warm(
         &mut x,
         &mut grad,
         &mut iterations,
+        &mut workspace,
     ) {
         Some(solution) => return Ok(solution),
         None if warm_start.is_some() => {
@@ -122,6 +126,7 @@ pub fn nnls_gram_warm(
                 &mut x,
                 &mut grad,
                 &mut iterations,
+                &mut workspace,
             ) {
                 return Ok(solution);
             }
@@ -143,7 +148,7 @@ pub fn nnls_gram_warm(
     // Polish: the exact minimiser on the descent's support, kept when feasible and at least as optimal.
     let mut exact = alloc::vec![0.0; n];
     let mut condition = f64::INFINITY;
-    if let Some(cond) = solve_passive(q, c, &passive, &mut exact) {
+    if let Some(cond) = solve_passive(q, c, &passive, &mut exact, &mut workspace) {
         condition = cond;
         if exact
             .iter()
@@ -183,6 +188,7 @@ fn pivot(
     x: &mut [f64],
     grad: &mut [f64],
     iterations: &mut usize,
+    workspace: &mut PassiveWorkspace,
 ) -> Option<NnlsSolution> {
     let n = c.len();
     let mut best_infeasible = usize::MAX;
@@ -190,7 +196,7 @@ fn pivot(
     let tol = 1e-12 * (0..n).map(|i| q[i * n + i]).fold(0.0, f64::max);
     for _ in 0..max_iter {
         *iterations += 1;
-        let condition = solve_passive(q, c, passive, x)?;
+        let condition = solve_passive(q, c, passive, x, workspace)?;
         gradient(q, c, x, grad);
         let infeasible: Vec<usize> = (0..n)
             .filter(|&i| {
@@ -308,31 +314,105 @@ fn coordinate_descent(
     MAX_DESCENT_SWEEPS
 }
 
+/// Storage the passive systems of one solve share: the Cholesky factor (a column-major square grown to the
+/// largest passive set seen, its top-left corner used), the factorisation's scratch and the passive indices.
+/// Every pivoting step factors a system of a few hundred unknowns; a fresh factor per step (plus the copy of
+/// its lower triangle a `Mat::llt` makes) was a page-faulted allocation of that size each time.
+#[derive(Default)]
+struct PassiveWorkspace {
+    idx: Vec<usize>,
+    factor: Option<Mat<f64>>,
+    scratch: Option<(usize, MemBuffer)>,
+    /// Times the factor storage was allocated (once per new largest passive set).
+    allocations: usize,
+}
+
+impl PassiveWorkspace {
+    /// The factor storage for `k` unknowns (reallocated only when `k` exceeds every earlier size) and the scratch
+    /// of a `k × k` factorisation.
+    fn for_size(&mut self, k: usize) -> (&mut Mat<f64>, &mut MemBuffer) {
+        if self.factor.as_ref().is_none_or(|f| f.nrows() < k) {
+            self.factor = Some(Mat::zeros(k, k));
+            self.allocations += 1;
+        }
+        if self.scratch.as_ref().is_none_or(|(size, _)| *size < k) {
+            let req =
+                llt::factor::cholesky_in_place_scratch::<f64>(k, Par::Seq, Default::default());
+            self.scratch = Some((k, MemBuffer::new(req)));
+        }
+        match (&mut self.factor, &mut self.scratch) {
+            (Some(f), Some((_, mem))) => (f, mem),
+            _ => unreachable!("both were just made"),
+        }
+    }
+}
+
 /// `x_F = Q_FF⁻¹ c_F`, zero elsewhere; returns the condition estimate of `Q_FF` (squared ratio of its largest to
 /// smallest Cholesky pivot), or None when `Q_FF` is not numerically positive definite or the solution is not
-/// finite.
-fn solve_passive(q: &[f64], c: &[f64], passive: &[bool], x: &mut [f64]) -> Option<f64> {
+/// finite. The factorisation is `Mat::llt`'s (the lower triangle of `Q_FF`, read as `Q[F_r, F_s]`, factored in
+/// place sequentially, the upper triangle zero), done in `workspace`'s storage: the same factor to the bit.
+fn solve_passive(
+    q: &[f64],
+    c: &[f64],
+    passive: &[bool],
+    x: &mut [f64],
+    workspace: &mut PassiveWorkspace,
+) -> Option<f64> {
     let n = c.len();
-    let idx: Vec<usize> = (0..n).filter(|&i| passive[i]).collect();
+    let mut idx = core::mem::take(&mut workspace.idx);
+    idx.clear();
+    idx.extend((0..n).filter(|&i| passive[i]));
     x.iter_mut().for_each(|v| *v = 0.0);
-    if idx.is_empty() {
+    let k = idx.len();
+    if k == 0 {
+        workspace.idx = idx;
         return Some(1.0);
     }
-    let k = idx.len();
-    let a = Mat::<f64>::from_fn(k, k, |r, s| q[idx[r] * n + idx[s]]);
-    let b = Mat::<f64>::from_fn(k, 1, |r, _| c[idx[r]]);
-    let llt = a.llt(Side::Lower).ok()?;
-    let l = llt.L();
+    let (factor, mem) = workspace.for_size(k);
+    let mut a = factor.as_mut().submatrix_mut(0, 0, k, k);
+    // Row by row of Q (each read where the passive columns lie), into the lower triangle; the upper one zero.
+    for (r, &qr) in idx.iter().enumerate() {
+        let row = &q[qr * n..(qr + 1) * n];
+        for (s, &qs) in idx[..=r].iter().enumerate() {
+            a[(r, s)] = row[qs];
+        }
+    }
+    for s in 1..k {
+        a.rb_mut().col_mut(s).subrows_mut(0, s).fill(0.0);
+    }
+    let factored = llt::factor::cholesky_in_place(
+        a.rb_mut(),
+        Default::default(),
+        Par::Seq,
+        MemStack::new(mem),
+        Default::default(),
+    );
+    if factored.is_err() {
+        workspace.idx = idx;
+        return None;
+    }
+    for s in 1..k {
+        a.rb_mut().col_mut(s).subrows_mut(0, s).fill(0.0);
+    }
+    let l = a.rb();
     let (mut lo, mut hi) = (f64::INFINITY, 0.0f64);
     for r in 0..k {
         let d = l[(r, r)].abs();
         lo = lo.min(d);
         hi = hi.max(d);
     }
-    let sol = llt.solve(&b);
+    let mut sol = Mat::<f64>::from_fn(k, 1, |r, _| c[idx[r]]);
+    llt::solve::solve_in_place_with_conj(
+        l,
+        Conj::No,
+        sol.as_mut(),
+        Par::Seq,
+        MemStack::new(&mut []),
+    );
     for (r, &i) in idx.iter().enumerate() {
         x[i] = sol[(r, 0)];
     }
+    workspace.idx = idx;
     if x.iter().any(|v| !v.is_finite()) {
         return None;
     }
@@ -473,5 +553,66 @@ mod tests {
         let c = [-1.0, 2.0];
         let s = nnls_gram(&q, &c, &[true, true], 0).unwrap();
         assert!(s.converged && s.descent && (s.x[0]).abs() < 1e-9 && (s.x[1] - 1.0).abs() < 1e-9);
+    }
+
+    /// `solve_passive` as it was before the workspace: `Mat::llt` on a fresh copy of `Q_FF`.
+    fn solve_passive_fresh(q: &[f64], c: &[f64], passive: &[bool]) -> Option<(Vec<f64>, f64)> {
+        use faer::Side;
+        use faer::prelude::Solve;
+        let n = c.len();
+        let idx: Vec<usize> = (0..n).filter(|&i| passive[i]).collect();
+        let k = idx.len();
+        let a = Mat::<f64>::from_fn(k, k, |r, s| q[idx[r] * n + idx[s]]);
+        let b = Mat::<f64>::from_fn(k, 1, |r, _| c[idx[r]]);
+        let llt = a.llt(Side::Lower).ok()?;
+        let l = llt.L();
+        let (mut lo, mut hi) = (f64::INFINITY, 0.0f64);
+        for r in 0..k {
+            lo = lo.min(l[(r, r)].abs());
+            hi = hi.max(l[(r, r)].abs());
+        }
+        let sol = llt.solve(&b);
+        let mut x = alloc::vec![0.0; n];
+        for (r, &i) in idx.iter().enumerate() {
+            x[i] = sol[(r, 0)];
+        }
+        Some((x, (hi / lo) * (hi / lo)))
+    }
+
+    #[test]
+    fn passive_systems_share_one_factor_storage_and_solve_as_a_fresh_factor_to_the_bit() {
+        // A dense, slightly asymmetric (as Cᵀ G C is by round-off) positive definite Q of 150 unknowns.
+        let n = 150;
+        let mut q = alloc::vec![0.0; n * n];
+        for i in 0..n {
+            for j in 0..n {
+                let v = 1.0 / (1.0 + (i as f64 - j as f64).abs())
+                    + 0.3 * ((i * 7 + j * 3) % 11) as f64 / 11.0;
+                q[i * n + j] = v * (1.0 + 1e-15 * ((i + 2 * j) % 5) as f64);
+            }
+            q[i * n + i] += n as f64;
+        }
+        let c: Vec<f64> = (0..n).map(|i| ((i * 37) % 17) as f64 - 8.0).collect();
+        let mut workspace = PassiveWorkspace::default();
+        // Passive sets of several sizes, the largest first (as a warm-started pivoting shrinks its set).
+        for (m, size) in [
+            (1usize, 150usize),
+            (2, 120),
+            (3, 97),
+            (5, 60),
+            (7, 13),
+            (4, 150),
+        ] {
+            let passive: Vec<bool> = (0..n).map(|i| (i * m) % n < size).collect();
+            let mut x = alloc::vec![1.0; n];
+            let cond = solve_passive(&q, &c, &passive, &mut x, &mut workspace).unwrap();
+            let (fresh_x, fresh_cond) = solve_passive_fresh(&q, &c, &passive).unwrap();
+            assert_eq!(x, fresh_x);
+            assert_eq!(cond.to_bits(), fresh_cond.to_bits());
+        }
+        assert_eq!(
+            workspace.allocations, 1,
+            "the factor of the largest set serves every smaller one"
+        );
     }
 }

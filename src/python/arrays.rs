@@ -22,7 +22,12 @@ pub(crate) fn to_numpy<'py>(py: Python<'py>, v: Vec<f64>) -> Bound<'py, PyArray1
 /// argument. Booleans and complex numbers are refused rather than silently turned into 0/1 or real parts.
 pub(crate) fn extract_f64_array(obj: &Bound<'_, PyAny>, what: &str) -> PyResult<Vec<f64>> {
     if let Ok(a) = obj.cast::<PyArray1<f64>>() {
-        return Ok(a.readonly().as_array().iter().copied().collect());
+        let a = a.readonly();
+        // A contiguous array is one copy of its memory; a strided one is gathered element by element.
+        return Ok(match a.as_slice() {
+            Ok(s) => s.to_vec(),
+            Err(_) => a.as_array().iter().copied().collect(),
+        });
     }
     let type_err = |detail: String| PyTypeError::new_err(format!("{what}: {detail}"));
     let arr = obj

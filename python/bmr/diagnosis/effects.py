@@ -827,12 +827,17 @@ class RunGainOffset(Effect):
         ind = data.cache.get(("run_indicator", y_field.size), make)
         if value == "offset":
             return ind
-        # The calibration scales what the sensor reads: the field output and the friction alike.
-        cols = [ind * (y_field + data.friction_nmm)[:, None], ind]
-        if value == "gain_offset_friction":
+        # The calibration scales what the sensor reads: the field output and the friction alike. The columns are
+        # written into one array (a long bundle's indicator block is tens of MB: no stacked copy of it).
+        runs = ind.shape[1]
+        friction = value == "gain_offset_friction"
+        out = np.empty((y_field.size, 2 * runs + int(friction)))
+        np.multiply(ind, (y_field + data.friction_nmm)[:, None], out=out[:, :runs])
+        out[:, runs:2 * runs] = ind
+        if friction:
             c0 = model.friction.c0 if model.friction is not None else 0.0
-            cols.append((data.friction_nmm - c0)[:, None])
-        return np.column_stack(cols)
+            np.subtract(data.friction_nmm, c0, out=out[:, 2 * runs])
+        return out
 
     # The calibration's differences between recordings must exceed its changes within one recording this many
     # times (in mean square), or what the per-run terms fit is not a calibration.

@@ -393,7 +393,10 @@ class FieldPath:
                 core, _ = h.run_rate_dependent(u, tau_s=self.rate_tau_s, dt_s=r.dt_s)
             else:
                 core = h.run(u)
-            out.append(output_map(np.asarray(core, dtype=float), self.curvature, self.scale_nmm, self.cubic))
+            core = np.asarray(core, dtype=float)
+            # The core's output is a fresh array: without an output map it is the field (no copy).
+            identity = self.curvature == 0.0 and self.cubic == 0.0
+            out.append(core if identity else output_map(core, self.curvature, self.scale_nmm, self.cubic))
         return out
 
     def with_correction(self, effect: Any, value: Any, beta: Sequence[float]) -> "FieldPath":

@@ -228,3 +228,36 @@ def test_a_candidate_without_its_signature_is_not_searched(request, name, bundle
     assert not sel["accepted"] and not sel["alternatives"]
     row = next(r for r in sel["rejected"] if r["name"] == name)
     assert row["folds_evaluated"] == 0 and row["fold_gains"] == [] and missing in row["reason"]
+
+
+def test_the_measured_torque_is_gathered_on_the_fit_rows_once(fitter, monkeypatch) -> None:
+    # Every configuration's fit subtracts its field from the measured torque on the fit rows gathered with the
+    # fitter: no fit gathers the measured torque again.
+    assert np.array_equal(fitter.measured_rows, fitter.measured[fitter.data.fit_rows])
+    gathered = []
+    take = np.take
+
+    def spy(a, *args, **kwargs):
+        gathered.append(a is fitter.measured)
+        return take(a, *args, **kwargs)
+
+    monkeypatch.setattr(selection.np, "take", spy)
+    ff = fitter.solve(fitter.nominal_path().with_(curvature=0.0123), [(_effect("run_gain_offset"), "offset")])
+    assert gathered and not any(gathered)
+    assert np.all(np.isfinite(ff.sse_test))
+
+
+def test_the_run_calibration_columns_are_the_per_run_products(fitter) -> None:
+    # Written into one array, the columns are the per-run indicator times the sensor's reading, the indicator and
+    # the friction's angle-dependent part, to the bit.
+    data, model = fitter.data, fitter.model
+    eff = _effect("run_gain_offset")
+    y = fitter.field(fitter.nominal_path())
+    ind = eff.columns(data, "offset", y, model)
+    for value in ("gain_offset", "gain_offset_friction"):
+        cols = eff.columns(data, value, y, model)
+        expected = [ind * (y + data.friction_nmm)[:, None], ind]
+        if value == "gain_offset_friction":
+            expected.append((data.friction_nmm - model.friction.c0)[:, None])
+        assert np.array_equal(cols, np.column_stack(expected))
+
