@@ -908,25 +908,31 @@ def _needed_pair(fitter: Fitter, config: Configuration, cands: Sequence[Candidat
     hopeful = sorted((c for c in cands if c.fold_gains.size and c.folds_positive * 2 > c.fold_gains.size
                       and c.mean_gain >= MIN_GAIN and not c.no_signature and not c.unphysical),
                      key=lambda c: -c.mean_gain)[:PAIR_CANDIDATES]
+    alone: dict[str, Configuration] = {}  # each candidate refitted on ``config`` once, whichever pair asks
+
+    def with_(c: Candidate) -> Configuration:
+        if c.effect.name not in alone:
+            alone[c.effect.name] = refit(fitter, config, c.effect)[0]
+        return alone[c.effect.name]
+
     for i, a in enumerate(hopeful):
         for b in hopeful[i + 1:]:
-            with_a, _ = refit(fitter, config, a.effect)
+            with_a = with_(a)
             b_given_a = evaluate(fitter, with_a, b.effect, heldout(fitter, with_a))
             if not b_given_a.accepted:
                 continue
-            with_b, _ = refit(fitter, config, b.effect)
+            with_b = with_(b)
             a_given_b = evaluate(fitter, with_b, a.effect, heldout(fitter, with_b))
             if not a_given_b.accepted:
                 continue
-            both, params_b = refit(fitter, with_a, b.effect)
+            both, _ = refit(fitter, with_a, b.effect)
             fields = list(field_effects) + [e.effect for e in (a, b) if e.effect.field]
             if _unphysical(fitter, both, fields):
                 continue
             if b.effect.signature_missing(fitter, with_a, both) or a.effect.signature_missing(fitter, with_b, both):
                 continue
-            params = linear_params(fitter, both)
-            a_params = a.effect.params(None, None, both.path) if a.effect.field else params.get(a.effect.name, {})
-            return both, [(a_given_b, a_params), (b_given_a, params_b)]
+            params = _config_params(fitter, both, fields)
+            return both, [(a_given_b, params[a.effect.name]), (b_given_a, params[b.effect.name])]
     return None
 
 
