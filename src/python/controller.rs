@@ -365,6 +365,19 @@ fn _rebuild_controller(
     Ok(c)
 }
 
+/// The writable slices of freshly made (contiguous) numpy columns.
+fn column_slices<'a, 'py, T: numpy::Element>(
+    views: &'a mut [numpy::PyReadwriteArray1<'py, T>],
+) -> PyResult<Vec<&'a mut [T]>> {
+    views
+        .iter_mut()
+        .map(|v| {
+            v.as_slice_mut()
+                .map_err(|_| BmrError::new_err("column not contiguous"))
+        })
+        .collect()
+}
+
 /// The closed loop on a virtual actuator in one Rust loop: every sample the controller gets the reference, the
 /// angle and the torque measured at the previous sample, and the actuator the command. Returns a dict of arrays
 /// (`bmr.simulate_closed_loop` makes it a `ClosedLoopRun`).
@@ -435,20 +448,8 @@ fn _simulate_closed_loop<'py>(
     {
         let mut float_views: Vec<_> = floats.iter().map(|a| a.readwrite()).collect();
         let mut flag_views: Vec<_> = flags.iter().map(|a| a.readwrite()).collect();
-        let mut cols: Vec<&mut [f64]> = float_views
-            .iter_mut()
-            .map(|v| {
-                v.as_slice_mut()
-                    .map_err(|_| BmrError::new_err("column not contiguous"))
-            })
-            .collect::<PyResult<_>>()?;
-        let mut bits: Vec<&mut [bool]> = flag_views
-            .iter_mut()
-            .map(|v| {
-                v.as_slice_mut()
-                    .map_err(|_| BmrError::new_err("column not contiguous"))
-            })
-            .collect::<PyResult<_>>()?;
+        let mut cols = column_slices(&mut float_views)?;
+        let mut bits = column_slices(&mut flag_views)?;
         let mut ctl = busy(controller)?;
         let ctl = &mut ctl.core;
         let mut sim = plant.sim()?;
