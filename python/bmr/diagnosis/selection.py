@@ -595,6 +595,13 @@ def evaluate(fitter: Fitter, config: Configuration, eff: Effect, before: Heldout
         train_sse = n_train * np.log(np.maximum(train_sse, 1e-300) / n_train) + widths[:, None] * np.log(n_train)
     reidentifies = type(eff).update_path is not Effect.update_path
     best = [int(np.argmin(train_sse[:, k])) for k in range(data.folds)]
+    if eff.gain_beyond_refitted_tables and not compared.path.reidentify:
+        refitted = {i for i in set(best) if _with(config, eff, grid[i], data)[0].reidentify}
+        if refitted:
+            # The folds that chose re-identified tables are judged against the configuration on such tables.
+            on_tables = heldout(fitter, Configuration(compared.path.with_(reidentify=True), compared.linear))
+            pick = np.array([best[k] in refitted for k in range(data.folds)])
+            before = Heldout(np.where(pick, on_tables.sse, before.sse), before.n)
     mask = eff.acts_on(fitter, [grid[i] for i in best])
     local_before = _masked_test_sse(fitter, compared.path, compared.linear, mask) if mask is not None else None
     local_after = np.zeros(data.folds)
