@@ -146,7 +146,12 @@ class Core(P.Plant):
         return self._branch(u) + self._rev_scale * math.tanh(u / 0.6), turned
 
     def saturated(self) -> bool:
-        return len(self.stack) == 1 or (len(self.stack) == 2 and self.x >= P.HI)
+        """At a saturation end of the input: the memory is wiped out."""
+        return self.x <= P.LO or self.x >= P.HI
+
+    def turned_at_end(self) -> bool:
+        """The newest reversal point is a saturation end (leaving saturation is not a reversal of a loop)."""
+        return len(self.stack) > 1 and (self.stack[-1][0] <= P.LO or self.stack[-1][0] >= P.HI)
 
 
 class IndependentRig:
@@ -268,7 +273,7 @@ class IndependentRig:
                 if core.saturated():
                     self.shift = 0.0
                     self.reversal_outputs = []
-                elif turned:
+                elif turned and not core.turned_at_end():
                     self.reversal_outputs = (self.reversal_outputs + [y_core])[-2:]
                     if len(self.reversal_outputs) == 2:
                         centre = 0.5 * (self.reversal_outputs[0] + self.reversal_outputs[1])
