@@ -145,13 +145,20 @@ class Core(P.Plant):
         self.x = u
         return self._branch(u) + self._rev_scale * math.tanh(u / 0.6), turned
 
+    # Within this of an end of the input range the core is saturated (every hysteron of this density switched: a
+    # delayed or lagged drive comes within a fraction of a sample's step of the end, not onto it).
+    SATURATION_A = 0.01
+
     def saturated(self) -> bool:
         """At a saturation end of the input: the memory is wiped out."""
-        return self.x <= P.LO or self.x >= P.HI
+        return self.x <= P.LO + self.SATURATION_A or self.x >= P.HI - self.SATURATION_A
 
     def turned_at_end(self) -> bool:
         """The newest reversal point is a saturation end (leaving saturation is not a reversal of a loop)."""
-        return len(self.stack) > 1 and (self.stack[-1][0] <= P.LO or self.stack[-1][0] >= P.HI)
+        if len(self.stack) < 2:
+            return False
+        u = self.stack[-1][0]
+        return u <= P.LO + self.SATURATION_A or u >= P.HI - self.SATURATION_A
 
 
 class IndependentRig:
