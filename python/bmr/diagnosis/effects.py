@@ -856,18 +856,24 @@ class RunGainOffset(Effect):
         kept = tuple(c for c in path.corrections if c[0] is not self)
         base = path.with_(corrections=kept, reidentify=True)
         gains = reid.context.cache.get(("protocol_gains", base.key()), lambda: self.protocol_gains(base))
-        change = [(pr.torque + pr.friction()) * (1.0 / g - 1.0) for pr, g in zip(reid.runs, gains)]
-        rms = math.sqrt(sum(float(np.sum((c - np.mean(c)) ** 2)) for c in change) / sum(c.size for c in change))
-        if rms <= self.PROTOCOL_GAIN_NOISE * reid.context.noise_floor_nmm:
+        if gains is None:
             return path
         return base.with_correction(self, tuple(pr.name for pr in reid.runs), gains)
 
-    def protocol_gains(self, path: FieldPath) -> np.ndarray:
+    def _negligible(self, reid: Any, gains: np.ndarray) -> bool:
+        """Dividing ``gains`` out changes the protocol runs (RMS around each run's mean) by at most
+        :attr:`PROTOCOL_GAIN_NOISE` of the noise floor."""
+        change = [(pr.torque + pr.friction()) * (1.0 / g - 1.0) for pr, g in zip(reid.runs, gains)]
+        rms = math.sqrt(sum(float(np.sum((c - np.mean(c)) ** 2)) for c in change) / sum(c.size for c in change))
+        return rms <= self.PROTOCOL_GAIN_NOISE * reid.context.noise_floor_nmm
+
+    def protocol_gains(self, path: FieldPath) -> np.ndarray | None:
         """Each protocol run's gain (geometric mean 1) under ``path`` (re-identified tables): the tables are
         identified, each run's measured output is fitted as a gain times the simulated output (friction included)
         plus an offset, the gains are divided out and the tables identified again, until the gains settle. The
         runs share input histories (the ascending family's falls are the descending family's branches): the
-        relative gains are what one set of tables can reconcile."""
+        relative gains are what one set of tables can reconcile. None when the first estimate is negligible
+        (:meth:`_negligible`: no further identification is spent) or the runs give no positive gains."""
         from types import SimpleNamespace
 
         reid = path.reidentifier
@@ -894,14 +900,16 @@ class RunGainOffset(Effect):
                 if np.count_nonzero(ok) > 2:
                     new[i] = float(np.linalg.lstsq(x[ok], y[s:][ok], rcond=None)[0][0])
             if not np.all(np.isfinite(new)) or np.any(new <= 0.0):
-                return np.ones(len(names))  # no gain the tables can reconcile: leave the runs alone
+                return None  # no gain the tables can reconcile: leave the runs alone
             new /= math.exp(float(np.mean(np.log(new))))
+            if current is path and self._negligible(reid, new):
+                return None
             done = float(np.max(np.abs(np.log(new / gains)))) < self.PROTOCOL_GAIN_TOL
             gains = new
-            current = path.with_correction(self, names, gains)
             if done:
                 break
-        return gains
+            current = path.with_correction(self, names, gains)
+        return None if self._negligible(reid, gains) else gains
 
     @staticmethod
     def remove(y, value, beta, run):

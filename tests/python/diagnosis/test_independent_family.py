@@ -177,3 +177,16 @@ def test_an_after_effect_is_named_next_to_a_calibration_per_recording():
     creep = next(e["params"] for e in d.effects if e["name"] == "creep")
     assert abs(creep["fluctuation"] - truth["viscosity_a"]) <= 0.3 * truth["viscosity_a"], creep
     assert d.residual_rms_nmm < 1.5 * d.noise_floor_nmm, (d.residual_rms_nmm, d.noise_floor_nmm)
+
+
+@pytest.mark.slow
+def test_a_transport_delay_is_named_next_to_reptation():
+    # Reptation moves every minor loop towards the middle, reversal by reversal; the delay shifts every branch in
+    # time. Alone each is named; together both are (20.3 N·mm held out, each fold gaining once both are in).
+    mechanisms = ["fractional_delay", "reptation"]
+    bundle = ip.independent_bundle({m: ip.at_size(m, 1.0) for m in mechanisms}, seed=SEED)
+    d = bmr.diagnose(bundle, progress=False, closed_loop=False)
+    _assert_named(d, mechanisms)
+    delay = next(e["params"] for e in d.effects if e["name"] == "time_delay")
+    truth = ip.at_size("fractional_delay", 1.0)["delay_s"]
+    assert abs(delay["delay_s"] - truth) <= 0.25 * truth, delay
