@@ -114,9 +114,10 @@ def measure_calibration(repeat: int) -> None:
 
 def measure_calibration_independent(repeat: int) -> None:
     """Blind diagnoses on the independently written plant family (``tests/python/independent_plant.py``; the
-    calibration script records its own section): every mechanism at medium size, one seed, clean and pairs."""
+    calibration script records its own section): every mechanism at medium size, one seed, clean and pairs, on
+    the diagnosis protocol and on the paper's coarse protocol alone."""
     _timed(["nice", sys.executable, "benches/diagnosis_calibration.py", "--family", "independent", "--plants",
-            "independent", "--sizes", "1", "--seeds", "1", "--workers", "1", "--record"])
+            "independent,independent_coarse", "--sizes", "1", "--seeds", "1", "--workers", "1", "--record"])
 
 
 def measure_diagnosis_speed(repeat: int) -> None:
