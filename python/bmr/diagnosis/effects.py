@@ -1003,7 +1003,15 @@ class RunGainOffset(Effect):
             return (f"the per-run corrections change as much within a run as between runs (mean squares "
                     f"{between / n:.3g} between, {within / n:.3g} within): not a calibration per recording")
         if len(fits) < self.TREND_RUNS:
-            return ""
+            # Few evaluation runs: the protocol recordings were made in the same session and carry its trend too.
+            for x, f, t in self._protocol_corrections(fitter, before):
+                designs.append(x)
+                fits.append(f)
+                times.append(t)
+            if len(fits) < self.TREND_RUNS:
+                return ""
+            mean = float(np.mean(np.concatenate([x @ f for x, f in zip(designs, fits)])))
+            between = sum(float(np.sum((x @ f - mean) ** 2)) for x, f in zip(designs, fits))
         # The runs' offsets and gains as straight lines of the runs' times: what a drift along the session leaves.
         tt = np.column_stack([np.ones(len(times)), np.asarray(times)])
         coef = np.asarray(fits)
@@ -1030,6 +1038,32 @@ class RunGainOffset(Effect):
                 f"spread between runs) that moves each run along it too ({100 * along:.0f} % of the trend's change "
                 f"between its halves, {100 * explained:.0f} % of their change): a drift along the session, not a "
                 "calibration per recording")
+
+    @staticmethod
+    def _protocol_corrections(fitter: Any, before: Any) -> list[tuple[np.ndarray, np.ndarray, float]]:
+        """Each protocol run's offset and gain on the sensed output against the configuration ``before``, from its
+        first saturation on: ``(design [1, sensed], coefficients, mean time in the bundle (s))``. The tables come
+        from these runs, so the corrections are smaller than the runs' own calibrations, but a session's trend
+        still orders them in time."""
+        from types import SimpleNamespace
+
+        reid = fitter.reidentifier
+        if not reid.runs:
+            return []
+        lo, hi = reid.input_range
+        sims = before.path.simulate([SimpleNamespace(current_a=pr.current, dt_s=pr.dt) for pr in reid.runs])
+        out = []
+        for pr, sim in zip(reid.runs, sims):
+            s = evaluation_start(pr.current, lo, hi, SATURATION_TOL * (hi - lo))
+            f = pr.friction()[s:]
+            r, y = pr.torque[s:] - sim[s:], sim[s:] + f
+            ok = np.isfinite(r) & np.isfinite(y)
+            if np.count_nonzero(ok) < 20:
+                continue
+            x = np.column_stack([np.ones(int(np.count_nonzero(ok))), y[ok]])
+            t = pr.t0_s + float(np.mean(pr.t[s:][ok] - pr.t[0]))
+            out.append((x, np.linalg.lstsq(x, r[ok], rcond=None)[0], t))
+        return out
 
     def params(self, value, beta, path):
         beta = np.asarray(beta, dtype=float)

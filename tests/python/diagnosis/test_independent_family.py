@@ -190,3 +190,14 @@ def test_a_transport_delay_is_named_next_to_reptation():
     delay = next(e["params"] for e in d.effects if e["name"] == "time_delay")
     truth = ip.at_size("fractional_delay", 1.0)["delay_s"]
     assert abs(delay["delay_s"] - truth) <= 0.25 * truth, delay
+
+
+@pytest.mark.slow
+def test_a_session_trend_is_not_a_calibration_per_recording_with_few_evaluation_runs():
+    # The paper's protocol alone has three evaluation runs, too few to tell a session's trend from calibrations
+    # drawn per recording; the two first-order recordings of the same session carry the trend too. With them, a
+    # heating next to a warming bridge is named as both (it was named run_gain_offset).
+    bundle = ip.independent_bundle({m: ip.at_size(m, 1.0) for m in PAIR}, seed=SEED, protocol="coarse")
+    d = bmr.diagnose(bundle, progress=False, closed_loop=False)
+    assert "run_gain_offset" not in _physical(d), d.to_dict()["effects"]
+    _assert_named(d, PAIR)
