@@ -42,7 +42,6 @@ from bmr._core import BmrError
 from bmr.diagnosis.field import REIDENTIFY_INTERVALS, FieldPath, steepest_slope
 from bmr.diagnosis.residuals import EvalData, reversal_order
 from bmr.identification.signals import running_integral
-from bmr.identification.spans import SATURATION_TOL, evaluation_start
 
 __all__ = ["Effect", "LIBRARY", "PHYSICAL", "ANGLE_EFFECTS", "thermal_state", "CREEP_TAUS_S"]
 
@@ -874,12 +873,9 @@ class RunGainOffset(Effect):
         runs share input histories (the ascending family's falls are the descending family's branches): the
         relative gains are what one set of tables can reconcile. None when the first estimate is negligible
         (:meth:`_negligible`: no further identification is spent) or the runs give no positive gains."""
-        from types import SimpleNamespace
-
         reid = path.reidentifier
         lo, hi = reid.input_range
         names = tuple(pr.name for pr in reid.runs)
-        runs = [SimpleNamespace(current_a=pr.current, dt_s=pr.dt) for pr in reid.runs]
         others = sorted(path.corrections, key=lambda c: c[0].removal_rank)
         measured, starts = [], []
         for pr in reid.runs:
@@ -887,12 +883,11 @@ class RunGainOffset(Effect):
             for effect, value, beta in others:
                 y = effect.remove(y, value, np.asarray(beta), pr)
             measured.append(y + pr.friction())
-            starts.append(evaluation_start(pr.current, lo, hi, SATURATION_TOL * (hi - lo))
-                          + int(np.ceil(5 * path.lag_tau_s / pr.dt)))
+            starts.append(pr.known_from(lo, hi) + int(np.ceil(5 * path.lag_tau_s / pr.dt)))
         gains = np.ones(len(names))
         current = path
         for _ in range(self.PROTOCOL_GAIN_PASSES):
-            sims = current.simulate(runs)
+            sims = current.simulate(reid.runs)
             new = np.ones(len(names))
             for i, (pr, y, sim, s) in enumerate(zip(reid.runs, measured, sims, starts)):
                 x = np.column_stack([sim[s:] + pr.friction()[s:], np.ones(y.size - s)])
@@ -1045,16 +1040,14 @@ class RunGainOffset(Effect):
         first saturation on: ``(design [1, sensed], coefficients, mean time in the bundle (s))``. The tables come
         from these runs, so the corrections are smaller than the runs' own calibrations, but a session's trend
         still orders them in time."""
-        from types import SimpleNamespace
-
         reid = fitter.reidentifier
         if not reid.runs:
             return []
         lo, hi = reid.input_range
-        sims = before.path.simulate([SimpleNamespace(current_a=pr.current, dt_s=pr.dt) for pr in reid.runs])
+        sims = before.path.simulate(reid.runs)
         out = []
         for pr, sim in zip(reid.runs, sims):
-            s = evaluation_start(pr.current, lo, hi, SATURATION_TOL * (hi - lo))
+            s = pr.known_from(lo, hi)
             f = pr.friction()[s:]
             r, y = pr.torque[s:] - sim[s:], sim[s:] + f
             ok = np.isfinite(r) & np.isfinite(y)

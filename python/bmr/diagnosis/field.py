@@ -132,6 +132,19 @@ class ProtocolRun:
         self._harmonic: tuple[Any, tuple[np.ndarray, np.ndarray]] | None = None
         self.torque = run.output - self.friction()
 
+    @property
+    def current_a(self) -> np.ndarray:
+        """The input, under the name :meth:`FieldPath.simulate` reads of a run."""
+        return self.current
+
+    @property
+    def dt_s(self) -> float:
+        return self.dt
+
+    def known_from(self, lo: float, hi: float) -> int:
+        """The first sample whose state is known: after the run's first saturation (input range ``lo``..``hi``)."""
+        return evaluation_start(self.current, lo, hi, SATURATION_TOL * (hi - lo))
+
     def harmonic(self, order: Any) -> tuple[np.ndarray, np.ndarray]:
         """``sin(order·θ)``, ``cos(order·θ)`` along the run (the last order asked for is kept: the folds of one
         candidate remove the same harmonic again and again)."""
@@ -233,7 +246,7 @@ class Reidentifier:
             u = pr.current
             # The state is known from the *commanded* current's saturations (a lagged current never quite
             # reaches them), plus five time constants for the lag to settle.
-            s = evaluation_start(u, lo, hi, SATURATION_TOL * (hi - lo)) + int(np.ceil(5 * path.lag_tau_s / pr.dt))
+            s = pr.known_from(lo, hi) + int(np.ceil(5 * path.lag_tau_s / pr.dt))
             w = np.zeros(u.size)
             w[s:] = 1.0
             core_u = path.core_input(u, pr.dt, rate_core=self.model.hysteresis)
