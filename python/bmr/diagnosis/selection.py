@@ -291,10 +291,13 @@ class Fitter:
         z[0] = 1.0
         j = 1
         for c in cols:
-            # Each column gathered straight into its row of z (no gathered block to transpose); the rows are in
-            # range, so mode="clip" only spares np.take its buffered copy.
-            for i in range(c.shape[1]):
-                np.take(c[:, i], rows, out=z[j + i], mode="clip")
+            if c.shape[1] == 1:
+                # A single column gathered straight into its row of z; the rows are in range, so mode="clip" only
+                # spares np.take its buffered copy.
+                np.take(c[:, 0], rows, out=z[j], mode="clip")
+            else:
+                # np.take gathers whole rows of the (samples × columns) block: faster than column by column.
+                z[j:j + c.shape[1]] = np.take(c, rows, axis=0).T
             j += c.shape[1]
         np.take(y, rows, out=z[p], mode="clip")
         np.subtract(self.measured_rows, z[p], out=z[p])
