@@ -484,21 +484,23 @@ pub(super) fn data_matrix(grid: &EverettGrid, ne: &NormalEquations) -> Vec<f64> 
     // columns: T = G C row by row (row k = Cᵀ G[k, ..nn]), then B = Cᵀ G = Tᵀ on the node block and Q = B C.
     let mut t = alloc::vec![0.0; m * nn];
     adjoint_rows(grid, &ne.gram, m, nn, m, &mut t, nn);
-    let mut b_nodes = alloc::vec![0.0; nn * nn]; // B = Cᵀ Gnn, row-major
-    const BLOCK: usize = 32;
-    for i0 in (0..nn).step_by(BLOCK) {
-        for k0 in (0..nn).step_by(BLOCK) {
-            for k in k0..(k0 + BLOCK).min(nn) {
-                for i in i0..(i0 + BLOCK).min(nn) {
-                    b_nodes[i * nn + k] = t[k * nn + i];
-                }
+    // Q's node block written in place (rows of length nn at stride m), then its offset rows and columns. Row i
+    // of Q is Cᵀ applied to column i of T: the columns are gathered a strip of rows of B at a time, not as a
+    // whole second copy of T (a fresh, page-faulted allocation of the matrix's size per input history).
+    let mut q = alloc::vec![0.0; m * m];
+    const STRIP: usize = 32;
+    let mut b_strip = alloc::vec![0.0; STRIP * nn];
+    for i0 in (0..nn).step_by(STRIP) {
+        let rows = STRIP.min(nn - i0);
+        for k in 0..nn {
+            let t_row = &t[k * nn + i0..k * nn + i0 + rows];
+            for (r, &v) in t_row.iter().enumerate() {
+                b_strip[r * nn + k] = v;
             }
         }
+        adjoint_rows(grid, &b_strip, nn, nn, rows, &mut q[i0 * m..], m);
     }
-    // Q's node block written in place (rows of length nn at stride m), then its offset rows and columns.
-    let mut q = alloc::vec![0.0; m * m];
-    adjoint_rows(grid, &b_nodes, nn, nn, nn, &mut q, m);
-    drop(b_nodes);
+    drop(b_strip);
     for k in 0..nn {
         for o in nn..m {
             q[k * m + o] = t[o * nn + k];
@@ -585,8 +587,24 @@ pub(super) fn solve(
     // Data-term RSS from the unregularised normal equations: yy − 2 zᵀ r + zᵀ G z, z = [C w, offsets].
     let mut z = model.node_values().to_vec();
     z.extend_from_slice(&offsets);
+    // Four rows at a time: each row's sum runs in the same order as alone (the same bits), the four chains of
+    // additions overlap instead of waiting on one another.
     let mut zgz = 0.0;
-    for i in 0..m {
+    let mut i = 0;
+    while i + 4 <= m {
+        let rows: [&[f64]; 4] = core::array::from_fn(|r| &data.gram[(i + r) * m..(i + r + 1) * m]);
+        let mut sums = [0.0f64; 4];
+        for (j, &zj) in z.iter().enumerate() {
+            for r in 0..4 {
+                sums[r] += rows[r][j] * zj;
+            }
+        }
+        for (r, sum) in sums.iter().enumerate() {
+            zgz += z[i + r] * sum;
+        }
+        i += 4;
+    }
+    for i in i..m {
         let gi = &data.gram[i * m..(i + 1) * m];
         zgz += z[i] * gi.iter().zip(&z).map(|(a, b)| a * b).sum::<f64>();
     }

@@ -291,17 +291,25 @@ class Fitter:
         z[0] = 1.0
         j = 1
         for c in cols:
-            # np.take gathers whole rows of the (samples × columns) block: a third of the time of c[rows].
-            z[j:j + c.shape[1]] = np.take(c, rows, axis=0).T
+            if c.shape[1] == 1:
+                # A single column gathered straight into its row of z; the rows are in range, so mode="clip" only
+                # spares np.take its buffered copy.
+                np.take(c[:, 0], rows, out=z[j], mode="clip")
+            else:
+                # np.take gathers whole rows of the (samples × columns) block: faster than column by column.
+                z[j:j + c.shape[1]] = np.take(c, rows, axis=0).T
             j += c.shape[1]
-        np.subtract(self.measured_rows, np.take(y, rows), out=z[p])
-        if not np.all(np.isfinite(z)):
+        np.take(y, rows, out=z[p], mode="clip")
+        np.subtract(self.measured_rows, z[p], out=z[p])
+        b = data.fold_bounds
+        blocks = np.stack([z[:, b[i]:b[i + 1]] @ z[:, b[i]:b[i + 1]].T for i in range(k)])
+        # A non-finite value anywhere in z makes its column's diagonal entries non-finite: checked on the small
+        # Gram blocks instead of on every sample.
+        if not np.all(np.isfinite(np.einsum("kii->ki", blocks))):
             out = FoldFit(np.zeros((k + 1, p)), np.full(k + 1, np.inf), np.full(k, np.inf),
                           np.diff(data.fold_bounds), widths)
             self._fits[key] = out
             return out
-        b = data.fold_bounds
-        blocks = np.stack([z[:, b[i]:b[i + 1]] @ z[:, b[i]:b[i + 1]].T for i in range(k)])
         total = blocks.sum(axis=0)
         grams = np.concatenate([total[None] - blocks, total[None]])
         beta, sse = _solve_normal(grams, p)
