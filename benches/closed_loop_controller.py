@@ -134,6 +134,8 @@ def main() -> int:
                     help="timed runs per controller; the median is the figure (virtual plant)")
     ap.add_argument("--record", action="store_true", help="record the rows in docs/measurements.json")
     args = ap.parse_args()
+    if args.throughput_runs < 1 or args.throughput_samples < 1:
+        ap.error("--throughput-runs and --throughput-samples must be at least 1")
     if args.plant == "independent":
         named, rows, ctl = independent_rows(args.seed, args.duration)
         print(f"diagnosis named {named}; independent rig + coil_eddy_circuit, coil_heating; {args.duration:g} s "
