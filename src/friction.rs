@@ -28,10 +28,14 @@ pub fn harmonic_series(a: &[f64], b: &[f64], sin1: f64, cos1: f64) -> f64 {
     let mut k = 0;
     while k < n {
         t += a[k] * s + b[k] * c;
+        k += 1;
+        // The last harmonic's rotation would go unused.
+        if k == n {
+            break;
+        }
         let s_next = s * cos1 + c * sin1;
         c = c * cos1 - s * sin1;
         s = s_next;
-        k += 1;
     }
     t
 }

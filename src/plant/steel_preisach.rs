@@ -116,6 +116,8 @@ struct Everett {
     n: usize,
     lo: f64,
     h: f64,
+    /// `n − 1` as a float: the last node's coordinate in cells.
+    last_node: f64,
     table: Vec<f64>,
 }
 
@@ -182,7 +184,13 @@ impl Everett {
                 *v /= total;
             }
         }
-        Everett { n, lo, h, table }
+        Everett {
+            n,
+            lo,
+            h,
+            last_node: (n - 1) as f64,
+            table,
+        }
     }
 
     /// Everett function at (α, β), bilinear between table nodes; arguments are clamped to the plane.
@@ -204,7 +212,8 @@ impl Everett {
 
     #[inline]
     fn locate(&self, v: f64) -> (usize, f64) {
-        let z = ((v - self.lo) / self.h).clamp(0.0, (self.n - 1) as f64);
+        // `max` then `min` is `clamp` for the non-NaN inputs it gets, without `clamp`'s check of its bounds.
+        let z = ((v - self.lo) / self.h).max(0.0).min(self.last_node);
         // `z` is clamped to [0, n − 1]: the signed conversion is exact there and cheaper than the unsigned one.
         let i = (z as i64 as usize).min(self.n - 2);
         (i, z - i as f64)
