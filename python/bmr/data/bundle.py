@@ -42,7 +42,7 @@ import numpy as np
 import pandas as pd
 
 from bmr._core import BmrError, BundleError
-from bmr.data.files import check_output_folder, contained, read_json, write_atomic, write_text
+from bmr.data.files import check_output_folder, contained, path_kind, read_json, write_atomic, write_text
 from bmr.data.quantities import ACTUATOR, Quantities
 
 FORMAT_V1 = "bmr-bundle/1"
@@ -390,11 +390,12 @@ def read_bundle(path: str | Path) -> Bundle:
     Run files must lie inside the bundle folder."""
     root = Path(path)
     manifest_path = root / "manifest.json"
-    if root.exists() and not root.is_dir():
-        raise BundleError(f"bundle folder {str(root)!r} is a file; a bundle is a folder holding manifest.json")
-    if not root.is_dir():
+    kind = path_kind(root, "bundle folder", error=BundleError)
+    if kind == "missing":
         raise BundleError(f"bundle folder {str(root)!r} does not exist")
-    if not manifest_path.is_file():
+    if kind != "folder":
+        raise BundleError(f"bundle folder {str(root)!r} is a file; a bundle is a folder holding manifest.json")
+    if path_kind(manifest_path, "bundle manifest", error=BundleError) != "file":
         raise BundleError(f"{str(root)!r} is not a bundle: no manifest.json in it")
     manifest = read_json(manifest_path, "bundle manifest", error=BundleError)
     if not isinstance(manifest, dict):
@@ -425,7 +426,7 @@ def read_bundle(path: str | Path) -> Bundle:
                 raise BundleError(f"{manifest_path}: runs[{i}].{key} must be a string, got {spec[key]!r}")
         file = contained(root, spec["file"], f"{manifest_path}: runs[{i}] ({spec['name']!r}) file",
                          error=BundleError)
-        if not file.is_file():
+        if path_kind(file, f"{manifest_path}: runs[{i}] ({spec['name']!r}) file", error=BundleError) != "file":
             raise BundleError(f"{manifest_path}: runs[{i}] ({spec['name']!r}) file {spec['file']!r} does not exist")
         data = _read_table(file)
         role = spec.get("role") if fmt != FORMAT_V1 else None

@@ -78,6 +78,20 @@ def write_json(path: str | Path, content: Any, *, what: str = "file", error: typ
     return write_text(path, json.dumps(jsonable(content), indent=1, allow_nan=False) + "\n", what=what, error=error)
 
 
+def path_kind(path: str | Path, what: str, *, error: type[BmrError] = BmrError) -> str:
+    """``"folder"``, ``"file"``, ``"other"`` (a device, a socket) or ``"missing"`` for ``path``; a name the file
+    system refuses (too long for it, ...) is an ``error`` naming ``what``, not an ``OSError``."""
+    p = Path(path)
+    try:
+        if p.is_dir():
+            return "folder"
+        if p.is_file():
+            return "file"
+        return "other" if p.exists() else "missing"
+    except OSError as exc:
+        raise error(f"{what} {str(p)!r} cannot be opened: {exc.strerror or exc}") from None
+
+
 def _writable_folder(folder: Path, shown: Path, what: str, error: type[BmrError]) -> None:
     # The nearest existing ancestor must be a folder we may write into (the rest is created).
     existing = folder
@@ -95,7 +109,7 @@ def check_output_file(path: str | Path, what: str = "output file", *, error: typ
     """Fail now (not after the work) if ``path`` cannot be written: it is a folder, its folder is a file, or the
     folder is not writable. Nothing is created."""
     p = Path(path)
-    if p.is_dir():
+    if path_kind(p, what, error=error) == "folder":
         raise error(f"{what} {str(p)!r} is a folder, not a file")
     _writable_folder(p.parent if str(p.parent) else Path("."), p, what, error)
     if p.exists() and not os.access(p, os.W_OK):
@@ -108,7 +122,7 @@ def check_output_folder(path: str | Path, what: str = "output folder", *,
     """Fail now if ``path`` cannot be an output folder: it is a file, an ancestor is a file, or the nearest
     existing ancestor is not writable. Nothing is created."""
     p = Path(path)
-    if p.exists() and not p.is_dir():
+    if path_kind(p, what, error=error) not in ("folder", "missing"):
         raise error(f"{what} {str(p)!r} is a file, not a folder")
     _writable_folder(p, p, what, error)
     return p

@@ -56,7 +56,7 @@ import numpy as np
 
 from bmr import _core
 from bmr._core import BmrError, Compensator, Hysteresis, ModelFileError, ResourceLimitError
-from bmr.data.files import jsonable, read_json, write_text
+from bmr.data.files import jsonable, path_kind, read_json, write_text
 from bmr.data.quantities import ACTUATOR, Quantities
 from bmr.identification.friction import FrictionFit
 from bmr.identification.lstsq import CLOCKWISE_SHARE, loop_orientation
@@ -534,9 +534,10 @@ class Model:
         """Read a ``bmr-model/1`` or ``bmr-model/2`` file; every problem is a ``ModelFileError`` naming the file
         and the field."""
         p = Path(path)
-        if p.is_dir():
+        kind = path_kind(p, "model file", error=ModelFileError)
+        if kind == "folder":
             raise ModelFileError(f"model file {str(p)!r} is a folder")
-        if not p.is_file():
+        if kind != "file":
             raise ModelFileError(f"model file {str(p)!r} does not exist")
         return cls.from_dict(read_json(p, "model file", error=ModelFileError), source=str(p))
 

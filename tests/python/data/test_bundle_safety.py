@@ -84,6 +84,9 @@ def test_manifest_encodings(tmp_path, encoding):
                  "runs": [{"name": "r", "kind": "custom", "file": "run.csv"}]}), "sample_rate_hz"),
     (json.dumps({"format": FORMAT, "sample_rate_hz": 500.0,
                  "runs": [{"name": ["r"], "kind": "custom", "file": "run.csv"}]}), "name must be a string"),
+    # A file name longer than the file system takes leaked OSError (ENAMETOOLONG) from the existence check.
+    (json.dumps({"format": FORMAT, "sample_rate_hz": 500.0,
+                 "runs": [{"name": "r", "kind": "custom", "file": "爀" * 200 + "run.csv"}]}), "cannot be opened"),
 ])
 def test_hostile_manifests_are_bundle_errors(tmp_path, manifest, match):
     # Deep nesting leaked RecursionError; "file": 5 leaked TypeError; `sample_rate_hz: true` read as 1 Hz.
@@ -194,3 +197,10 @@ def test_any_run_file_bytes_read_or_raise_a_bundle_error(tmp_path, content):
         bmr.read_bundle(root)
     except bmr.BundleError:
         pass
+
+
+@pytest.mark.parametrize("read", [bmr.read_bundle, bmr.Model.load], ids=["bundle", "model"])
+def test_a_path_the_file_system_refuses_is_a_bmr_error(read):
+    # A name longer than the file system takes raised OSError (ENAMETOOLONG) from the existence checks.
+    with pytest.raises(bmr.BmrError, match="cannot be opened"):
+        read("a" * 5000)
