@@ -39,6 +39,8 @@ _KIND = {"forc-ascending": "first_order_ascending", "forc-descending": "first_or
          "major-loop": "major_loop", "any": "custom"}
 # "tout" is Simulink's time variable ("Save to workspace"), the time of MATLAB logs of plain variables.
 _TIME_NAMES = ("t_s", "time", "t", "zeit", "timestamp", "tout")
+# A time column named with its unit after an underscore (``time_ms``, ``t_us``), as logging scripts write them.
+_TIME_WITH_UNIT = re.compile(r"^(?:t|time|zeit|timestamp)_(\w+)$", re.IGNORECASE)
 
 
 @dataclass(frozen=True)
@@ -173,6 +175,12 @@ def _time(table: Table, spec: ColumnSpec | None, rate_hz: float | None, notes: l
     key = table.time_column
     if key is None:
         key = next((k for n in _TIME_NAMES for k in [table.find(n)] if k is not None), None)
+    if key is None:
+        named = _time_named_with_unit(table)
+        if named is not None:
+            key, suffix = named
+            return Quantity("time", "s", "t_s").from_unit(table.columns[key], table.unit_of(key) or suffix,
+                                                          what=f"{table.source}: column {key!r} (time)")
     if key is not None:
         stated = table.unit_of(key)
         if stated is None:
@@ -185,6 +193,19 @@ def _time(table: Table, spec: ColumnSpec | None, rate_hz: float | None, notes: l
                      "1 s apart (give --time COL[:UNIT] or --sample-rate HZ for the real time)")
         rate_hz = 1.0
     return np.arange(table.n_samples) / float(rate_hz)
+
+
+def _time_named_with_unit(table: Table) -> tuple[str, str] | None:
+    """The first column named like ``time_ms`` whose suffix is a time unit: ``(column, unit)``."""
+    for key in table.columns:
+        m = _TIME_WITH_UNIT.match(key)
+        if m is None:
+            continue
+        try:
+            return key, unit(m.group(1), dimension="time").symbol
+        except BmrError:
+            continue
+    return None
 
 
 # ------------------------------------------------------------------------------------------ table layouts

@@ -183,8 +183,12 @@ class _TextLayout:
     """Where a delimited text table's header is and how its fields are written."""
 
     delimiter: str | None  # None: runs of whitespace
-    header_line: int  # 0-based; the lines before it are a preamble (comments, metadata)
+    header_line: int | None  # 0-based; the lines before it are a preamble (comments, metadata); None: no header
     decimal: str
+    # A row of units under the header (0-based line; None: the header states them, if at all), and the first row
+    # of numbers.
+    units_line: int | None = None
+    data_line: int = 0
 
 
 def _number_text(x: str, decimal: str) -> bool:
@@ -198,10 +202,26 @@ def _number_text(x: str, decimal: str) -> bool:
     return bool(x)
 
 
+def units_row(row: list[str]) -> bool:
+    """Every field a registered unit (or empty, ``-``), at least one given: the row under a header that plotting
+    and logging programs write (``Time,Voltage`` then ``s,V``; also followed by a row of comments)."""
+    given = [x.strip() for x in row if x.strip()]
+    if not given:
+        return False
+    for x in given:
+        try:
+            parse_unit(x)
+        except BmrError:
+            return False
+    return True
+
+
 def _text_layout(lines: list[str]) -> _TextLayout | None:
     """The first header line (no field a number) followed by data rows with as many fields (at least half of them
     numbers: label columns may sit beside the signals), for the first delimiter (comma, semicolon, tab, whitespace)
-    and decimal mark that give one; None if no line fits."""
+    and decimal mark that give one; None if no line fits. A row of units between the header and the data (also
+    with a comment row after it, as plotting programs export) states the columns' units. Without any header line,
+    rows of numbers from the first line after the preamble on are a table whose columns are numbered from 1."""
     for delimiter in (",", ";", "\t", None):
         for decimal in (".", ","):
             if decimal == "," and delimiter == ",":
@@ -211,13 +231,37 @@ def _text_layout(lines: list[str]) -> _TextLayout | None:
             def data(row: list[str], width: int) -> bool:
                 return len(row) == width and 2 * sum(_number_text(x, decimal) for x in row) >= width
 
+            def label(i: int, width: int) -> bool:
+                return i < len(fields) and len(fields[i]) == width and not any(
+                    _number_text(x, decimal) for x in fields[i])
+
+            def numbers_from(i: int, width: int) -> bool:
+                rows = fields[i:i + 2]
+                return bool(rows) and all(data(r, width) for r in rows)
+
             for i in range(len(lines) - 1):
                 head = fields[i]
-                if len(head) < 2 or any(_number_text(x, decimal) for x in head):
+                width = len(head)
+                if width < 2 or any(_number_text(x, decimal) for x in head):
                     continue  # a header names its columns
-                rows = fields[i + 1:i + 3]
-                if all(data(r, len(head)) for r in rows):
-                    return _TextLayout(delimiter, i, decimal)
+                if numbers_from(i + 1, width):
+                    return _TextLayout(delimiter, i, decimal, data_line=i + 1)
+                if label(i + 1, width) and units_row(fields[i + 1]):
+                    for first in (i + 2, i + 3):  # the numbers, after a comment row or not
+                        if (first == i + 2 or label(i + 2, width)) and numbers_from(first, width):
+                            return _TextLayout(delimiter, i, decimal, units_line=i + 1, data_line=first)
+    # No header: the first line that starts rows of numbers (every field a number, at least two fields).
+    for delimiter in (",", ";", "\t", None):
+        for decimal in (".", ","):
+            if decimal == "," and delimiter == ",":
+                continue
+            fields = [(line.split(delimiter) if delimiter else line.split()) for line in lines]
+            numbers = [len(f) >= 2 and all(_number_text(x, decimal) for x in f) for f in fields]
+            for i in range(len(lines)):
+                rows = fields[i:i + 3]
+                if numbers[i] and all(numbers[i + k] and len(fields[i + k]) == len(fields[i])
+                                      for k in range(1, len(rows))):
+                    return _TextLayout(delimiter, None, decimal, data_line=i)
     return None
 
 
@@ -233,26 +277,46 @@ def _preamble(lines: list[str]) -> dict[str, Any]:
 
 
 def read_csv(path: str | Path) -> list[Table]:
-    """A delimited text table: comma, semicolon, tab or whitespace, decimal point or comma, one header line, and any
-    preamble before it (comment or ``key: value`` lines, kept as the table's metadata); all found from the first
-    lines."""
+    """A delimited text table: comma, semicolon, tab or whitespace, decimal point or comma, one header line
+    (optionally a row of units under it, and a comment row under that), and any preamble before it (comment or
+    ``key: value`` lines, kept as the table's metadata); all found from the first lines. A table without a header
+    has its columns numbered ``1``, ``2``, ... (they state no unit)."""
     p = Path(path)
     raw = _read_bytes(p)
     head = raw[:65536].decode("utf-8", errors="replace").splitlines()[:200]
     layout = _text_layout([line.rstrip("\r\n") for line in head])
     if layout is None:
-        raise BundleError(f"{p}: cannot be read as CSV: no header line followed by rows of numbers in its first "
-                          f"{len(head)} line(s) (empty, truncated or not a delimited table)")
+        raise BundleError(f"{p}: cannot be read as CSV: no rows of numbers under a header line (or without one) "
+                          f"in its first {len(head)} line(s) (empty, truncated or not a delimited table)")
+    sep = layout.delimiter or r"\s+"
     try:
-        df = pd.read_csv(p, sep=layout.delimiter or r"\s+", skiprows=layout.header_line, decimal=layout.decimal,
-                         encoding_errors="replace")
+        if layout.header_line is None:
+            df = pd.read_csv(p, sep=sep, skiprows=layout.data_line, header=None, decimal=layout.decimal,
+                             encoding_errors="replace")
+            df.columns = [str(k + 1) for k in range(df.shape[1])]
+        else:
+            skipped = [k for k in range(layout.header_line + 1, layout.data_line)]
+            df = pd.read_csv(p, sep=sep, skiprows=list(range(layout.header_line)) + skipped, header=0,
+                             decimal=layout.decimal, encoding_errors="replace")
     except Exception as exc:  # noqa: BLE001 - any parser failure is a clear file error
         raise BundleError(f"{p}: cannot be read as CSV ({exc})") from None
     if len(df) == 0:
         raise BundleError(f"{p}: the CSV has a header but no samples (empty or truncated file)")
-    table = _frame_table(p, df)
-    table.meta.update(_preamble(head[:layout.header_line]))
+    units: dict[str, str] = {}
+    if layout.units_line is not None and layout.header_line is not None:
+        names = _split_fields(head[layout.header_line], layout.delimiter)
+        row = _split_fields(head[layout.units_line], layout.delimiter)
+        units = {split_name_unit(n)[0]: u for n, u in zip(names, row) if u and u != "-"}
+    table = _frame_table(p, df, units)
+    preamble_end = layout.header_line if layout.header_line is not None else layout.data_line
+    table.meta.update(_preamble(head[:preamble_end]))
     return [table]
+
+
+def _split_fields(line: str, delimiter: str | None) -> list[str]:
+    """A text line's fields, stripped of blanks and quotes."""
+    parts = line.rstrip("\r\n").split(delimiter) if delimiter else line.split()
+    return [x.strip().lstrip("\ufeff").strip().strip('"').strip() for x in parts]
 
 
 def read_parquet(path: str | Path) -> list[Table]:

@@ -138,13 +138,51 @@ def test_analyzer_truncated_headerless_and_wrong_files(tmp_path):
     with pytest.raises(bmr.BmrError, match=r"empty.dat: the file is empty"):
         read_tables(tmp_path / "empty.dat")
     (tmp_path / "head.csv").write_text("time,volts\n")
-    with pytest.raises(bmr.BundleError, match=r"head.csv: cannot be read as CSV: no header line followed by rows of "
-                                              r"numbers in its first 1 line\(s\) \(empty, truncated"):
+    with pytest.raises(bmr.BundleError, match=r"head.csv: cannot be read as CSV: no rows of numbers under a header "
+                                              r"line \(or without one\) in its first 1 line\(s\) \(empty, truncated"):
         read_tables(tmp_path / "head.csv")
     with pytest.raises(bmr.BmrError, match=r"unknown file format 'xlsx'"):
         read_tables(tmp_path / "head.csv", "xlsx")
     with pytest.raises(bmr.BmrError, match=r"does not exist"):
         read_tables(tmp_path / "nothing.dat")
+
+
+def test_a_row_of_units_under_the_header_states_the_units(tmp_path):
+    # Plotting and logging programs write the units in a row of their own (and a comment row under it).
+    rows = "\n".join(f"{t:.4f},{v:.4f},{x:.5f}" for t, v, x in zip(T, VOLTS, MICRONS))
+    (tmp_path / "units.csv").write_text("Time,Voltage,Displacement\ns,V,um\n" + rows + "\n", encoding="utf-8-sig")
+    [t] = read_tables(tmp_path / "units.csv")
+    assert t.unit_of("Time") == "s" and t.unit_of("Voltage") == "V" and t.unit_of("Displacement") == "um"
+    np.testing.assert_allclose(t.columns["Displacement"], MICRONS, atol=1e-5)
+    tabbed = rows.replace(",", "\t")
+    (tmp_path / "origin.txt").write_text("Time\tVoltage\tDisplacement\ns\tmV\tnm\nclock\tamp out\tsensor\n"
+                                         + tabbed + "\n")
+    [o] = read_tables(tmp_path / "origin.txt")
+    assert (o.unit_of("Voltage"), o.unit_of("Displacement")) == ("mV", "nm") and o.n_samples == N
+    np.testing.assert_allclose(o.columns["Voltage"], VOLTS, atol=1e-4)
+    res = bmr.import_logs([tmp_path / "origin.txt"], input="Voltage:V", output="Displacement:um")
+    np.testing.assert_allclose(res.bundle.runs[0].input, VOLTS / 1e3, atol=1e-7)
+    # Names that are units themselves are still a header when numbers follow them directly.
+    (tmp_path / "tv.csv").write_text("t,V\n0,1\n1,2\n")
+    [tv] = read_tables(tmp_path / "tv.csv")
+    assert list(tv.columns) == ["t", "V"] and tv.n_samples == 2
+
+
+def test_a_table_without_a_header_has_numbered_columns(tmp_path):
+    rows = "\n".join(f"  {t:.4e}   {v:.4e}   {x:.5e}" for t, v, x in zip(T, VOLTS, MICRONS))
+    (tmp_path / "scope.dat").write_text("# scope dump\n# ch1 V, ch2 um\n" + rows + "\n")
+    [t] = read_tables(tmp_path / "scope.dat")
+    assert list(t.columns) == ["1", "2", "3"] and t.unit_of("2") is None and t.n_samples == N
+    np.testing.assert_allclose(t.columns["3"], MICRONS, rtol=1e-5)
+    res = bmr.import_logs([tmp_path / "scope.dat"], input="2:V", output="3:um", time="1:s")
+    np.testing.assert_allclose(res.bundle.runs[0].t, T, atol=1e-7)
+
+
+def test_a_time_column_named_with_its_unit(tmp_path):
+    pd.DataFrame({"time_ms": T * 1e3, "u_V": VOLTS, "x_um": MICRONS}).to_csv(tmp_path / "ms.csv", index=False)
+    res = bmr.import_logs([tmp_path / "ms.csv"], input="u_V:V", output="x_um:um")
+    np.testing.assert_allclose(res.bundle.runs[0].t, T, atol=1e-9)
+    assert res.bundle.sample_rate_hz == pytest.approx(1e3)
 
 
 # ------------------------------------------------------------------------------------------------ SLAC

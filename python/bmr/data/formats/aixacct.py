@@ -26,7 +26,7 @@ import numpy as np
 import pandas as pd
 
 from bmr._core import BmrError, BundleError
-from bmr.data.tables import Table, read_text, split_name_unit
+from bmr.data.tables import Table, read_text, split_name_unit, units_row
 
 __all__ = ["read", "looks_like"]
 
@@ -91,6 +91,26 @@ def _rows(lines: list[str], start: int, stop: int, header: list[str], last: int,
     return frame.to_numpy(dtype=float)
 
 
+def _rows_under_header(lines: list[str], i: int, header: list[str]) -> tuple[int, list[str] | None] | None:
+    """Where the numbers under the header line ``i`` start and the row of units between them (None: the header
+    states its units), when a row of numbers follows the header directly or after a row of units (and a comment
+    row under it, as plotting programs export); None when line ``i`` heads no table."""
+    def at(k: int) -> list[str]:
+        return _fields(lines[k]) if k < len(lines) else []
+
+    if _decimal(at(i + 1)) is not None:
+        return i + 1, None
+    units = at(i + 1)
+    if len(units) != len(header) or not units_row(units):
+        return None
+    for first in (i + 2, i + 3):
+        if first == i + 3 and not _header(at(i + 2)):
+            break
+        if _decimal(at(first)) is not None and len(at(first)) == len(header):
+            return first, units
+    return None
+
+
 def _tables(text: str, source: str) -> list[tuple[int, list[str], np.ndarray, dict[str, Any], str | None]]:
     """``(header line number, header fields, rows, metadata, title)`` of every table."""
     lines = text.splitlines()
@@ -107,13 +127,17 @@ def _tables(text: str, source: str) -> list[tuple[int, list[str], np.ndarray, di
         if not stripped:
             i += 1
             continue
-        nxt = _fields(lines[i + 1]) if i + 1 < len(lines) else []
-        decimal = _decimal(nxt)
-        if "\t" in lines[i] and _header(fields) and decimal is not None:
-            j = i + 1
+        under = _rows_under_header(lines, i, fields) if "\t" in lines[i] and _header(fields) else None
+        if under is not None:
+            first, units = under
+            decimal = _decimal(_fields(lines[first]))
+            j = first
             while j < len(lines) and _starts_numeric(lines[j]):
                 j += 1
-            rows = _rows(lines, i + 1, j, fields, last, source, decimal)
+            rows = _rows(lines, first, j, fields, last, source, decimal or ".")
+            if units is not None:
+                fields = [f"{name} [{unit}]" if unit and unit != "-" and split_name_unit(name)[1] is None else name
+                          for name, unit in zip(fields, units)]
             out.append((i + 1, fields, rows, {**shared, **pending}, title))
             pending, title, seen_table = {}, None, True
             i = j
@@ -138,8 +162,8 @@ def looks_like(path: Path) -> bool:
     except BmrError:
         return False
     lines = text.splitlines()
-    return any("\t" in a and _header(_fields(a)) and _decimal(_fields(b)) is not None
-               for a, b in zip(lines, lines[1:]))
+    return any("\t" in a and _header(_fields(a)) and _rows_under_header(lines, i, _fields(a)) is not None
+               for i, a in enumerate(lines))
 
 
 def read(path: str | Path) -> list[Table]:
