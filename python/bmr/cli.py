@@ -45,7 +45,7 @@ def _parser() -> argparse.ArgumentParser:
     s.add_argument("-o", "--out", required=True, help="bundle folder to write")
 
     m = sub.add_parser("import", help="turn raw lab logs into a bundle (declared input/output, protocol, roles)",
-                       description="Read lab logs (CSV, Parquet, TDMS, MAT, dSPACE ControlDesk captures, "
+                       description="Read lab logs (CSV, Parquet, TDMS, MAT, spreadsheets, dSPACE ControlDesk captures, "
                        "tab-separated analyzer exports, SLAC magnetic-measurement tables, MicroMag and Lake Shore "
                        "magnetometer exports) into a bundle. Columns "
                        "are COL, COL:UNIT (the unit the bundle stores; converted from the unit the file states) "

@@ -45,7 +45,7 @@ COLUMN_UNITS = {
 }
 # Spellings these columns accepted before the unit registry, kept: converter volts for currents, bare C/F.
 _LEGACY = {"current": {"v": "0.125 A"}, "temperature": {"c": "°C", "f": "°F"}}
-_SUFFIXES = (".csv", ".txt", ".parquet", ".pq", ".tdms", ".mat")
+_SUFFIXES = (".csv", ".txt", ".parquet", ".pq", ".tdms", ".mat", ".xlsx", ".xlsm", ".ods", ".xls")
 
 
 def _column_unit(column: str) -> str:
@@ -98,7 +98,7 @@ def read_table(
         _column_unit(col)
     suffix = file.suffix.lower()
     if suffix not in _SUFFIXES:
-        raise BundleError(f"{file}: unsupported file type {suffix!r} (read .csv, .parquet, .tdms, .mat)")
+        raise BundleError(f"{file}: unsupported file type {suffix!r} (read .csv, .txt, .parquet, .tdms, .mat, .xlsx, .ods)")
     tables = read_tables(file)
 
     out: dict[str, np.ndarray] = {}

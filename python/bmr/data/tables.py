@@ -216,53 +216,56 @@ def units_row(row: list[str]) -> bool:
     return True
 
 
-def _text_layout(lines: list[str]) -> _TextLayout | None:
-    """The first header line (no field a number) followed by data rows with as many fields (at least half of them
-    numbers: label columns may sit beside the signals), for the first delimiter (comma, semicolon, tab, whitespace)
-    and decimal mark that give one; None if no line fits. A row of units between the header and the data (also
-    with a comment row after it, as plotting programs export) states the columns' units. Without any header line,
-    rows of numbers from the first line after the preamble on are a table whose columns are numbered from 1."""
-    for delimiter in (",", ";", "\t", None):
-        for decimal in (".", ","):
-            if decimal == "," and delimiter == ",":
-                continue
-            fields = [(line.split(delimiter) if delimiter else line.split()) for line in lines]
+def _rows_layout(fields: list[list[str]], decimal: str) -> tuple[int | None, int | None, int] | None:
+    """``(header row, units row, first row of numbers)`` of a table whose rows are split into ``fields``: the first
+    header row (no field a number) followed by rows with as many fields (at least half of them numbers: label
+    columns may sit beside the signals), directly or after a row of units (and a comment row under it, as plotting
+    programs export); else, without any header, the first of at least two rows whose fields are all numbers
+    (header None). None if no row fits."""
+    def data(row: list[str], width: int) -> bool:
+        return len(row) == width and 2 * sum(_number_text(x, decimal) for x in row) >= width
 
-            def data(row: list[str], width: int) -> bool:
-                return len(row) == width and 2 * sum(_number_text(x, decimal) for x in row) >= width
+    def label(i: int, width: int) -> bool:
+        return i < len(fields) and len(fields[i]) == width and not any(_number_text(x, decimal) for x in fields[i])
 
-            def label(i: int, width: int) -> bool:
-                return i < len(fields) and len(fields[i]) == width and not any(
-                    _number_text(x, decimal) for x in fields[i])
+    def numbers_from(i: int, width: int) -> bool:
+        rows = fields[i:i + 2]
+        return bool(rows) and all(data(r, width) for r in rows)
 
-            def numbers_from(i: int, width: int) -> bool:
-                rows = fields[i:i + 2]
-                return bool(rows) and all(data(r, width) for r in rows)
-
-            for i in range(len(lines) - 1):
-                head = fields[i]
-                width = len(head)
-                if width < 2 or any(_number_text(x, decimal) for x in head):
-                    continue  # a header names its columns
-                if numbers_from(i + 1, width):
-                    return _TextLayout(delimiter, i, decimal, data_line=i + 1)
-                if label(i + 1, width) and units_row(fields[i + 1]):
-                    for first in (i + 2, i + 3):  # the numbers, after a comment row or not
-                        if (first == i + 2 or label(i + 2, width)) and numbers_from(first, width):
-                            return _TextLayout(delimiter, i, decimal, units_line=i + 1, data_line=first)
-    # No header: the first line that starts rows of numbers (every field a number, at least two fields).
-    for delimiter in (",", ";", "\t", None):
-        for decimal in (".", ","):
-            if decimal == "," and delimiter == ",":
-                continue
-            fields = [(line.split(delimiter) if delimiter else line.split()) for line in lines]
-            numbers = [len(f) >= 2 and all(_number_text(x, decimal) for x in f) for f in fields]
-            for i in range(len(lines)):
-                rows = fields[i:i + 3]
-                if numbers[i] and all(numbers[i + k] and len(fields[i + k]) == len(fields[i])
-                                      for k in range(1, len(rows))):
-                    return _TextLayout(delimiter, None, decimal, data_line=i)
+    for i in range(len(fields) - 1):
+        width = len(fields[i])
+        if width < 2 or not label(i, width):
+            continue  # a header names its columns
+        if numbers_from(i + 1, width):
+            return i, None, i + 1
+        if label(i + 1, width) and units_row(fields[i + 1]):
+            for first in (i + 2, i + 3):  # the numbers, after a comment row or not
+                if (first == i + 2 or label(i + 2, width)) and numbers_from(first, width):
+                    return i, i + 1, first
+    numbers = [len(f) >= 2 and all(_number_text(x, decimal) for x in f) for f in fields]
+    for i in range(len(fields)):
+        rows = range(i, min(i + 3, len(fields)))
+        if numbers[i] and all(numbers[k] and len(fields[k]) == len(fields[i]) for k in rows):
+            return None, None, i
     return None
+
+
+def _text_layout(lines: list[str]) -> _TextLayout | None:
+    """The layout (:func:`_rows_layout`) of the first delimiter (comma, semicolon, tab, whitespace) and decimal mark
+    that give one, tables with a header before those without; None if none does. A table without a header has
+    its columns numbered from 1."""
+    options = [(d, m) for d in (",", ";", "\t", None) for m in (".", ",") if not (d == "," and m == ",")]
+    headless = None
+    for delimiter, decimal in options:
+        found = _rows_layout([(line.split(delimiter) if delimiter else line.split()) for line in lines], decimal)
+        if found is None:
+            continue
+        header, units, first = found
+        layout = _TextLayout(delimiter, header, decimal, units_line=units, data_line=first)
+        if header is not None:
+            return layout
+        headless = headless or layout
+    return headless
 
 
 def _preamble(lines: list[str]) -> dict[str, Any]:
@@ -317,6 +320,71 @@ def _split_fields(line: str, delimiter: str | None) -> list[str]:
     """A text line's fields, stripped of blanks and quotes."""
     parts = line.rstrip("\r\n").split(delimiter) if delimiter else line.split()
     return [x.strip().lstrip("\ufeff").strip().strip('"').strip() for x in parts]
+
+
+# Spreadsheet files and the package pandas reads each with.
+SPREADSHEET_ENGINES = {".xlsx": "openpyxl", ".xlsm": "openpyxl", ".ods": "odf", ".xls": "xlrd"}
+_ENGINE_PACKAGES = {"openpyxl": "openpyxl", "odf": "odfpy", "xlrd": "xlrd"}
+
+
+def _cell_text(x: Any) -> str:
+    if x is None or (isinstance(x, float) and np.isnan(x)):
+        return ""
+    return repr(float(x)) if isinstance(x, (int, float, np.number)) and not isinstance(x, bool) else str(x).strip()
+
+
+def read_spreadsheet(path: str | Path) -> list[Table]:
+    """Every sheet of a spreadsheet (``.xlsx``, ``.xlsm``, ``.ods``; ``.xls`` with ``xlrd``) that holds a table, laid
+    out as in a text table (:func:`_rows_layout`: a preamble, a header, a row of units, or no header), one table per
+    sheet (named ``<file>-<sheet>`` when the file has several). Its rows end at the first row that is not a row of
+    numbers (notes under a table); columns of text beside the numbers are left out."""
+    p = Path(path)
+    _read_bytes(p)
+    engine = SPREADSHEET_ENGINES.get(p.suffix.lower(), "openpyxl")
+    try:
+        sheets = pd.read_excel(p, sheet_name=None, header=None, engine=engine)
+    except ImportError:
+        raise BundleError(f"{p}: reading {p.suffix} files needs the package {_ENGINE_PACKAGES[engine]!r} "
+                          f"(pip install {_ENGINE_PACKAGES[engine]})") from None
+    except Exception as exc:  # noqa: BLE001 - any parser failure is a clear file error
+        raise BundleError(f"{p}: cannot be read as a spreadsheet ({type(exc).__name__}: {exc})") from None
+    tables = []
+    for sheet, frame in sheets.items():
+        frame = frame.dropna(axis=1, how="all").dropna(axis=0, how="all")
+        if frame.shape[0] < 2 or frame.shape[1] < 2:
+            continue
+        cells = [[_cell_text(x) for x in row] for row in frame.itertuples(index=False)]
+        found = _rows_layout(cells, ".")
+        if found is None:
+            continue
+        header, units, first = found
+        last = first
+        while last < len(cells) and 2 * sum(_number_text(x, ".") for x in cells[last]) >= len(cells[last]):
+            last += 1
+        body = frame.iloc[first:last]
+        names = ([str(x) if x else f"{k + 1}" for k, x in enumerate(cells[header])] if header is not None
+                 else [str(k + 1) for k in range(frame.shape[1])])
+        data = pd.DataFrame({n: pd.to_numeric(body.iloc[:, k], errors="coerce").to_numpy()
+                             for k, n in enumerate(names) if _mostly_numbers(body.iloc[:, k])})
+        stated = ({split_name_unit(n)[0]: u for n, u in zip(names, cells[units]) if u and u != "-"}
+                  if units is not None else {})
+        if data.empty:
+            continue
+        table = _frame_table(p, data, stated)
+        table.name = f"{p.stem}-{sheet}" if len(sheets) > 1 else p.stem
+        table.source = f"{p} (sheet {sheet!r})" if len(sheets) > 1 else str(p)
+        preamble = cells[:header if header is not None else first]
+        table.meta.update(_preamble([",".join(x for x in r if x) for r in preamble]))
+        tables.append(table)
+    if not tables:
+        raise BundleError(f"{p}: no sheet holds rows of numbers under a header row (or without one)")
+    return tables
+
+
+def _mostly_numbers(column: pd.Series) -> bool:
+    """At least half the cells numbers (the rest empty or notes): a signal, not a label column."""
+    values = pd.to_numeric(column, errors="coerce")
+    return bool(values.notna().sum() * 2 >= len(values) and values.notna().any())
 
 
 def read_parquet(path: str | Path) -> list[Table]:

@@ -178,6 +178,39 @@ def test_a_table_without_a_header_has_numbered_columns(tmp_path):
     np.testing.assert_allclose(res.bundle.runs[0].t, T, atol=1e-7)
 
 
+def test_spreadsheets_give_one_table_per_sheet(tmp_path):
+    # A workbook as a lab saves it: a sheet of notes, a run with a preamble, a row of units, a text column and a
+    # note under the numbers, and a run whose header states its units.
+    rows = ([["Piezo stage P-753", None, None, None], ["Operator: A. Silva", None, None, None],
+             ["Time", "Voltage", "Displacement", "Remark"], ["s", "V", "µm", None]]
+            + [[t, v, x, "ok" if k % 50 == 0 else None] for k, (t, v, x) in enumerate(zip(T, VOLTS, MICRONS))]
+            + [[None] * 4, ["stopped by hand", None, None, None]])
+    with pd.ExcelWriter(tmp_path / "stage.xlsx") as w:
+        pd.DataFrame([["bench notes only"], ["no numbers here"]]).to_excel(w, sheet_name="notes", header=False,
+                                                                           index=False)
+        pd.DataFrame(rows).to_excel(w, sheet_name="run1", header=False, index=False)
+        pd.DataFrame({"t [ms]": T * 1e3, "U [V]": VOLTS, "x [nm]": MICRONS * 1e3}).to_excel(
+            w, sheet_name="run2", index=False)
+    run1, run2 = read_tables(tmp_path / "stage.xlsx")
+    assert run1.name == "stage-run1" and list(run1.columns) == ["Time", "Voltage", "Displacement"]
+    assert run1.units == {"Time": "s", "Voltage": "V", "Displacement": "µm"} and run1.n_samples == N
+    assert run1.meta["Operator"] == "A. Silva" and "sheet 'run1'" in run1.source
+    np.testing.assert_allclose(run1.columns["Displacement"], MICRONS, rtol=1e-14)  # 15 digits stored
+    assert run2.units == {"t": "ms", "U": "V", "x": "nm"}
+    res = bmr.import_logs([tmp_path / "stage.xlsx"], input="U", output="x:um", time="t")
+    np.testing.assert_allclose(res.bundle.runs[0].output, MICRONS, rtol=1e-12)
+    np.testing.assert_allclose(res.bundle.runs[0].t, T, atol=1e-12)
+    pd.DataFrame({"t [s]": T, "U [V]": VOLTS}).to_excel(tmp_path / "one.ods", index=False, engine="odf")
+    [one] = read_tables(tmp_path / "one.ods")
+    assert one.name == "one" and one.units == {"t": "s", "U": "V"} and one.n_samples == N
+    pd.DataFrame([["only words"], ["here"]]).to_excel(tmp_path / "words.xlsx", header=False, index=False)
+    with pytest.raises(bmr.BundleError, match=r"words.xlsx: no sheet holds rows of numbers"):
+        read_tables(tmp_path / "words.xlsx")
+    (tmp_path / "fake.xlsx").write_text("not a zip archive")
+    with pytest.raises(bmr.BundleError, match=r"fake.xlsx: cannot be read as a spreadsheet"):
+        read_tables(tmp_path / "fake.xlsx")
+
+
 def test_a_time_column_named_with_its_unit(tmp_path):
     pd.DataFrame({"time_ms": T * 1e3, "u_V": VOLTS, "x_um": MICRONS}).to_csv(tmp_path / "ms.csv", index=False)
     res = bmr.import_logs([tmp_path / "ms.csv"], input="u_V:V", output="x_um:um")

@@ -6,6 +6,7 @@
 | ``parquet`` | ``.parquet``, ``.pq`` | :func:`bmr.data.tables.read_parquet` |
 | ``tdms`` | NI TDMS (``group/channel``; ``unit_string`` property) | :func:`bmr.data.tables.read_tdms` |
 | ``mat`` | MATLAB v5/v7 variables, ``struct.field`` and matrix columns | :func:`bmr.data.tables.read_mat` |
+| ``spreadsheet`` | ``.xlsx``, ``.xlsm``, ``.ods`` (``.xls`` with ``xlrd``): one table per sheet | :func:`bmr.data.tables.read_spreadsheet` |
 | ``controldesk`` | dSPACE ControlDesk captures (``.mat``) | :mod:`~bmr.data.formats.controldesk` |
 | ``aixacct`` | tab-separated analyzer exports (``.dat``, ``.txt``, ``.tsv``) | :mod:`~bmr.data.formats.aixacct` |
 | ``slac`` | SLAC magnetic-measurement tables (``strdat.ruN``, ``strplt.ruN``) | :mod:`~bmr.data.formats.slac` |
@@ -19,12 +20,12 @@ from typing import Callable
 
 from bmr._core import BundleError
 from bmr.data.formats import aixacct, controldesk, lakeshore, micromag, slac
-from bmr.data.tables import Table, read_csv, read_mat, read_parquet, read_tdms
+from bmr.data.tables import SPREADSHEET_ENGINES, Table, read_csv, read_mat, read_parquet, read_spreadsheet, read_tdms
 
 __all__ = ["FORMATS", "READERS", "detect_format", "read_tables"]
 
 READERS: dict[str, Callable[[Path], list[Table]]] = {
-    "csv": read_csv, "parquet": read_parquet, "tdms": read_tdms, "mat": read_mat,
+    "csv": read_csv, "parquet": read_parquet, "tdms": read_tdms, "mat": read_mat, "spreadsheet": read_spreadsheet,
     "controldesk": controldesk.read, "aixacct": aixacct.read, "slac": slac.read,
     "micromag": micromag.read, "lakeshore": lakeshore.read,
 }
@@ -38,6 +39,8 @@ def detect_format(path: Path) -> str:
         return "parquet"
     if suffix == ".tdms":
         return "tdms"
+    if suffix in SPREADSHEET_ENGINES:
+        return "spreadsheet"
     if suffix == ".mat":
         return "controldesk" if controldesk.looks_like(path) else "mat"
     if micromag.looks_like(path):
