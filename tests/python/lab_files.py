@@ -17,14 +17,16 @@ V_MAX = 100.0
 def write_controldesk(path: Path, var: str, axes: Sequence[np.ndarray],
                       channels: Sequence[tuple[str, str, np.ndarray, str, int]], *, v73: bool = False) -> Path:
     """A dSPACE ControlDesk capture: ``var.X(k)`` time axes, ``var.Y(k)`` channels ``(name, path, data, unit,
-    x index)``, as MATLAB struct arrays with 1×N data rows (what ``save -v7`` of a capture holds). ``v73``
-    writes only the header of a MATLAB v7.3 (HDF5) file."""
+    x index)``, as MATLAB struct arrays with 1×N data rows (what ``save -v7`` of a capture holds; ``v73``: what
+    ``save -v7.3`` holds)."""
     from scipy.io import savemat
 
     if v73:
-        header = b"MATLAB 7.3 MAT-file, Platform: GLNXA64, Created on: Mon Nov 23 2026 HDF5 schema 1.00 ."
-        path.write_bytes(header.ljust(116, b" ") + b"\x00" * 8 + b"\x00\x02IM" + b"\x89HDF\r\n\x1a\n" + b"\x00" * 600)
-        return path
+        xs = [{"Name": "Time", "Type": "Xaxis", "Data": np.asarray(t, float).reshape(1, -1), "Unit": "s"} for t in axes]
+        ys = [{"Name": name, "Type": "Signal", "Path": where, "Data": np.asarray(data, float).reshape(1, -1),
+               "Unit": unit, "XIndex": float(xi)} for name, where, data, unit, xi in channels]
+        return write_mat_v73(path, {var: {"X": xs, "Y": ys, "Description": "piezo stack, FORC protocol",
+                                          "Capture": "trace 1", "RTProgram": "piezo_rig.sdf"}})
     x = np.zeros((1, len(axes)), dtype=[("Name", "O"), ("Type", "O"), ("Data", "O"), ("Unit", "O")])
     for k, t in enumerate(axes):
         x[0, k] = ("Time", "Xaxis", np.asarray(t, float).reshape(1, -1), "s")
@@ -34,6 +36,53 @@ def write_controldesk(path: Path, var: str, axes: Sequence[np.ndarray],
         y[0, k] = (name, "Signal", where, np.asarray(data, float).reshape(1, -1), unit, float(xi))
     savemat(path, {var: {"X": x, "Y": y, "Description": "piezo stack, FORC protocol", "Capture": "trace 1",
                          "RTProgram": "piezo_rig.sdf"}})
+    return path
+
+
+V73_HEADER = b"MATLAB 7.3 MAT-file, Platform: GLNXA64, Created on: Mon Nov 23 2026 HDF5 schema 1.00 ."
+
+
+def write_mat_v73(path: Path, variables: dict) -> Path:
+    """A MATLAB v7.3 MAT file as ``save -v7.3`` lays it out: an HDF5 file behind a 512-byte MATLAB header, each
+    variable a dataset with its ``MATLAB_class`` stored transposed (column-major), text as UTF-16 code units, a
+    struct a group of its fields, a struct array (a list of dicts) a group whose fields are arrays of references
+    to the elements' values under ``#refs#``."""
+    import h5py
+
+    refs = {"n": 0}
+
+    def put(group, name: str, value) -> None:
+        if isinstance(value, dict):
+            g = group.create_group(name)
+            g.attrs["MATLAB_class"] = np.bytes_("struct")
+            for k, v in value.items():
+                put(g, k, v)
+        elif isinstance(value, list):  # a 1×n struct array
+            g = group.create_group(name)
+            g.attrs["MATLAB_class"] = np.bytes_("struct")
+            pool = group.file.require_group("#refs#")
+            for field in value[0]:
+                targets = []
+                for element in value:
+                    key = f"r{refs['n']}"
+                    refs["n"] += 1
+                    put(pool, key, element[field])
+                    targets.append(pool[key].ref)
+                g.create_dataset(field, data=np.array(targets, dtype=h5py.ref_dtype).reshape(-1, 1))
+        elif isinstance(value, str):
+            d = group.create_dataset(name, data=np.array([ord(c) for c in value], dtype=np.uint16).reshape(-1, 1))
+            d.attrs["MATLAB_class"] = np.bytes_("char")
+            d.attrs["MATLAB_int_decode"] = np.int32(2)
+        else:
+            arr = np.atleast_2d(np.asarray(value, dtype=float))
+            d = group.create_dataset(name, data=arr.T)
+            d.attrs["MATLAB_class"] = np.bytes_("double")
+
+    with h5py.File(path, "w", userblock_size=512) as f:
+        for name, value in variables.items():
+            put(f, name, value)
+    with open(path, "r+b") as fh:  # MATLAB's header in the user block: text, then version 0x0200 and 'IM'
+        fh.write(V73_HEADER.ljust(116, b" ") + b"\x00" * 8 + b"\x00\x02IM")
     return path
 
 

@@ -431,7 +431,7 @@ def read_tdms(path: str | Path) -> list[Table]:
 
 def load_mat(path: Path) -> dict[str, Any]:
     """``scipy.io.loadmat`` with MATLAB structs as attribute objects and 1×N arrays squeezed; v7.3 (HDF5) files
-    and damaged files are clear errors."""
+    through ``mat73`` in the same shapes; damaged files are clear errors."""
     _read_bytes(path)
     try:
         from scipy.io import loadmat
@@ -440,10 +440,46 @@ def load_mat(path: Path) -> dict[str, Any]:
     try:
         return loadmat(path, squeeze_me=True, struct_as_record=False)
     except NotImplementedError:
-        raise BundleError(f"{path}: MATLAB v7.3 (HDF5) files are not read; save the data as a v7 MAT file "
-                          "(MATLAB: save(name, '-v7'); ControlDesk: MAT export) or export CSV") from None
+        return _load_mat_v73(path)
     except Exception as exc:  # noqa: BLE001
         raise BundleError(f"{path}: cannot be read as a MATLAB file ({exc})") from None
+
+
+class MatStruct:
+    """A MATLAB struct read from a v7.3 file, shaped like ``scipy.io.loadmat``'s (``_fieldnames`` and one attribute
+    per field), so that every reader walks v7 and v7.3 files alike."""
+
+    def __init__(self, fields: Mapping[str, Any]) -> None:
+        self._fieldnames = list(fields)
+        for name, value in fields.items():
+            setattr(self, name, value)
+
+
+def _as_loadmat(value: Any) -> Any:
+    """A value of ``mat73.loadmat`` (dicts for structs, lists for cells and struct arrays) in ``loadmat``'s shapes."""
+    if isinstance(value, dict):
+        return MatStruct({k: _as_loadmat(v) for k, v in value.items()})
+    if isinstance(value, list):
+        items = [_as_loadmat(v) for v in value]
+        out = np.empty(len(items), dtype=object)
+        out[:] = items
+        return out
+    return value
+
+
+def _load_mat_v73(path: Path) -> dict[str, Any]:
+    """A MATLAB v7.3 (HDF5) file through ``mat73``, its variables in ``loadmat``'s shapes."""
+    try:
+        import mat73
+    except ImportError:  # pragma: no cover - a dependency
+        raise BundleError(f"{path}: reading MATLAB v7.3 (HDF5) files needs the package 'mat73' (pip install mat73)"
+                          ) from None
+    try:
+        raw = mat73.loadmat(str(path), verbose=False)
+    except Exception as exc:  # noqa: BLE001 - any parser failure is a clear file error
+        raise BundleError(f"{path}: cannot be read as a MATLAB v7.3 (HDF5) file ({type(exc).__name__}: {exc})"
+                          ) from None
+    return {k: _as_loadmat(v) for k, v in raw.items()}
 
 
 def read_mat(path: str | Path) -> list[Table]:

@@ -9,7 +9,8 @@ import pytest
 
 import bmr
 from bmr.data.formats import read_tables
-from lab_files import write_aixacct, write_controldesk, write_lakeshore, write_micromag, write_slac
+from lab_files import (V73_HEADER, write_aixacct, write_controldesk, write_lakeshore, write_mat_v73,
+                       write_micromag, write_slac)
 from preisach_plant import PreisachPlant
 
 N = 300
@@ -75,10 +76,28 @@ def test_controldesk_rasters_become_tables_and_bad_captures_are_named(tmp_path):
     with pytest.raises(bmr.BmrError, match=r"column 'out1' is ambiguous"):
         t.column("out1")
     np.testing.assert_array_equal(t.column("Model Root/B/Out1")[1], MICRONS)
-    v73 = write_controldesk(tmp_path / "new.mat", "x", [], [], v73=True)
-    with pytest.raises(bmr.BmrError, match=r"new.mat: MATLAB v7.3 \(HDF5\) files are not read; save the data as a "
-                                           r"v7 MAT file"):
-        read_tables(v73)
+    damaged = tmp_path / "damaged.mat"
+    damaged.write_bytes(V73_HEADER.ljust(116, b" ") + b"\x00" * 8 + b"\x00\x02IM" + b"\x89HDF\r\n\x1a\n" + b"\x00" * 600)
+    with pytest.raises(bmr.BmrError, match=r"damaged.mat: cannot be read as a MATLAB v7.3 \(HDF5\) file"):
+        read_tables(damaged)
+
+
+def test_a_v73_capture_reads_as_its_v7_twin(tmp_path):
+    # save -v7.3 stores the capture in HDF5 (struct arrays as references): the same tables as save -v7.
+    channels = [("Model Root/Amp/Vout", "Model Root/Amp", VOLTS, "V", 1),
+                ("x_um", "Model Root/Sensor", MICRONS, "um", 1)]
+    [old] = read_tables(write_controldesk(tmp_path / "v7.mat", "forc_01", [T], channels))
+    [new] = read_tables(write_controldesk(tmp_path / "v73.mat", "forc_01", [T], channels, v73=True))
+    assert list(new.columns) == list(old.columns) and new.units == old.units and new.time_column == old.time_column
+    for k in old.columns:
+        np.testing.assert_array_equal(new.columns[k], old.columns[k])
+    assert new.meta["RTProgram"] == "piezo_rig.sdf"
+    # Plain variables and a matrix of loops, as a script saves them.
+    write_mat_v73(tmp_path / "plain.mat", {"H": np.column_stack([VOLTS, 2 * VOLTS]), "B": MICRONS, "t": T,
+                                           "note": "two loops"})
+    [plain] = read_tables(tmp_path / "plain.mat")
+    assert sorted(plain.columns) == ["B", "H[1]", "H[2]", "t"]
+    np.testing.assert_array_equal(plain.columns["H[2]"], 2 * VOLTS)
 
 
 def test_plain_mat_is_not_a_capture(tmp_path):
