@@ -3,9 +3,10 @@
     python fuzz/python/loaders.py bundle_manifest CORPUS_DIR [SEED_DIR] -max_total_time=60
     python fuzz/python/loaders.py run_file CORPUS_DIR [SEED_DIR] -max_total_time=60
     python fuzz/python/loaders.py model_file CORPUS_DIR [SEED_DIR] -max_total_time=60
+    python fuzz/python/loaders.py lab_table CORPUS_DIR [SEED_DIR] -max_total_time=60
 
 Each input is written as the file the loader reads (a manifest next to a valid run file, a CSV run file named by a
-valid manifest, or a model file) and loaded. A ``bmr.BmrError`` is a correct answer; any other exception is a finding (atheris stops and writes the
+valid manifest, a model file, or a lab log as ``.csv`` and as ``.txt`` for ``bmr import``) and loaded. A ``bmr.BmrError`` is a correct answer; any other exception is a finding (atheris stops and writes the
 input as ``crash-*``).
 """
 from __future__ import annotations
@@ -25,6 +26,7 @@ with atheris.instrument_imports():
     import bmr.data.bundle
     import bmr.data.files
     import bmr.identification.model
+    from bmr.data.formats import read_tables
 
 
 def _bundle_target(work: Path):
@@ -85,8 +87,33 @@ def _model_target(work: Path):
     return one
 
 
+def _lab_table_target(work: Path):
+    def one(data: bytes) -> None:
+        for name in ("log.csv", "log.txt"):
+            path = work / name
+            path.write_bytes(data)
+            try:
+                tables = read_tables(path)
+            except bmr.BmrError:
+                continue
+            for t in tables:
+                for column, values in t.columns.items():
+                    if values.dtype.kind != "f":
+                        raise AssertionError(f"column {column!r} read as {values.dtype}")
+            # What reads imports, or says why not.
+            names = list(tables[0].columns)
+            if len(names) >= 2:
+                try:
+                    bmr.import_logs([path], input=f"{names[0]}:V", output=f"{names[1]}:V", sample_rate_hz=100.0)
+                except bmr.BmrError:
+                    pass
+
+    return one
+
+
 def main() -> None:
-    targets = {"bundle_manifest": _bundle_target, "run_file": _run_file_target, "model_file": _model_target}
+    targets = {"bundle_manifest": _bundle_target, "run_file": _run_file_target, "model_file": _model_target,
+               "lab_table": _lab_table_target}
     if len(sys.argv) < 2 or sys.argv[1] not in targets:
         sys.exit(f"usage: {sys.argv[0]} {{{'|'.join(targets)}}} [libFuzzer options and corpus folders]")
     name = sys.argv.pop(1)

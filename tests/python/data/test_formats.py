@@ -82,6 +82,19 @@ def test_controldesk_rasters_become_tables_and_bad_captures_are_named(tmp_path):
         read_tables(damaged)
 
 
+def test_analyzer_rows_that_only_look_like_numbers_are_named(tmp_path):
+    # Found by fuzzing the import readers: a row starting with a decimal comma, and rows that read as numbers one
+    # by one but not as one table, raised pandas' errors.
+    (tmp_path / "comma.txt").write_bytes(b"Time\tVoltage\tDisplacement\ns\tmV\tnm\ncacement\ns\tmV\tnm\nclock\tamp\t"
+                                         b"sensor\n,10\t0\t0\n0 0.0 0.0\n 1e-3 5 0me\tVoltage\tDisp\n")
+    with pytest.raises(bmr.BundleError, match=r"comma.txt, line \d+: "):
+        read_tables(tmp_path / "comma.txt")
+    (tmp_path / "mixed.txt").write_bytes(b"e\ts%nsor\n0\t0\xaa\t0\n0.001\xf7\xce\xd1\xc5\t0.3\n0.002:3\t0.61\np\tmV\tnm\n"
+                                         b"4\t,3\t0.61\n")
+    with pytest.raises(bmr.BundleError, match=r"mixed.txt, lines 6-6: not a table of numbers"):
+        read_tables(tmp_path / "mixed.txt")
+
+
 def test_a_v73_capture_reads_as_its_v7_twin(tmp_path):
     # save -v7.3 stores the capture in HDF5 (struct arrays as references): the same tables as save -v7.
     channels = [("Model Root/Amp/Vout", "Model Root/Amp", VOLTS, "V", 1),

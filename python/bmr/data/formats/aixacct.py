@@ -65,7 +65,7 @@ def _header(fields: list[str]) -> bool:
 def _starts_numeric(line: str) -> bool:
     """Cheap test for a data row: its first character can start a number."""
     head = line.lstrip()[:1]
-    return bool(head) and (head in "0123456789+-." or line.lstrip()[:3].lower() in ("nan", "inf"))
+    return bool(head) and (head in "0123456789+-.," or line.lstrip()[:3].lower() in ("nan", "inf"))
 
 
 def _rows(lines: list[str], start: int, stop: int, header: list[str], last: int, source: str,
@@ -83,11 +83,12 @@ def _rows(lines: list[str], start: int, stop: int, header: list[str], last: int,
                           f"({', '.join(header)}){truncated}")
     try:
         frame = pd.read_csv(io.StringIO("\n".join(block)), sep="\t", header=None, dtype=float, decimal=decimal)
-    except ValueError:
+    except ValueError as exc:
         for k, b in enumerate(block):
             if not _numeric(_fields(b), decimal):
                 raise BundleError(f"{source}, line {start + k + 1}: not a row of numbers: {b.strip()[:60]!r}") from None
-        raise
+        # Each row reads as numbers alone but not together (a line break the rows were split on inside one).
+        raise BundleError(f"{source}, lines {start + 1}-{stop}: not a table of numbers ({exc})") from None
     return frame.to_numpy(dtype=float)
 
 
@@ -134,6 +135,9 @@ def _tables(text: str, source: str) -> list[tuple[int, list[str], np.ndarray, di
             j = first
             while j < len(lines) and _starts_numeric(lines[j]):
                 j += 1
+            if j == first:  # what follows parses as numbers but does not start like a row of them
+                i += 1
+                continue
             rows = _rows(lines, first, j, fields, last, source, decimal or ".")
             if units is not None:
                 fields = [f"{name} [{unit}]" if unit and unit != "-" and split_name_unit(name)[1] is None else name
