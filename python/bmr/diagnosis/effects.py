@@ -150,6 +150,11 @@ class Effect(ABC):
         does, or when the effect checks none beyond its held-out gain and range)."""
         return ""
 
+    def without_signature(self) -> "Effect | None":
+        """The effect narrowed to the forms whose mechanism its signature does not test, searched when that
+        signature is missing (None: it has no such forms)."""
+        return None
+
 
 # ------------------------------------------------------------------------------------------------ field effects
 class CoilLag(Effect):
@@ -225,13 +230,27 @@ class NonCongruent(Effect):
     HIGHER_ORDER_EXCESS = 0.1
     signature_before_only = True
 
+    def __init__(self, mean_field_only: bool = False) -> None:
+        # The mean-field family alone (``without_signature``).
+        self.mean_field_only = mean_field_only
+
+    def without_signature(self) -> "Effect | None":
+        """The mean field alone: it shifts the core's input on every sample, so the excess after higher-order
+        reversals that an output map leaves is not its signature (on a protocol with few of them, its error shows
+        on the first-order-like curves between the measured ones as much)."""
+        return None if self.mean_field_only else NonCongruent(mean_field_only=True)
+
     def grid(self, data: EvalData) -> list[Any]:
         # Three one-parameter families, each in order of its parameter.
         full = float(data.full_current_a)
-        return ([(c, 0.0, 0.0) for c in self.CURVATURES] + [(0.0, k, 0.0) for k in self.CUBICS]
-                + [(0.0, 0.0, f * full) for f in self.FEEDBACKS])
+        fed = [(0.0, 0.0, f * full) for f in self.FEEDBACKS]
+        if self.mean_field_only:
+            return fed
+        return [(c, 0.0, 0.0) for c in self.CURVATURES] + [(0.0, k, 0.0) for k in self.CUBICS] + fed
 
     def grid_families(self, data: EvalData) -> list[range] | None:
+        if self.mean_field_only:
+            return [range(len(self.FEEDBACKS))]
         a, b = len(self.CURVATURES), len(self.CURVATURES) + len(self.CUBICS)
         return [range(0, a), range(a, b), range(b, b + len(self.FEEDBACKS))]
 
@@ -285,6 +304,8 @@ class NonCongruent(Effect):
         reversals: the residual of ``before`` must be larger (in mean square, by :attr:`HIGHER_ORDER_EXCESS` of the
         noise floor's square) on the curves of reversal order 2 and above than on the major loop and the
         first-order curves."""
+        if self.mean_field_only:
+            return ""
         data = fitter.data
         residual, _ = fitter.fit(before.path, before.linear)
         order = self._order(fitter)

@@ -825,11 +825,13 @@ def forward_selection(fitter: Fitter, *, library: Sequence[Effect] = LIBRARY, ma
             if progress is not None:
                 progress.set_postfix_str(f"round {rounds}: {eff.name}")
             missing = eff.signature_missing(fitter, config, None) if eff.signature_before_only else ""
-            if missing:
+            narrower = eff.without_signature() if missing else None
+            if missing and narrower is None:
                 # It could be neither named nor an alternative: its grid is not searched.
                 cands.append(Candidate.unevaluated(eff, before.rms(), data.noise_floor_nmm, missing))
             else:
-                cands.append(evaluate(fitter, config, eff, before))
+                # Without its signature, the forms the signature does not test are searched alone.
+                cands.append(evaluate(fitter, config, narrower or eff, before))
             if progress is not None:
                 progress.update(1)
         for c in cands:
