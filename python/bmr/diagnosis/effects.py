@@ -178,6 +178,21 @@ class CoilLag(Effect):
     def refine(self) -> bool:
         return True
 
+    def signature_missing(self, fitter: Any, before: Any, after: Any) -> str:
+        """A first-order lag relaxes over its time constant: the samples must resolve that approach. A lag shorter
+        than half the sample period relaxes within the sample it starts in and shows as a shift of less than half a
+        sample, and so does how a lag already on the path is sampled (a lag of ``tau`` sampled with the input held
+        over each sample trails a ramp by ``tau − dt/2``, one with the input taken at the sample's end by ``tau``:
+        for a rate dependence, the dynamic field of a backward-Euler plant, up to half a sample more where the
+        branch is steep). Such a lag is the sampling of the path's timing, not a relaxation the data show."""
+        tau = float(after.path.lag_tau_s) if after is not None else 0.0
+        dt = min(r.dt_s for r in fitter.data.runs)
+        if not 0.0 < tau < 0.5 * dt:
+            return ""
+        return (f"the lag ({1e3 * tau:.3g} ms) is shorter than half the sample period ({1e3 * dt:.3g} ms): it relaxes "
+                "within one sample, a sub-sample shift that how the path's timing is sampled makes as well (record "
+                "at a higher sample rate to see its approach)")
+
 
 class TimeDelay(Effect):
     name = "time_delay"
@@ -390,10 +405,21 @@ def _cold_and_carried(data: EvalData, tau_s: float) -> tuple[np.ndarray, np.ndar
     return data.cache.get(("thermal_cold_carried", tau_s), make)
 
 
+def field_zero(model: Any) -> float:
+    """Where the field torque is zero in the core tables' output: the middle of the major loop's output range. A
+    magnetic torque is odd in the field, so its major loop is symmetric about zero torque; the tables count from
+    the state the identification started in (a remanence, which the friction's mean absorbed), so a gain that
+    changes after the friction was identified (the coils' heating) scales the tables' output about this level,
+    not about theirs."""
+    lo, hi = model.hysteresis.output_range
+    return 0.5 * (float(lo) + float(hi))
+
+
 class ThermalDrift(Effect):
     name = "thermal_drift"
     excitation = "a long run near full input followed by a rest (the gain falls as the coils heat and recovers)"
-    doc = "coil heating lowers the torque gain: field × (1 − gain_loss·x), x the heating state of time constant tau_s"
+    doc = ("coil heating lowers the torque gain: field torque × (1 − gain_loss·x), x the heating state of time "
+           "constant tau_s")
     removal_rank = 1
 
     def grid(self, data: EvalData) -> list[Any]:
@@ -405,7 +431,8 @@ class ThermalDrift(Effect):
         # The heating of each run from cold coils, the heat carried over from the runs before (its share fitted:
         # the rig may have rested between runs), and a gain.
         cold, carried = _cold_and_carried(data, float(value))
-        return np.column_stack([-cold * y_field, y_field, -carried * y_field])
+        torque = y_field - field_zero(model)
+        return np.column_stack([-cold * torque, y_field, -carried * torque])
 
     def update_path(self, path, value, own_beta, data):
         # Heating also changed the gain along the protocol runs: identify the tables again without it.
@@ -430,7 +457,8 @@ class ThermalDrift(Effect):
         x = states[i] - (1.0 - ThermalDrift.carried_share(np.asarray(beta))) * decay
         # Only the heating is undone, relative to cold coils: the fitted field gain ``1 + beta[1]`` is the
         # tables' own error (identified warm) and belongs in the re-identified tables, which are cold.
-        return y / np.maximum(1.0 - ThermalDrift._gain_loss(beta) * x, 1e-3)
+        zero = field_zero(run.model)
+        return zero + (y - zero) / np.maximum(1.0 - ThermalDrift._gain_loss(beta) * x, 1e-3)
 
     @staticmethod
     def _gain_loss(beta: Any) -> float:
@@ -529,6 +557,9 @@ class TorqueRipple(Effect):
     removal_rank = 1
 
     def columns(self, data, value, y_field, model):
+        # About the tables' own zero, not the field torque's (``field_zero``): the friction was identified on the
+        # off-state run, whose field torque (the remanence the tables count from) the gap modulated too, so the
+        # friction's once-per-revolution term holds the remanence's ripple already.
         s, c = _angle_harmonic(data, 1)
         return np.column_stack([y_field * c, y_field * s])
 

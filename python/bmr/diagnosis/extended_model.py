@@ -4,7 +4,10 @@ The extended torque of a run is
 
 ``T = g(H(lag(delay(I)))) · (1 − gain_loss·x) · (1 + eps cos(θ + φ)) + F(θ, |I_field|) + offset + drift·t``
 
-where each factor is present only when its effect was accepted (:mod:`bmr.diagnosis.effects`). The
+where each factor is present only when its effect was accepted (:mod:`bmr.diagnosis.effects`). With a heating
+the core's stored tables count from zero field torque (the middle of the major loop, about which the heating
+scales the field torque; the level the identification started from is in ``offset``), unless an output map ``g``,
+a mean field or the gap ripple reads them on the level they were identified on. The
 extensions are stored in the model file as ``{"name", "params"}`` entries (plus ``core_tables`` with the core's
 curves and ``offset`` for the fitted constant), so a loaded model reproduces the extended simulation.
 
@@ -19,7 +22,10 @@ import copy
 import math
 from typing import Any, Sequence
 
+import numpy as np
+
 from bmr._core import check_extensions, effect_parameters
+from bmr.diagnosis.effects import field_zero
 from bmr.identification.extended import extended_simulation, learned_term, simulate_extended
 
 __all__ = ["ExtendedModel", "extensions_from_selection", "learned_term", "with_extensions"]
@@ -51,14 +57,24 @@ def extensions_from_selection(config: Any, accepted: Sequence[dict[str, Any]]) -
             entry["params_fitted"] = params
         out.append(entry)
     path = config.path
+    offset = float(config.beta[0])
     if (path.tables is not None or path.reidentify or path.lag_tau_s > 0 or path.delay_s > 0 or path.curvature != 0
             or path.cubic != 0):
-        # The Preisach core's own tables (refined, or re-identified under the field effects).
+        # The Preisach core's own tables (refined, or re-identified under the field effects). With a heating they
+        # count from zero field torque, the level the diagnosis scaled (``field_zero``; the rest moves to the
+        # offset), unless a stage reads them on the level they were identified on: an output map or a mean field
+        # (fitted there) or the gap ripple (scaling about that level: the friction holds the remanence's ripple).
         asc, desc = path.core_curves()
+        names = {row["name"] for row in accepted}
+        centred = ("thermal_drift" in names and "torque_ripple" not in names and path.curvature == 0
+                   and path.cubic == 0 and path.feedback == 0)
+        zero = field_zero(path.model) if centred else 0.0
+        offset += zero
         out.append({"name": "core_tables", "params": {},
-                    "tables": {"ascending": [[list(map(float, u)), list(map(float, y))] for u, y in asc],
-                               "descending": [[list(map(float, u)), list(map(float, y))] for u, y in desc]}})
-    out.append({"name": "offset", "params": {"offset_nmm": float(config.beta[0])}})
+                    "tables": {side: [[list(map(float, u)), list(map(float, np.asarray(y, dtype=float) - zero))]
+                                      for u, y in curves]
+                               for side, curves in (("ascending", asc), ("descending", desc))}})
+    out.append({"name": "offset", "params": {"offset_nmm": offset}})
     return out
 
 

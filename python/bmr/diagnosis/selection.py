@@ -23,8 +23,9 @@ of the effect vocabulary (``bmr.effect_parameters()``) — or that pushes an eff
 range — is not that effect and is rejected (the next best candidate is tried; the structure may still be learned
 by the sparse regression). A candidate whose mechanism signature the residual does not show
 (:meth:`bmr.diagnosis.effects.Effect.signature_missing`: a ``viscous`` loss whose loop width does not grow with the
-rate across drive speeds, a ``thermal_drift`` that would carry more heat into a run than the current's history
-leaves, a ``sensor_drift`` whose trend one recording makes, a ``run_gain_offset`` that changes along a recording or
+rate across drive speeds, a ``coil_lag`` shorter than half the sample period (a relaxation the samples do not
+resolve), a ``thermal_drift`` that would carry more heat into a run than the current's history leaves, a
+``sensor_drift`` whose trend one recording makes, a ``run_gain_offset`` that changes along a recording or
 follows the session's time) is rejected the same way, and is no alternative to another either. When another accepted candidate of the same round explains as much (the paired fold
 gains differ by less than their 95 % interval) and is no longer needed once the chosen one is in, the two are
 reported as indistinguishable on this excitation (:class:`Alternative`), with what would separate them.
@@ -919,11 +920,13 @@ def _needed_pair(fitter: Fitter, config: Configuration, cands: Sequence[Candidat
                  ) -> tuple[Configuration, list[tuple[Candidate, dict[str, float]]]] | None:
     """Two effects that each pass the acceptance rule once the other is in, where neither passed alone (two drifts
     of one session, each of which looks like noise in the folds the other dominates). Tried among the round's
-    :data:`PAIR_CANDIDATES` candidates with the most gain that improve most folds without being accepted;
-    both must keep physical parameters and show their mechanism signature. Returns the configuration with both
+    :data:`PAIR_CANDIDATES` candidates with the most gain that improve most folds without being accepted, or
+    accepted without their mechanism signature: the other effect of the pair can hide it (a warming sensor's
+    offset read by the heating's share carried over between runs); both must keep physical parameters and show
+    their mechanism signature once the other is in. Returns the configuration with both
     and each one's candidate (judged given the other) with its parameters, or None."""
     hopeful = sorted((c for c in cands if c.fold_gains.size and c.folds_positive * 2 > c.fold_gains.size
-                      and c.mean_gain >= MIN_GAIN and not c.no_signature and not c.unphysical),
+                      and c.mean_gain >= MIN_GAIN and not c.unphysical),
                      key=lambda c: -c.mean_gain)[:PAIR_CANDIDATES]
     alone: dict[str, Configuration] = {}  # each candidate refitted on ``config`` once, whichever pair asks
 
@@ -946,7 +949,10 @@ def _needed_pair(fitter: Fitter, config: Configuration, cands: Sequence[Candidat
             fields = list(field_effects) + [e.effect for e in (a, b) if e.effect.field]
             if _unphysical(fitter, both, fields):
                 continue
-            if b.effect.signature_missing(fitter, with_a, both) or a.effect.signature_missing(fitter, with_b, both):
+            # Each signature reads its own effect's columns last in the configuration it is given.
+            if b.effect.signature_missing(fitter, with_a, both):
+                continue
+            if a.effect.signature_missing(fitter, with_b, refit(fitter, with_b, a.effect)[0]):
                 continue
             params = _config_params(fitter, both, fields)
             return both, [(a_given_b, params[a.effect.name]), (b_given_a, params[b.effect.name])]

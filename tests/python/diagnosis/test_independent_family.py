@@ -72,6 +72,19 @@ def test_hidden_mechanism_is_named(mechanism):
 
 
 @pytest.mark.slow
+@pytest.mark.parametrize("mechanism", ["eddy_field", "coil_heating"])
+def test_the_papers_protocol_names_no_second_effect(mechanism):
+    # Three evaluation runs at one drive speed. A dynamic field sampled at the end of each sample trails a ramp by
+    # half a sample more than bmr's lag with the input held over the sample: that 1 ms is no coil lag of 0.74 ms
+    # next to the rate dependence. A heating scales the field torque about its zero, the middle of the loop (the
+    # tables count from the off-state's remanence): scaled about the tables' zero it left a trend at zero field
+    # torque that was named a sensor drift.
+    bundle = ip.independent_bundle({mechanism: ip.at_size(mechanism, 1.0)}, seed=SEED, protocol="coarse")
+    d = bmr.diagnose(bundle, progress=False, closed_loop=False)
+    _assert_named(d, [mechanism])
+
+
+@pytest.mark.slow
 def test_log_after_effect_is_creep_with_its_fluctuation_field():
     # A thermal fluctuation field along the input's last direction, logarithmic in the time since it turned and
     # never settling within a run: named creep in its unbounded form, the field within 30 % of the plant's.
@@ -108,8 +121,9 @@ def test_heating_and_a_warming_sensor_are_not_named_a_per_run_calibration(heatin
 
 @pytest.mark.slow
 def test_heating_and_a_warming_sensor_are_both_named(heating_and_warming_sensor):
-    # Alone, neither passes (held-out gains 14 % and 4 %, each hidden by the other in some folds: 5.83 N·mm held
-    # out, noise 1.48); each is accepted once the other is in, so both are named together.
+    # Alone, neither is named (5.83 N·mm held out, noise 1.48): the heating gains 19 % but the share of heat it
+    # would carry over between runs reads the bridge's warm-up (-3, outside [0, 1]), the drift gains 14 % in 4 folds
+    # of 5; each is accepted with its signature once the other is in, so both are named together.
     d = heating_and_warming_sensor
     _assert_named(d, PAIR)
     assert {e.get("paired_with") for e in d.effects} == set(ip.MECHANISMS[m].names[0] for m in PAIR)
