@@ -406,11 +406,15 @@ def _cold_and_carried(data: EvalData, tau_s: float) -> tuple[np.ndarray, np.ndar
 
 
 def field_zero(model: Any) -> float:
-    """Where the field torque is zero in the core tables' output: the middle of the major loop's output range. A
-    magnetic torque is odd in the field, so its major loop is symmetric about zero torque; the tables count from
-    the state the identification started in (a remanence, which the friction's mean absorbed), so a gain that
-    changes after the friction was identified (the coils' heating) scales the tables' output about this level,
-    not about theirs."""
+    """Where the field torque is zero in the core tables' output. On an input range around zero (a current of
+    either sign: the actuator, a magnet) the middle of the major loop's output range: a magnetic torque is odd in
+    the field, so its major loop is symmetric about zero torque; the tables count from the state the
+    identification started in (a remanence, which the friction's mean absorbed), so a gain that changes after the
+    friction was identified (the coils' heating) scales the tables' output about this level, not about theirs. On
+    a one-sided input range (a piezo stack's 0-100 V) the tables' own zero: the state at the input's rest."""
+    lo_u, hi_u = model.hysteresis.input_range
+    if not float(lo_u) < 0.0 < float(hi_u):
+        return 0.0
     lo, hi = model.hysteresis.output_range
     return 0.5 * (float(lo) + float(hi))
 
