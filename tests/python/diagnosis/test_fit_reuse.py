@@ -210,24 +210,43 @@ def lag_fitter() -> Fitter:
     return Fitter(data, model, protocol)
 
 
-@pytest.mark.parametrize("name, bundle", [("non_congruent", "lag_fitter"), ("sensor_drift", "fitter")])
-def test_a_candidate_without_its_signature_is_not_searched(request, name, bundle) -> None:
-    # A coil lag (no output map: the residual is no larger after higher-order reversals) and a friction harmonic
-    # (no zero drifting through the session): the configuration's residual lacks the candidate's signature, which
-    # reads that residual alone. Such a candidate could be neither named nor an alternative, so its grid is not
-    # searched at all.
-    fitter = request.getfixturevalue(bundle)
-    eff = _effect(name)
+def test_a_candidate_without_its_signature_is_not_searched(fitter) -> None:
+    # A friction harmonic (no zero drifting through the session): the configuration's residual lacks the sensor
+    # drift's signature, which reads that residual alone. Such a candidate could be neither named nor an
+    # alternative, so its grid is not searched at all.
+    eff = _effect("sensor_drift")
     config = Configuration(fitter.nominal_path())
     fitter.solve(config.path, config.linear)
     missing = eff.signature_missing(fitter, config, None)
-    assert eff.signature_before_only and missing
+    assert eff.signature_before_only and missing and eff.without_signature() is None
     start = fitter.reidentifier.fits
     sel = selection.forward_selection(fitter, library=[eff], max_effects=1)
     assert fitter.reidentifier.fits == start
     assert not sel["accepted"] and not sel["alternatives"]
-    row = next(r for r in sel["rejected"] if r["name"] == name)
+    row = next(r for r in sel["rejected"] if r["name"] == "sensor_drift")
     assert row["folds_evaluated"] == 0 and row["fold_gains"] == [] and missing in row["reason"]
+
+
+def test_without_the_output_maps_signature_only_the_mean_field_is_searched(lag_fitter, monkeypatch) -> None:
+    # A coil lag: the residual is no larger after higher-order reversals, so no output map is searched; the mean
+    # field acts on every sample (that excess is not its signature) and is searched alone.
+    eff = _effect("non_congruent")
+    config = Configuration(lag_fitter.nominal_path())
+    lag_fitter.solve(config.path, config.linear)
+    assert eff.signature_missing(lag_fitter, config, None)
+    paths = []
+    solve = lag_fitter.solve
+
+    def spy(path, linear):
+        paths.append(path)
+        return solve(path, linear)
+
+    monkeypatch.setattr(lag_fitter, "solve", spy)
+    sel = selection.forward_selection(lag_fitter, library=[eff], max_effects=1)
+    searched = [p for p in paths if p.curvature or p.cubic or p.feedback]
+    assert searched and all(p.curvature == 0.0 and p.cubic == 0.0 and p.feedback != 0.0 for p in searched)
+    row = next(r for r in sel["rejected"] + sel["accepted"] if r["name"] == "non_congruent")
+    assert row["folds_evaluated"] > 0
 
 
 def test_the_measured_torque_is_gathered_on_the_fit_rows_once(fitter, monkeypatch) -> None:
