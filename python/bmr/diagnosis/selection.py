@@ -61,7 +61,9 @@ Fewer grid values are re-identified than the grids hold: a field effect whose ev
 is scanned coarse to fine (every eighth value first on long grids; each family of the output map on its own,
 :meth:`bmr.diagnosis.effects.Effect.grid_families`). A candidate whose
 mechanism signature reads the configuration's residual alone (``Effect.signature_before_only``) and is missing
-is not searched at all: it could be neither named nor an alternative (its row says so, with no fold evaluated).
+is not searched at all: it could be neither named nor an alternative (its row says so, with no fold evaluated);
+only its forms the signature does not test are (``Effect.without_signature``: ``non_congruent``'s mean field,
+which acts on every sample where an output map shows after higher-order reversals only).
 """
 from __future__ import annotations
 
