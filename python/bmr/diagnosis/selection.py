@@ -595,6 +595,14 @@ def evaluate(fitter: Fitter, config: Configuration, eff: Effect, before: Heldout
     train_sse = np.array([f.sse_train[:data.folds] if f is not None else np.full(data.folds, np.inf)
                           for f in fits])
     train_sse = np.where(np.isnan(train_sse), np.inf, train_sse)
+    if eff.ranks_in_range and not eff.field:
+        # Each fold ranks only the values whose parameters, fitted on its training blocks, stay in range, as the
+        # fit on all data does (:func:`refit`): a value fitted against the effect's physics (a negative yield
+        # force cancelling the loop width the tables keep) could never be named. A fold where none stays in range
+        # ranks them all.
+        inside = np.array([[f is not None and _in_range(eff, config, grid[i], f, k) for k in range(data.folds)]
+                           for i, f in enumerate(fits)])
+        train_sse = np.where(inside | ~np.any(inside, axis=0), train_sse, np.inf)
     # Grid values may differ in their number of columns (nested variants, e.g. per-run offsets with or without
     # per-run gains): rank them on the training blocks by the Bayesian information criterion.
     n_train = np.maximum(np.sum(done[0].n_test) - done[0].n_test, 2.0)
@@ -733,6 +741,13 @@ def _golden(f: Callable[[float], float], a: float, b: float, iters: int = REFINE
     return (a + b) / 2.0
 
 
+def _in_range(eff: Effect, config: Configuration, value: Any, ff: FoldFit, index: int) -> bool:
+    """Whether the linear effect ``eff`` at ``value``, fitted after ``config``'s effects (``ff.beta[index]``: on
+    the training blocks of fold ``index``, or on all data), has its parameters in the vocabulary's range."""
+    own = ff.beta[index][1 + sum(ff.widths[:len(config.linear)]):]
+    return not out_of_range(eff.name, eff.params(value, own, config.path))
+
+
 def refit(fitter: Fitter, config: Configuration, eff: Effect) -> tuple[Configuration, dict[str, float]]:
     """``config`` plus ``eff`` fitted on all evaluation data: grid search, then (continuous parameters) a golden
     section search between the neighbours of the best grid value."""
@@ -743,10 +758,8 @@ def refit(fitter: Fitter, config: Configuration, eff: Effect) -> tuple[Configura
         # The information criterion of the fit on all data (as the selection ranks grid values).
         path, linear = _with(config, eff, v, data)
         ff = fitter.solve(path, linear)
-        if eff.ranks_in_range and not eff.field:
-            own = ff.beta[data.folds][1 + sum(ff.widths[:len(config.linear)]):]
-            if out_of_range(eff.name, eff.params(v, own, path)):
-                return math.inf
+        if eff.ranks_in_range and not eff.field and not _in_range(eff, config, v, ff, data.folds):
+            return math.inf
         n = max(float(np.sum(ff.n_test)), 2.0)
         return float(n * math.log(max(float(ff.sse_train[data.folds]), 1e-300) / n) + sum(ff.widths) * math.log(n))
 
