@@ -434,10 +434,7 @@ def _fit_with(fitter: Fitter, config: Configuration, eff: Effect, value: Any, fo
     beta = ff.beta[index]
     if not eff.field:
         start = 1 + sum(ff.widths[:-1])
-        # Each parameter's scale in output units (the RMS of its column), so that the extrapolation weighs them
-        # alike.
-        scale = np.sqrt(np.mean(np.asarray(eff.columns(data, value, fitter.field(path), fitter.model),
-                                           dtype=float).reshape(data.n_eval, -1) ** 2, axis=0))
+        scale: np.ndarray | None = None
         applied = None
         tried: list[np.ndarray] = []
         fitted: list[np.ndarray] = []
@@ -462,6 +459,11 @@ def _fit_with(fitter: Fitter, config: Configuration, eff: Effect, value: Any, fo
             path = new
             ff = fitter.solve(path, linear)
             beta = ff.beta[index]
+            if scale is None:
+                # Each parameter's scale in output units (the RMS of its column), so that the extrapolation and the
+                # choice of the pass weigh them alike.
+                columns = np.asarray(eff.columns(data, value, fitter.field(path), fitter.model), dtype=float)
+                scale = np.sqrt(np.mean(columns.reshape(data.n_eval, -1) ** 2, axis=0))
             tried.append(applied)
             fitted.append(beta[start:])
             passes.append((float(np.linalg.norm((fitted[-1] - applied) * scale)), ff, beta, path))
@@ -644,7 +646,7 @@ def evaluate(fitter: Fitter, config: Configuration, eff: Effect, before: Heldout
         # fit on all data does (:func:`refit`): a value fitted against the effect's physics (a negative yield
         # force cancelling the loop width the tables keep) could never be named. A fold where none stays in range
         # ranks them all.
-        inside = np.array([[f is not None and _in_range(eff, config, grid[i], f, k) for k in range(data.folds)]
+        inside = np.array([[f is not None and _in_range(eff, config, grid[i], f, k, data) for k in range(data.folds)]
                            for i, f in enumerate(fits)])
         train_sse = np.where(inside | ~np.any(inside, axis=0), train_sse, np.inf)
     # Grid values may differ in their number of columns (nested variants, e.g. per-run offsets with or without
@@ -785,11 +787,11 @@ def _golden(f: Callable[[float], float], a: float, b: float, iters: int = REFINE
     return (a + b) / 2.0
 
 
-def _in_range(eff: Effect, config: Configuration, value: Any, ff: FoldFit, index: int) -> bool:
+def _in_range(eff: Effect, config: Configuration, value: Any, ff: FoldFit, index: int, data: EvalData) -> bool:
     """Whether the linear effect ``eff`` at ``value``, fitted after ``config``'s effects (``ff.beta[index]``: on
     the training blocks of fold ``index``, or on all data), has its parameters in the vocabulary's range."""
     own = ff.beta[index][1 + sum(ff.widths[:len(config.linear)]):]
-    return not out_of_range(eff.name, eff.params(value, own, config.path))
+    return not out_of_range(eff.name, eff.params(value, own, _with(config, eff, value, data)[0]))
 
 
 def refit(fitter: Fitter, config: Configuration, eff: Effect) -> tuple[Configuration, dict[str, float]]:
@@ -802,7 +804,7 @@ def refit(fitter: Fitter, config: Configuration, eff: Effect) -> tuple[Configura
         # The information criterion of the fit on all data (as the selection ranks grid values).
         path, linear = _with(config, eff, v, data)
         ff = fitter.solve(path, linear)
-        if eff.ranks_in_range and not eff.field and not _in_range(eff, config, v, ff, data.folds):
+        if eff.ranks_in_range and not eff.field and not _in_range(eff, config, v, ff, data.folds, data):
             return math.inf
         n = max(float(np.sum(ff.n_test)), 2.0)
         return float(n * math.log(max(float(ff.sse_train[data.folds]), 1e-300) / n) + sum(ff.widths) * math.log(n))
