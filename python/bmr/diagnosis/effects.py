@@ -1221,8 +1221,10 @@ class Viscous(Effect):
     needs_reidentify = True
     ranks_in_range = True
     # Yield rates tried, as shares of the RMS input rate of the evaluated data: from a nearly stepped yield force
-    # (a Bingham fluid) to one that is still proportional at the typical rate (where it is the viscous part).
-    YIELD_RATE_SHARES = (0.01, 0.03, 0.1, 0.3)
+    # (a Bingham fluid) through one that is still proportional at the typical rate (where it is the viscous part)
+    # to one proportional at every rate the drive follows and level only at the fastest: a loss bounded where a
+    # step of the input in one sample makes its backward-difference rate far exceed any rate the drive moves at.
+    YIELD_RATE_SHARES = (0.01, 0.03, 0.1, 0.3, 1.0, 3.0)
 
     def grid(self, data: Any) -> list[Any]:
         rate = self.columns(data, None, None, None)[:, 0]

@@ -425,9 +425,11 @@ def _with(config: Configuration, eff: Effect, value: Any, data: EvalData
 def _fit_with(fitter: Fitter, config: Configuration, eff: Effect, value: Any, fold: int | None
               ) -> tuple[FoldFit, np.ndarray, FieldPath, list[tuple[Effect, Any]]]:
     """Fit ``config`` plus ``eff`` at ``value`` on the training blocks of ``fold`` (None: all data); effects that
-    also bend the identification data alternate fit and re-identification twice, or fewer times when a pass would
-    change the corrected protocol runs by less than :data:`CONVERGED_CORRECTION` of the noise floor (none: the
-    configuration's least-squares tables stand)."""
+    also bend the identification data alternate fit and re-identification until a pass would change the corrected
+    protocol runs by less than :data:`CONVERGED_CORRECTION` of the noise floor (none: the configuration's
+    least-squares tables stand), at most :func:`_correction_passes` times, each correction after the first
+    extrapolated from the passes before (:func:`_next_correction`); the result is the pass whose fitted parameters
+    differ least (in output units) from the correction its tables were identified with."""
     data = fitter.data
     index = data.folds if fold is None else fold
     path, linear = _with(config, eff, value, data)
@@ -435,9 +437,14 @@ def _fit_with(fitter: Fitter, config: Configuration, eff: Effect, value: Any, fo
     beta = ff.beta[index]
     if not eff.field:
         start = 1 + sum(ff.widths[:-1])
+        scale: np.ndarray | None = None
         applied = None
-        for _ in range(2):
-            new = eff.update_path(path, value, beta[start:], data)
+        tried: list[np.ndarray] = []
+        fitted: list[np.ndarray] = []
+        passes: list[tuple[float, FoldFit, np.ndarray, FieldPath]] = []  # (mismatch, fit, beta, path) of each pass
+        correction = beta[start:]
+        for _ in range(_correction_passes(ff.widths[-1])):
+            new = eff.update_path(path, value, correction, data)
             if new is None:
                 break
             # Converged: the refitted parameters would change the corrected protocol runs by a small share of
@@ -445,17 +452,56 @@ def _fit_with(fitter: Fitter, config: Configuration, eff: Effect, value: Any, fo
             # correction: the tables are then the configuration's own least-squares ones (already identified).
             if fitter.reidentifier.correction_change(
                     eff, value, np.zeros(len(beta) - start) if applied is None else applied,
-                    beta[start:]) < CONVERGED_CORRECTION * data.noise_floor_nmm:
+                    correction) < CONVERGED_CORRECTION * data.noise_floor_nmm:
                 if applied is None:
                     path = path.with_(reidentify=True)
                     ff = fitter.solve(path, linear)
                     beta = ff.beta[index]
                 break
-            applied = beta[start:]
+            applied = correction
             path = new
             ff = fitter.solve(path, linear)
             beta = ff.beta[index]
+            if scale is None:
+                # Each parameter's scale in output units (the RMS of its column), so that the extrapolation and the
+                # choice of the pass weigh them alike.
+                columns = np.asarray(eff.columns(data, value, fitter.field(path), fitter.model), dtype=float)
+                scale = np.sqrt(np.mean(columns.reshape(data.n_eval, -1) ** 2, axis=0))
+            tried.append(applied)
+            fitted.append(beta[start:])
+            passes.append((float(np.linalg.norm((fitted[-1] - applied) * scale)), ff, beta, path))
+            correction = _next_correction(tried, fitted, scale)
+        if passes:
+            # The pass whose tables agree best with the parameters fitted on them: an extrapolation that overshot
+            # (the map is affine only while the nonnegative tables keep their active set) is not the result.
+            _, ff, beta, path = min(passes, key=lambda p: p[0])
     return ff, beta, path, linear
+
+
+def _correction_passes(width: int) -> int:
+    """Fit and re-identification passes of a linear effect with ``width`` parameters: a fitted correction is an
+    affine map of the correction the tables were identified with (least-squares tables, a linear fit), whose fixed
+    point :func:`_next_correction` reaches from ``width + 1`` passes; one more confirms it."""
+    return width + 2
+
+
+def _next_correction(tried: Sequence[np.ndarray], fitted: Sequence[np.ndarray], scale: np.ndarray) -> np.ndarray:
+    """The next correction to identify the tables with, from the corrections ``tried`` and the parameters
+    ``fitted`` on the tables each gave: the combination ``Σ a_i fitted_i`` (``Σ a_i = 1``) whose mismatches
+    ``fitted_i − tried_i`` (in output units: times ``scale``) cancel best, the fixed point of an affine map once
+    the passes span its parameters (Anderson mixing; one pass: the fitted parameters themselves). A plain
+    alternation can crawl: tables identified at the protocol's one drive speed keep what the correction leaves of a
+    loss as a wider loop, which the other speeds then read as a smaller loss, so each pass removes only a share of
+    the remainder."""
+    f = np.array(fitted, dtype=float)
+    if len(tried) < 2:
+        return f[-1]
+    g = (f - np.array(tried, dtype=float)) * scale
+    # Σ a_i g_i with Σ a_i = 1: the last one plus a least-squares combination of the differences.
+    diff = (g[:-1] - g[-1]).T
+    a, *_ = np.linalg.lstsq(diff, -g[-1], rcond=None)
+    out = f[-1] + (f[:-1] - f[-1]).T @ a
+    return out if np.all(np.isfinite(out)) else f[-1]
 
 
 def _costly(eff: Effect) -> bool:
@@ -598,6 +644,14 @@ def evaluate(fitter: Fitter, config: Configuration, eff: Effect, before: Heldout
     train_sse = np.array([f.sse_train[:data.folds] if f is not None else np.full(data.folds, np.inf)
                           for f in fits])
     train_sse = np.where(np.isnan(train_sse), np.inf, train_sse)
+    if eff.ranks_in_range and not eff.field:
+        # Each fold ranks only the values whose parameters, fitted on its training blocks, stay in range, as the
+        # fit on all data does (:func:`refit`): a value fitted against the effect's physics (a negative yield
+        # force cancelling the loop width the tables keep) could never be named. A fold where none stays in range
+        # ranks them all.
+        inside = np.array([[f is not None and _in_range(eff, config, grid[i], f, k, data) for k in range(data.folds)]
+                           for i, f in enumerate(fits)])
+        train_sse = np.where(inside | ~np.any(inside, axis=0), train_sse, np.inf)
     # Grid values may differ in their number of columns (nested variants, e.g. per-run offsets with or without
     # per-run gains): rank them on the training blocks by the Bayesian information criterion.
     n_train = np.maximum(np.sum(done[0].n_test) - done[0].n_test, 2.0)
@@ -736,6 +790,13 @@ def _golden(f: Callable[[float], float], a: float, b: float, iters: int = REFINE
     return (a + b) / 2.0
 
 
+def _in_range(eff: Effect, config: Configuration, value: Any, ff: FoldFit, index: int, data: EvalData) -> bool:
+    """Whether the linear effect ``eff`` at ``value``, fitted after ``config``'s effects (``ff.beta[index]``: on
+    the training blocks of fold ``index``, or on all data), has its parameters in the vocabulary's range."""
+    own = ff.beta[index][1 + sum(ff.widths[:len(config.linear)]):]
+    return not out_of_range(eff.name, eff.params(value, own, _with(config, eff, value, data)[0]))
+
+
 def refit(fitter: Fitter, config: Configuration, eff: Effect) -> tuple[Configuration, dict[str, float]]:
     """``config`` plus ``eff`` fitted on all evaluation data: grid search, then (continuous parameters) a golden
     section search between the neighbours of the best grid value."""
@@ -746,10 +807,8 @@ def refit(fitter: Fitter, config: Configuration, eff: Effect) -> tuple[Configura
         # The information criterion of the fit on all data (as the selection ranks grid values).
         path, linear = _with(config, eff, v, data)
         ff = fitter.solve(path, linear)
-        if eff.ranks_in_range and not eff.field:
-            own = ff.beta[data.folds][1 + sum(ff.widths[:len(config.linear)]):]
-            if out_of_range(eff.name, eff.params(v, own, path)):
-                return math.inf
+        if eff.ranks_in_range and not eff.field and not _in_range(eff, config, v, ff, data.folds, data):
+            return math.inf
         n = max(float(np.sum(ff.n_test)), 2.0)
         return float(n * math.log(max(float(ff.sse_train[data.folds]), 1e-300) / n) + sum(ff.widths) * math.log(n))
 

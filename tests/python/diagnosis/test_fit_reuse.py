@@ -49,11 +49,11 @@ def test_the_second_reidentification_runs_only_while_the_correction_moves(fitter
     assert passes_present == 2
     assert passes_absent == 1
     assert rms_present < rms_absent
-    # The pass skipped (run now: the first one is cached) changes the held-out RMS by far less than any decision
-    # resolves.
+    # The passes skipped (run now: the first one is cached; a harmonic has a cosine and a sine part) change the
+    # held-out RMS by far less than any decision resolves.
     monkeypatch.setattr(selection, "CONVERGED_CORRECTION", 0.0)
     rms_forced, extra = _fold_fit(fitter, "friction_harmonics", 11, 1)
-    assert extra == 1
+    assert extra == selection._correction_passes(2) - 1
     assert abs(rms_forced - rms_absent) <= 1e-3 * rms_forced
 
 
@@ -280,3 +280,22 @@ def test_the_run_calibration_columns_are_the_per_run_products(fitter) -> None:
             expected.append((data.friction_nmm - model.friction.c0)[:, None])
         assert np.array_equal(cols, np.column_stack(expected))
 
+
+
+def test_the_next_correction_reaches_an_affine_maps_fixed_point_from_one_pass_per_parameter_and_one() -> None:
+    # Fitted parameters as an affine map of the correction the tables were identified with, slowly contracting
+    # (a plain alternation would need dozens of passes) and with parameters of unlike scales.
+    a = np.array([[0.9, 0.05], [-2.0, 0.8]])
+    b = np.array([0.4, 20.0])
+    fixed = np.linalg.solve(np.eye(2) - a, b)
+    scale = np.array([30.0, 1.0])
+    tried: list[np.ndarray] = []
+    fitted: list[np.ndarray] = []
+    x = np.zeros(2)
+    for _ in range(3):
+        tried.append(x)
+        fitted.append(a @ x + b)
+        x = selection._next_correction(tried, fitted, scale)
+        if len(tried) == 1:
+            assert np.array_equal(x, fitted[0])  # one pass: the fitted parameters themselves
+    assert np.allclose(x, fixed, rtol=1e-9, atol=1e-9)
