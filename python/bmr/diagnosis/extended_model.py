@@ -6,8 +6,8 @@ The extended torque of a run is
 
 where each factor is present only when its effect was accepted (:mod:`bmr.diagnosis.effects`). With a heating
 the core's stored tables count from zero field torque (the middle of the major loop, about which the heating
-scales the field torque; the level the identification started from is in ``offset``), unless an output map ``g``,
-a mean field or the gap ripple reads them on the level they were identified on. The
+scales the field torque; the level the identification started from is in the friction's mean ``F``), unless an
+output map ``g``, a mean field or the gap ripple reads them on the level they were identified on. The
 extensions are stored in the model file as ``{"name", "params"}`` entries (plus ``core_tables`` with the core's
 curves and ``offset`` for the fitted constant), so a loaded model reproduces the extended simulation.
 
@@ -19,6 +19,7 @@ effects and stay out of the loop.
 from __future__ import annotations
 
 import copy
+import dataclasses
 import math
 from typing import Any, Sequence
 
@@ -28,7 +29,7 @@ from bmr._core import check_extensions, effect_parameters
 from bmr.diagnosis.effects import field_zero
 from bmr.identification.extended import extended_simulation, learned_term, simulate_extended
 
-__all__ = ["ExtendedModel", "extensions_from_selection", "learned_term", "with_extensions"]
+__all__ = ["ExtendedModel", "extensions_from_selection", "learned_term", "stored_zero", "with_extensions"]
 
 
 def _clip(value: float, param: dict[str, Any]) -> float:
@@ -57,25 +58,34 @@ def extensions_from_selection(config: Any, accepted: Sequence[dict[str, Any]]) -
             entry["params_fitted"] = params
         out.append(entry)
     path = config.path
-    offset = float(config.beta[0])
     if (path.tables is not None or path.reidentify or path.lag_tau_s > 0 or path.delay_s > 0 or path.curvature != 0
             or path.cubic != 0):
-        # The Preisach core's own tables (refined, or re-identified under the field effects). With a heating they
-        # count from zero field torque, the level the diagnosis scaled (``field_zero``; the rest moves to the
-        # offset), unless a stage reads them on the level they were identified on: an output map or a mean field
-        # (fitted there) or the gap ripple (scaling about that level: the friction holds the remanence's ripple).
+        # The Preisach core's own tables (refined, or re-identified under the field effects), counted from the
+        # field torque's zero when a heating scales about it (``stored_zero``).
         asc, desc = path.core_curves()
-        names = {row["name"] for row in accepted}
-        centred = ("thermal_drift" in names and "torque_ripple" not in names and path.curvature == 0
-                   and path.cubic == 0 and path.feedback == 0)
-        zero = field_zero(path.model) if centred else 0.0
-        offset += zero
+        zero = stored_zero(config, accepted)
         out.append({"name": "core_tables", "params": {},
                     "tables": {side: [[list(map(float, u)), list(map(float, np.asarray(y, dtype=float) - zero))]
                                       for u, y in curves]
                                for side, curves in (("ascending", asc), ("descending", desc))}})
-    out.append({"name": "offset", "params": {"offset_nmm": offset}})
+    out.append({"name": "offset", "params": {"offset_nmm": float(config.beta[0])}})
     return out
+
+
+def stored_zero(config: Any, accepted: Sequence[dict[str, Any]]) -> float:
+    """The level the stored core tables count from, in the tables' output: the field torque's zero
+    (``field_zero``) when a heating was accepted, which scales the field torque about it, and the model has a
+    friction, whose mean then takes the level back (the tables were identified from the state the identification
+    started in, whose torque the friction's mean absorbed: it belongs to the torque the compensator produces, not
+    to the sensor's offset); 0 (the tables as identified) otherwise, and when a stage reads the tables on the level
+    they were identified on: an output map or a mean field (fitted there) or the gap ripple (scaling about that
+    level: the friction holds the remanence's ripple)."""
+    path = config.path
+    names = {row["name"] for row in accepted}
+    if ("thermal_drift" not in names or "torque_ripple" in names or path.curvature != 0 or path.cubic != 0
+            or path.feedback != 0 or path.model.friction is None):
+        return 0.0
+    return field_zero(path.model)
 
 
 class ExtendedModel:
@@ -111,11 +121,14 @@ class ExtendedModel:
         return self.model.compensator(dt_s, **kwargs)
 
 
-def with_extensions(model: Any, extensions: Sequence[dict[str, Any]]) -> Any:
-    """A copy of ``model`` carrying ``extensions`` (the file format keeps them)."""
+def with_extensions(model: Any, extensions: Sequence[dict[str, Any]], *, zero: float = 0.0) -> Any:
+    """A copy of ``model`` carrying ``extensions`` (the file format keeps them); ``zero``: the level its stored core
+    tables count from (``stored_zero``), added back to the friction's mean."""
     m = copy.copy(model)
     check_extensions(list(extensions))
     m.extensions = [dict(e) for e in extensions]
     m.meta = dict(model.meta)
+    if zero != 0.0:
+        m.friction = dataclasses.replace(model.friction, c0=float(model.friction.c0) + zero)
     return m
 

@@ -47,7 +47,7 @@ from bmr.diagnosis.effects import ANGLE_EFFECTS, LIBRARY, PHYSICAL
 from bmr.diagnosis.field import FieldPath
 from bmr.diagnosis.history import HistoryFindings, history_findings
 from bmr.diagnosis.noise import from_residual
-from bmr.diagnosis.extended_model import ExtendedModel, extensions_from_selection, with_extensions
+from bmr.diagnosis.extended_model import ExtendedModel, extensions_from_selection, stored_zero, with_extensions
 from bmr.diagnosis.residuals import one_blas_thread, prepare, signal_label, structure
 from bmr.diagnosis.selection import MIN_EXCESS, NOISE_MARGIN, Alternative, Fitter, forward_selection, t975
 from bmr.identification.procedure import identify
@@ -281,6 +281,7 @@ def diagnose(bundle: Bundle | str | Path, model: Any = None, *, folds: int = 5, 
     # The model's entries (its core tables) while the configuration's input history is still prepared: tables the
     # search's cache no longer holds are then one solve, not a new regression after the release.
     extensions = extensions_from_selection(config, accepted)
+    zero = stored_zero(config, accepted)
     fitter.release()  # every fit is made: free the regressions and caches before the library is built
     split = np.cumsum([r.n_eval for r in data.runs])[:-1]
     nom_runs, ext_runs = np.split(r_nom, split), np.split(r_ext, split)
@@ -320,7 +321,7 @@ def diagnose(bundle: Bundle | str | Path, model: Any = None, *, folds: int = 5, 
     history = history_findings(model, bundle, data.noise_floor_nmm)
     for h in history:
         h.named = [e["name"] for e in accepted if e["name"] in h.candidates]
-    ext_model = with_extensions(model, extensions)
+    ext_model = with_extensions(model, extensions, zero=zero)
     ext_model.meta["diagnosis"] = {"cause": cause, "effects": [e["name"] for e in accepted]}
     d = Diagnosis(device=bundle.actuator, cause=cause, effects=accepted, rejected=sel["rejected"],
                   noise_floor=data.noise_floor_nmm, residual_rms=resid_rms,
