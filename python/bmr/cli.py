@@ -67,6 +67,9 @@ def _parser() -> argparse.ArgumentParser:
                    "(default: any)")
     m.add_argument("--holdout", action="append", default=[], metavar="RUN[,RUN...]",
                    help="runs (or files) held out for evaluation; the others are for identification")
+    m.add_argument("--holdout-tail", type=float, metavar="SHARE",
+                   help="hold out the last SHARE (0-1) of every identification run as its own evaluation run "
+                        "('<run>-tail', recorded right after the head): for a recording that is one long run")
     m.add_argument("--format", choices=FORMATS,
                    help="force a reader (default: from extension and content)")
     m.add_argument("--device", help="device name stored in the bundle")

@@ -16,7 +16,7 @@ the sample rate (rounded to the timestamps' resolution), and every table that wa
 from __future__ import annotations
 
 import re
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, Iterable
 
@@ -29,7 +29,7 @@ from bmr.data.bundle import Bundle, Run, write_bundle
 from bmr.data.formats import read_tables
 from bmr.data.quantities import ANGLE, Quantities, Quantity
 from bmr.data.signals import CaptureEdges, SampleRate, capture_edges, default_deadband, sample_rate
-from bmr.data.tables import Table
+from bmr.data.tables import Recorded, Table
 from bmr.data.units import format_number, unit
 
 __all__ = ["PROTOCOLS", "ColumnSpec", "ImportedRun", "ImportResult", "import_logs", "run_cli"]
@@ -332,6 +332,35 @@ def _histories(built: list[tuple[Path, Table, str, pd.DataFrame]]) -> list[list[
     return [[name for *_, name in sorted(g)] for g in groups.values() if len(g) > 1]
 
 
+# Fewest samples either part of a run split by ``holdout_tail`` keeps.
+MIN_SPLIT_SAMPLES = 10
+
+
+def _split_tails(built: list[tuple[Path, Table, str, pd.DataFrame]], roles: dict[str, str], share: float,
+                 taken: set[str], notes: list[str]) -> list[tuple[Path, Table, str, pd.DataFrame]]:
+    """Every identification run of ``built`` cut into its head (identification) and its last ``share`` of samples
+    (``<run>-tail``, evaluation), both in one measurement history (the run's own, or a new one of the two)."""
+    out = []
+    for path, t, name, df in built:
+        if roles[name] != "identification":
+            out.append((path, t, name, df))
+            continue
+        n = len(df)
+        k = int(round(n * (1.0 - share)))
+        if min(k, n - k) < MIN_SPLIT_SAMPLES:
+            raise BundleError(f"{t.source} (run {name!r}): {n} samples split at {share:g} from the end leave {k} "
+                              f"and {n - k}; each part needs at least {MIN_SPLIT_SAMPLES}")
+        history = t.recorded or Recorded(f"{t.source} (split)", 0.0)
+        head = replace(t, recorded=Recorded(history.history, history.order))
+        tail = replace(t, name=f"{t.name}-tail", recorded=Recorded(history.history, history.order + 0.5))
+        tail_name = _run_name(f"{name}-tail", taken)
+        roles[tail_name] = "evaluation"
+        out.append((path, head, name, df.iloc[:k].reset_index(drop=True)))
+        out.append((path, tail, tail_name, df.iloc[k:].reset_index(drop=True)))
+        notes.append(f"{t.source} (run {name!r}): the last {n - k} of {n} samples held out as run {tail_name!r}")
+    return out
+
+
 def import_logs(
     files: Iterable[str | Path],
     *,
@@ -349,6 +378,7 @@ def import_logs(
     sample_rate_hz: float | None = None,
     deadband: float | None = None,
     keep_edges: bool = False,
+    holdout_tail: float | None = None,
 ) -> ImportResult:
     """Read raw logs into a bundle (``ImportResult.bundle``) with the declared quantities.
 
@@ -360,6 +390,9 @@ def import_logs(
     ``sample_rate_hz`` builds time from the sample index for files without a time column. ``deadband``: the
     reversal dead-band in input units. An idle hold at a run's start and a command jump at its end
     (:func:`bmr.data.signals.capture_edges`) are left out and named in the notes unless ``keep_edges``.
+    ``holdout_tail``: a share (0-1) of every identification run held out from its end, for a recording that is
+    one long run: the run's head identifies, its tail (``<run>-tail``, the same measurement history: it starts
+    from the state the head left) is evaluated.
     """
     if protocol not in PROTOCOLS:
         raise BundleError(f"unknown protocol {protocol!r}; use one of {', '.join(PROTOCOLS)}")
@@ -377,6 +410,8 @@ def import_logs(
             raise BundleError(f"the angle is stored in rad; give it as {angle_spec.column}:{angle_spec.source_unit} "
                               f"or {angle_spec.column}:{angle_spec.source_unit}:rad")
         angle_spec = ColumnSpec(angle_spec.column, "rad", angle_spec.unit)
+    if holdout_tail is not None and not (isinstance(holdout_tail, (int, float)) and 0.0 < holdout_tail < 1.0):
+        raise BundleError(f"holdout_tail must be a share between 0 and 1 (exclusive), got {holdout_tail!r}")
     if sample_rate_hz is not None and not (isinstance(sample_rate_hz, (int, float)) and sample_rate_hz > 0
                                            and np.isfinite(sample_rate_hz)):
         raise BundleError(f"sample_rate_hz must be a positive finite number, got {sample_rate_hz!r}")
@@ -467,6 +502,8 @@ def import_logs(
                 df = df.iloc[e.hold:len(df) - e.jump].reset_index(drop=True)
             trimmed.append((path, t, name, df))
         built = trimmed
+    if holdout_tail is not None:
+        built = _split_tails(built, roles, float(holdout_tail), taken, notes)
 
     inputs = [df[q_in.column].to_numpy() for *_, df in built]
     for (path, t, name, df), u in zip(built, inputs):
@@ -528,7 +565,8 @@ def run_cli(args: Any) -> int:
     result = import_logs(args.files, input=args.input, output=args.output, angle=args.angle, time=args.time,
                          output_sigma=args.output_sigma, input_name=args.input_name, output_name=args.output_name,
                          protocol=args.protocol, holdout=holdout, format=args.format, device=args.device or "",
-                         sample_rate_hz=args.sample_rate, deadband=args.deadband, keep_edges=args.keep_edges)
+                         sample_rate_hz=args.sample_rate, deadband=args.deadband, keep_edges=args.keep_edges,
+                         holdout_tail=args.holdout_tail)
     write_bundle(result.bundle, out, fmt=args.file_format)
     print(f"bmr import: {len(args.files)} file(s) -> {out}")
     for line in result.summary().splitlines():

@@ -293,7 +293,9 @@ def prepare(bundle: Bundle, input_range: tuple[float, float], folds: int, fricti
         out.append(EvalRun(r.name, r.kind, u, theta, r.output, t_abs, dt, s, block, index))
     if not out:
         raise BmrError("the bundle has no evaluation run (multi_step, triangle, multipeak, tracking or custom) "
-                       f"with at least {2 * folds} samples after its first saturation; nothing to diagnose")
+                       f"with at least {2 * folds} samples after its first saturation; nothing to diagnose (hold "
+                       "runs out with `bmr import --holdout RUN`, or the end of one long recording with "
+                       "`--holdout-tail 0.3`)")
     full = max(abs(lo), abs(hi))
     noise = noise_floor(bundle, friction)
     sigma = noise.sigma if noise is not None else float("nan")

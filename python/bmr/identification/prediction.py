@@ -641,7 +641,8 @@ def run_cli(args: Any) -> int:
         runs = bundle.evaluation_runs()
         if not runs:
             raise BmrError(f"{args.bundle}: the bundle has no evaluation runs (hold runs out with `bmr import "
-                           "--holdout`, or name the runs to predict with --runs)")
+                           "--holdout`, or the end of one long recording with `--holdout-tail 0.3`, or name the "
+                           "runs to predict with --runs)")
     calibration = args.calibration if args.calibration is not None else (1 if args.offset in ("first", "shrunk")
                                                                          else 0)
     p = predict(model, runs, offset=args.offset, calibration=calibration, initial=args.initial,

@@ -159,6 +159,37 @@ def test_a_partial_first_measurement_is_kept_as_a_custom_run(tmp_path):
 
 
 # ------------------------------------------------------------------------------------------------ bad input
+def test_one_long_recording_is_split_into_a_head_that_identifies_and_a_tail_held_out(tmp_path, capsys):
+    # A stage driven once through a long sweep: without a held-out run there is nothing to diagnose or predict;
+    # --holdout-tail 0.4 cuts every identification run, the tail recorded right after its head (one history).
+    stack = Piezo(seed=4)
+    t = np.arange(0.0, 30.0, 1.0 / RATE_HZ)
+    drive = 50.0 + 48.0 * np.sin(2 * np.pi * 0.25 * t) * np.minimum(1.0, t / 8.0)
+    pd.DataFrame({"time_s": t, "drive_V": drive, "x_um": stack.run(drive)}).to_csv(tmp_path / "sweep.csv",
+                                                                                 index=False)
+    whole = import_logs([tmp_path / "sweep.csv"], input="drive_V:V", output="x_um:um")
+    with pytest.raises(bmr.BmrError, match=r"no evaluation run .* `--holdout-tail 0.3`"):
+        bmr.diagnose(whole.bundle, progress=False, closed_loop=False)
+    split = import_logs([tmp_path / "sweep.csv"], input="drive_V:V", output="x_um:um", holdout_tail=0.4)
+    head, tail = split.bundle.runs
+    assert (head.name, head.role, tail.name, tail.role) == ("sweep", "identification", "sweep-tail", "evaluation")
+    assert (len(head.time), len(tail.time)) == (18000, 12000)
+    np.testing.assert_array_equal(np.concatenate([head.output, tail.output]), whole.bundle.runs[0].output)
+    assert split.bundle.histories == [["sweep", "sweep-tail"]]
+    assert any("the last 12000 of 30000 samples held out as run 'sweep-tail'" in n for n in split.notes)
+    d = bmr.diagnose(split.bundle, progress=False, closed_loop=False)
+    assert d.nominal_heldout_rms > 0 and d.residual_rms <= d.nominal_heldout_rms * (1 + 1e-9)
+    out = tmp_path / "bundle"
+    assert main(["import", str(tmp_path / "sweep.csv"), "--input", "drive_V:V", "--output", "x_um:um",
+                 "--holdout-tail", "0.4", "-o", str(out)]) == 0
+    assert "sweep-tail  evaluation" in capsys.readouterr().out
+    for bad in (0.0, 1.0, float("nan")):
+        with pytest.raises(bmr.BundleError, match=r"holdout_tail must be a share between 0 and 1"):
+            import_logs([tmp_path / "sweep.csv"], input="drive_V:V", output="x_um:um", holdout_tail=bad)
+    with pytest.raises(bmr.BundleError, match=r"30000 samples split at 0.0001 from the end leave 29997 and 3; each part needs at least 10"):
+        import_logs([tmp_path / "sweep.csv"], input="drive_V:V", output="x_um:um", holdout_tail=0.0001)
+
+
 def test_bad_inputs_are_named(piezo_logs, tmp_path):
     # File, column, run and protocol problems are bundle errors; units that do not convert are BmrErrors.
     with pytest.raises(bmr.BundleError, match=r"forc_01.mat \(forc_01\): no column for the output 'pos' \(columns: "
