@@ -42,8 +42,10 @@ def _clip(value: float, param: dict[str, Any]) -> float:
     return v
 
 
-def extensions_from_selection(config: Any, accepted: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
-    """``model.extensions`` entries of a selected configuration (refined tables stored with their effect)."""
+def extensions_from_selection(config: Any, accepted: Sequence[dict[str, Any]], zero: float = 0.0
+                              ) -> list[dict[str, Any]]:
+    """``model.extensions`` entries of a selected configuration (refined tables stored with their effect, counted
+    from ``zero``: :func:`stored_zero`, which the model's friction then takes back in :func:`with_extensions`)."""
     out = []
     specs = effect_parameters(model_entries=True)
     for row in accepted:
@@ -63,7 +65,6 @@ def extensions_from_selection(config: Any, accepted: Sequence[dict[str, Any]]) -
         # The Preisach core's own tables (refined, or re-identified under the field effects), counted from the
         # field torque's zero when a heating scales about it (``stored_zero``).
         asc, desc = path.core_curves()
-        zero = stored_zero(config, accepted)
         out.append({"name": "core_tables", "params": {},
                     "tables": {side: [[list(map(float, u)), list(map(float, np.asarray(y, dtype=float) - zero))]
                                       for u, y in curves]

@@ -280,8 +280,8 @@ def diagnose(bundle: Bundle | str | Path, model: Any = None, *, folds: int = 5, 
     r_ext, _ = fitter.fit(config.path, config.linear)
     # The model's entries (its core tables) while the configuration's input history is still prepared: tables the
     # search's cache no longer holds are then one solve, not a new regression after the release.
-    extensions = extensions_from_selection(config, accepted)
     zero = stored_zero(config, accepted)
+    extensions = extensions_from_selection(config, accepted, zero)
     fitter.release()  # every fit is made: free the regressions and caches before the library is built
     split = np.cumsum([r.n_eval for r in data.runs])[:-1]
     nom_runs, ext_runs = np.split(r_nom, split), np.split(r_ext, split)
