@@ -298,8 +298,9 @@ def read_csv(path: str | Path) -> list[Table]:
                              encoding_errors="replace")
             df.columns = [str(k + 1) for k in range(df.shape[1])]
         else:
-            skipped = [k for k in range(layout.header_line + 1, layout.data_line)]
-            df = pd.read_csv(p, sep=sep, skiprows=list(range(layout.header_line)) + skipped, header=0,
+            # The preamble, and the units and comment rows under the header (the units are read below).
+            skipped = list(range(layout.header_line)) + list(range(layout.header_line + 1, layout.data_line))
+            df = pd.read_csv(p, sep=sep, skiprows=skipped, header=0,
                              decimal=layout.decimal, encoding_errors="replace")
     except Exception as exc:  # noqa: BLE001 - any parser failure is a clear file error
         raise BundleError(f"{p}: cannot be read as CSV ({exc})") from None
@@ -307,9 +308,9 @@ def read_csv(path: str | Path) -> list[Table]:
         raise BundleError(f"{p}: the CSV has a header but no samples (empty or truncated file)")
     units: dict[str, str] = {}
     if layout.units_line is not None and layout.header_line is not None:
-        names = _split_fields(head[layout.header_line], layout.delimiter)
+        # The header as the parser read it (quotes, a byte-order mark), the units row beside it.
         row = _split_fields(head[layout.units_line], layout.delimiter)
-        units = {split_name_unit(n)[0]: u for n, u in zip(names, row) if u and u != "-"}
+        units = {split_name_unit(str(n))[0]: u for n, u in zip(df.columns, row) if u and u != "-"}
     table = _frame_table(p, df, units)
     preamble_end = layout.header_line if layout.header_line is not None else layout.data_line
     table.meta.update(_preamble(head[:preamble_end]))
@@ -319,7 +320,7 @@ def read_csv(path: str | Path) -> list[Table]:
 def _split_fields(line: str, delimiter: str | None) -> list[str]:
     """A text line's fields, stripped of blanks and quotes."""
     parts = line.rstrip("\r\n").split(delimiter) if delimiter else line.split()
-    return [x.strip().lstrip("\ufeff").strip().strip('"').strip() for x in parts]
+    return [x.strip().strip('"').strip() for x in parts]
 
 
 # Spreadsheet files and the package pandas reads each with.
