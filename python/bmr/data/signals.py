@@ -1,22 +1,27 @@
-"""What a sampled signal says about itself: its white-noise level, its sample rate, and the edges of a capture
-that are not the experiment (an idle hold before it starts, a command jump as it ends)."""
+"""What a sampled signal says about itself: its white-noise level, its sample rate, the edges of a capture that
+are not the experiment (an idle hold before it starts, a command jump as it ends) and the ends of a sensor's range
+(an output held at its extreme while the input moves on)."""
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Sequence
+from typing import Any, Sequence
 
 import numpy as np
 
 from bmr._core import BmrError
 
-__all__ = ["CaptureEdges", "SampleRate", "capture_edges", "default_deadband", "nominal_sample_rate", "sample_noise",
-           "sample_rate"]
+__all__ = ["CaptureEdges", "OutputRails", "SampleRate", "capture_edges", "default_deadband", "nominal_sample_rate",
+           "output_rails", "sample_noise", "sample_rate"]
 
 # An idle hold is at least this many samples of a constant input; a command jump ends the run within this many
 # steps of its end.
 MIN_HOLD_SAMPLES = 10
 END_JUMP_STEPS = 3
+# A range end: the output's extreme held on at least this many consecutive samples while the input moves, where
+# fewer than this share of the other samples repeat the sample before (the output resolves noise or signal there).
+MIN_RAIL_SAMPLES = 5
+MAX_REPEAT_SHARE = 0.2
 
 
 def sample_noise(u: np.ndarray | Sequence[np.ndarray]) -> float:
@@ -138,3 +143,88 @@ def capture_edges(u: np.ndarray) -> CaptureEdges:
                                                             3.0 * float(rest.max())):
         jump = END_JUMP_STEPS - k  # the samples after the jump's step
     return CaptureEdges(hold, jump, float(u[0]) + 0.0 if hold else math.nan)  # + 0.0: no "-0"
+
+
+@dataclass(frozen=True)
+class OutputRails:
+    """The ends of the output's measuring range seen in a recording: ``low`` / ``high`` the value an output is
+    held at (None: that end not reached), ``samples`` how many samples sit there out of ``total``. A sensor at
+    its range end reads the same value whatever the device does, so those samples say only that the output is
+    at least (at most) that value: they are left out of identification, of fits and of scores."""
+
+    low: float | None = None
+    high: float | None = None
+    samples: int = 0
+    total: int = 0
+
+    @property
+    def any(self) -> bool:
+        return self.low is not None or self.high is not None
+
+    def mask(self, y: np.ndarray) -> np.ndarray:
+        """Which samples of output ``y`` sit at a range end."""
+        y = np.asarray(y, dtype=float)
+        out = np.zeros(y.shape, dtype=bool)
+        if self.low is not None:
+            out |= y <= self.low
+        if self.high is not None:
+            out |= y >= self.high
+        return out
+
+    def describe(self, quantity: Any = None) -> str:
+        fmt = (lambda v: quantity.format(v, 6)) if quantity is not None else (lambda v: f"{v:.6g}")
+        ends = " and ".join(fmt(v) for v in (self.low, self.high) if v is not None)
+        share = 100.0 * self.samples / self.total if self.total else 0.0
+        return (f"the output is held at its range end ({ends}) on {self.samples} of {self.total} samples "
+                f"({share:.2g} %) while the input moves: the sensor's limit; those samples are left out of "
+                "identification, fits and scores")
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"low": self.low, "high": self.high, "samples": self.samples, "total": self.total}
+
+
+def _held_at(u: np.ndarray, y: np.ndarray, value: float) -> bool:
+    """Whether ``y`` stays exactly at ``value`` on ``MIN_RAIL_SAMPLES`` consecutive samples while ``u`` moves."""
+    at = np.flatnonzero(y == value)
+    if at.size < MIN_RAIL_SAMPLES:
+        return False
+    # Stretches of consecutive indices.
+    breaks = np.flatnonzero(np.diff(at) != 1)
+    starts = np.r_[at[0], at[breaks + 1]]
+    ends = np.r_[at[breaks], at[-1]]
+    for a, b in zip(starts, ends):
+        if b - a + 1 >= MIN_RAIL_SAMPLES and np.ptp(u[a:b + 1]) > 0.0:
+            return True
+    return False
+
+
+def output_rails(pairs: Sequence[tuple[np.ndarray, np.ndarray]]) -> OutputRails:
+    """The range ends of an output recorded with its input, ``pairs`` of ``(input, output)`` arrays (the runs of
+    one bundle): the output's overall maximum (minimum) is a range end when some run holds it exactly on
+    ``MIN_RAIL_SAMPLES`` consecutive samples while its input moves, and the output elsewhere resolves its noise
+    (fewer than ``MAX_REPEAT_SHARE`` of the other samples repeat the sample before). A coarse or noise-free
+    recording repeats values everywhere, so a held extreme there is not told from a flat saturation: no range
+    end is claimed."""
+    arrays = [(np.asarray(u, dtype=float), np.asarray(y, dtype=float)) for u, y in pairs]
+    arrays = [(u, y) for u, y in arrays if y.size and u.shape == y.shape and np.all(np.isfinite(y))]
+    if not arrays:
+        return OutputRails()
+    hi = max(float(y.max()) for _, y in arrays)
+    lo = min(float(y.min()) for _, y in arrays)
+    total = sum(y.size for _, y in arrays)
+    if not hi > lo:
+        return OutputRails(total=total)
+    high = hi if any(_held_at(u, y, hi) for u, y in arrays) else None
+    low = lo if any(_held_at(u, y, lo) for u, y in arrays) else None
+    if high is None and low is None:
+        return OutputRails(total=total)
+    repeats = pairs_counted = 0
+    for _, y in arrays:
+        inside = (y > lo) & (y < hi)
+        both = inside[1:] & inside[:-1]
+        repeats += int(np.count_nonzero((y[1:] == y[:-1]) & both))
+        pairs_counted += int(np.count_nonzero(both))
+    if pairs_counted == 0 or repeats >= MAX_REPEAT_SHARE * pairs_counted:
+        return OutputRails(total=total)
+    rails = OutputRails(low, high, 0, total)
+    return OutputRails(low, high, sum(int(np.count_nonzero(rails.mask(y))) for _, y in arrays), total)

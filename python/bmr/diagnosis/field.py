@@ -131,6 +131,9 @@ class ProtocolRun:
         self._nominal_field: np.ndarray | None = None
         self._harmonic: tuple[Any, tuple[np.ndarray, np.ndarray]] | None = None
         self.torque = run.output - self.friction()
+        # Samples at the output's range end (a sensor at its limit) carry no measurement: not fitted.
+        rails = getattr(context, "rails", None)
+        self.at_rail = rails.mask(run.output) if rails is not None and rails.any else None
 
     @property
     def current_a(self) -> np.ndarray:
@@ -249,6 +252,8 @@ class Reidentifier:
             s = pr.known_from(lo, hi) + int(np.ceil(5 * path.lag_tau_s / pr.dt))
             w = np.zeros(u.size)
             w[s:] = 1.0
+            if pr.at_rail is not None:
+                w[pr.at_rail] = 0.0
             core_u = path.core_input(u, pr.dt, rate_core=self.model.hysteresis)
             if path.feedback != 0.0:
                 core_y = output_map_inverse(pr.torque, path.curvature, path.scale_nmm, path.cubic)

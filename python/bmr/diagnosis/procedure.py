@@ -42,6 +42,7 @@ import numpy as np
 from bmr._core import BmrError, ModelFileError, TableError, VirtualActuator
 from bmr.data.files import check_output_file, jsonable, write_json, write_text
 from bmr.data.bundle import Bundle, read_bundle
+from bmr.data.signals import OutputRails
 from bmr.diagnosis.discrepancy import candidate_library, learn
 from bmr.diagnosis.effects import ANGLE_EFFECTS, LIBRARY, PHYSICAL
 from bmr.diagnosis.field import FieldPath
@@ -94,7 +95,9 @@ class Diagnosis:
     separate them). ``identification_drift``: the leakage the nominal identification fitted with its tables because
     their branches did not close (``leakage_rate`` in output per input·s, ``closure`` the share of the span a
     saturation output moved), or None. ``history``: per measurement history of the bundle, what the model run
-    through it cannot explain (:class:`bmr.diagnosis.history.HistoryFindings`).
+    through it cannot explain (:class:`bmr.diagnosis.history.HistoryFindings`). ``output_rails``: the output's
+    range ends the recording is held at (:class:`bmr.data.signals.OutputRails`: a sensor at its limit), whose samples
+    are neither fitted nor scored.
     ``to_dict()`` is the ``bmr-diagnosis/2`` JSON; ``html_section()`` a self-contained HTML fragment;
     ``write_report(path)`` a whole page."""
 
@@ -120,6 +123,7 @@ class Diagnosis:
     alternatives: list[Alternative] = field(default_factory=list)
     identification_drift: dict[str, float] | None = None
     history: list[HistoryFindings] = field(default_factory=list)
+    output_rails: OutputRails = field(default_factory=OutputRails)
     wall_time_s: float = 0.0
     signals: dict[str, Any] = field(default_factory=dict)
     _figures: dict[str, str] | None = field(default=None, init=False)
@@ -171,6 +175,7 @@ class Diagnosis:
             "alternatives": [a.to_dict() for a in self.alternatives],
             "identification_drift": self.identification_drift,
             "history": [h.to_dict() for h in self.history],
+            "output_rails": self.output_rails.to_dict() if self.output_rails.any else None,
             "folds": self.folds,
             "seed": self.seed,
             "wall_time_s": self.wall_time_s,
@@ -278,6 +283,9 @@ def diagnose(bundle: Bundle | str | Path, model: Any = None, *, folds: int = 5, 
     # Residuals on all data (nominal with its offset, extended) for the figures and the structure study.
     r_nom, _ = fitter.fit(FieldPath.nominal(model), [])
     r_ext, _ = fitter.fit(config.path, config.linear)
+    if data.rails.any:
+        # Samples at the output's range end say nothing of the model: no residual there.
+        r_nom, r_ext = np.where(data.valid, r_nom, 0.0), np.where(data.valid, r_ext, 0.0)
     # The model's entries (its core tables) while the configuration's input history is still prepared: tables the
     # search's cache no longer holds are then one solve, not a new regression after the release.
     zero = stored_zero(config, accepted)
@@ -303,7 +311,8 @@ def diagnose(bundle: Bundle | str | Path, model: Any = None, *, folds: int = 5, 
                                   if v > threshold), key=lambda u: -u["strength"])
         if learned is not None:
             learned.pop("prediction")
-    per_run = {r.name: (_rms(a), _rms(b)) for r, a, b in zip(data.runs, nom_runs, ext_runs)}
+    valid_runs = np.split(data.valid, split)
+    per_run = {r.name: (_rms(a[v]), _rms(b[v])) for r, a, b, v in zip(data.runs, nom_runs, ext_runs, valid_runs)}
     signals = {
         "runs": [(r.name, r.t_abs_s[r.start:], a, b) for r, a, b in zip(data.runs, nom_runs, ext_runs)],
         "theta": data.concat(data.eval_slice("theta_rad")),
@@ -330,7 +339,7 @@ def diagnose(bundle: Bundle | str | Path, model: Any = None, *, folds: int = 5, 
                   seed=seed, wall_time_s=0.0, model=model, extended_model=ext_model, signals=signals,
                   quantities=bundle.quantities, noise=data.noise.to_dict(), learned=learned,
                   alternatives=sel["alternatives"], identification_drift=_identification_drift(model),
-                  history=history)
+                  history=history, output_rails=data.rails)
     # What each extension does: held-out prediction for all, closed-loop tracking for those the compensator undoes.
     rows = {e["name"]: e for e in accepted}
     for entry in ext_model.extensions:
@@ -551,6 +560,8 @@ def run_cli(args: Any) -> int:
               f"{r.get('folds_evaluated', d.folds)} folds){why}")
     for a in d.alternatives:
         print(f"  {a.message}")
+    if d.output_rails.any:
+        print(f"  {d.output_rails.describe(q.output)}")
     if d.identification_drift:
         print(f"  identification: branches open by {100 * d.identification_drift['closure']:.3g} % of the span; "
               f"leakage {d.identification_drift['leakage_rate']:.4g} {q.output.unit} per {q.input.unit}·s fitted "

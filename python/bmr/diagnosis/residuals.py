@@ -27,6 +27,7 @@ from threadpoolctl import threadpool_limits
 from bmr import _core
 from bmr._core import BmrError
 from bmr.data.bundle import Bundle, Run
+from bmr.data.signals import OutputRails, output_rails
 from bmr.identification.spans import SATURATION_TOL, evaluation_start
 
 F = TypeVar("F", bound=Callable[..., Any])
@@ -183,6 +184,8 @@ class EvalData:
     noise: Any = None
     cache: BoundedCache = field(default_factory=lambda: BoundedCache(max_entries=64, max_bytes=24 << 20))
     max_fit_rows: int = MAX_FIT_ROWS
+    # The output's range ends over the whole bundle (a sensor at its limit): those samples are not fitted.
+    rails: OutputRails = field(default_factory=OutputRails)
 
     def concat(self, arrays: Sequence[np.ndarray]) -> np.ndarray:
         return np.concatenate(list(arrays)) if arrays else np.zeros(0)
@@ -221,12 +224,19 @@ class EvalData:
         return self.concat([r.block for r in self.runs]).astype(np.int64)
 
     @cached_property
+    def valid(self) -> np.ndarray:
+        """Evaluated samples whose output is a measurement (not held at the output's range end)."""
+        return ~self.rails.mask(self.torque)
+
+    @cached_property
     def fit_rows(self) -> np.ndarray:
         """The evaluated samples the fits use, grouped by fold (fold ``k``'s rows are
-        ``fit_rows[fold_bounds[k]:fold_bounds[k + 1]]``): all of them, or an even stride in every fold block when
-        there are more than ``max_fit_rows``."""
+        ``fit_rows[fold_bounds[k]:fold_bounds[k + 1]]``): all of them but those at the output's range end, or an
+        even stride in every fold block when there are more than ``max_fit_rows``."""
         stride = max(1, -(-self.n_eval // self.max_fit_rows))
         order = np.argsort(self.block, kind="stable")
+        if self.rails.any:
+            order = order[self.valid[order]]
         if stride == 1:
             return order
         bounds = np.searchsorted(self.block[order], np.arange(self.folds + 1))
@@ -300,7 +310,9 @@ def prepare(bundle: Bundle, input_range: tuple[float, float], folds: int, fricti
     noise = noise_floor(bundle, friction)
     sigma = noise.sigma if noise is not None else float("nan")
     has_angle = bundle.quantities.angle is not None
-    data = EvalData(out, int(folds), full, sigma, currents, dts, fs, starts, has_angle=has_angle, noise=noise)
+    rails = output_rails([(r.input, r.output) for r in bundle.runs])
+    data = EvalData(out, int(folds), full, sigma, currents, dts, fs, starts, has_angle=has_angle, noise=noise,
+                    rails=rails)
     data.friction_nmm = friction(data.theta) if friction is not None and has_angle else np.zeros(data.n_eval)
     return data
 

@@ -17,7 +17,7 @@ import numpy as np
 
 from bmr._core import BmrError, find_reversals, fit_curve
 from bmr.data.bundle import Run, runs_of
-from bmr.data.signals import default_deadband
+from bmr.data.signals import default_deadband, output_rails
 from bmr.identification.accounting import SampleAccount
 from bmr.identification.signals import run_input, run_output
 from bmr.identification.spans import input_range_of, sample_noise
@@ -150,6 +150,8 @@ def extract_first_order_curves(
     partial: list[tuple[str, float, str, int, int]] = []
     firsts: dict[str, int] = {}
     signals: dict[str, tuple[np.ndarray, np.ndarray]] = {}
+    rails = output_rails([(u, r.output) for r, u in zip(runs, inputs)])
+    railed = {r.name: rails.mask(r.output) for r in runs}
     for r, u in zip(runs, inputs):
         y = run_output(r, friction)
         signals[r.name] = (u, y)
@@ -195,6 +197,11 @@ def extract_first_order_curves(
             order = np.r_[start, np.delete(np.arange(uu.size), start)]
             uu, yy = uu[order], yy[order]
             uu[0] = rev
+            if rails.any:
+                # Samples held at the output's range end are no measurement of the curve: the fit ends before.
+                keep = ~np.concatenate([railed[n][a:b + 1] for n, a, b in segs])[order]
+                keep[0] = True
+                uu, yy = uu[keep], yy[keep]
             try:
                 f = fit_curve(uu, yy, "ascending" if key == "asc" else "descending", pilot=pilot)
             except BmrError:

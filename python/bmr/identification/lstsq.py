@@ -31,7 +31,7 @@ import numpy as np
 from bmr import _core
 from bmr._core import BmrError, find_reversals
 from bmr.data.bundle import Run
-from bmr.data.signals import default_deadband
+from bmr.data.signals import default_deadband, output_rails
 from bmr.identification.accounting import SampleAccount
 from bmr.identification.forc import Curve
 from bmr.identification.signals import run_input, run_output, running_integral
@@ -61,6 +61,7 @@ FALL_SHARE = 0.01
 BEFORE_KNOWN_STATE = "before the run's state is known (initial_state='saturation')"
 THINNED = "thinned to max_rows (every k-th sample kept)"
 HELD_OUT = "held out (cross-validation)"
+AT_RANGE_END = "held at the output's range end (the sensor's limit: no measurement)"
 GRIDS = ("auto", "uniform", "adaptive")
 DEFAULT_GRID = "auto"
 # "auto" takes the adaptive grid for a family of first-order reversal curves: at least this many runs, and at least
@@ -479,6 +480,8 @@ def fit_tables_lstsq(
 
     account = SampleAccount()
     weights = []
+    # Samples held at the output's range end (a sensor at its limit) are no measurement: not fitted.
+    rails = output_rails([(u, r.output) for r, u in zip(runs, us)])
     for r, u, w in zip(runs, us, row_weights(us, lo, hi, initial_state, max_rows)):
         s = evaluation_start(u, lo, hi, tol) if initial_state == "saturation" else 0
         held = np.zeros(u.size, dtype=bool)
@@ -488,12 +491,17 @@ def fit_tables_lstsq(
                 raise BmrError(f"run {r.name!r}: exclude mask has {held.size} samples, the run {u.size}")
             held[:s] = False  # counted as before the known state already
             w[held] = 0.0
+        railed = rails.mask(r.output) & ~held if rails.any else np.zeros(u.size, dtype=bool)
+        railed[:s] = False
+        at_rail = int(np.count_nonzero(railed & (w > 0)))
+        w[railed] = 0.0
         weights.append(w)
         acc = account.add_run(r.name, u.size)
         acc.used = int(np.count_nonzero(w))
         account.drop(r.name, BEFORE_KNOWN_STATE, s)
         account.drop(r.name, HELD_OUT, int(held.sum()))
-        account.drop(r.name, THINNED, u.size - s - int(held.sum()) - acc.used)
+        account.drop(r.name, AT_RANGE_END, at_rail)
+        account.drop(r.name, THINNED, u.size - s - int(held.sum()) - at_rail - acc.used)
     account.check()
     if account.used == 0:
         raise BmrError("no sample is left to fit: every run is before its state is known "

@@ -30,6 +30,7 @@ from bmr._core import BmrError
 from bmr.data.bundle import Bundle, Run, read_bundle, runs_of
 from bmr.data.files import jsonable, write_json
 from bmr.data.quantities import Quantities
+from bmr.data.signals import output_rails
 from bmr.data.units import format_number
 from bmr.identification.extended import parts, simulate_extended
 from bmr.identification.model import Model
@@ -37,11 +38,12 @@ from bmr.identification.signals import run_input, run_output, running_integral
 from bmr.identification.spans import SATURATION_TOL, evaluation_start
 
 __all__ = ["FORMAT", "RunPrediction", "Prediction", "predict", "single_valued_baseline", "run_cli", "CALIBRATION",
-           "BEFORE_KNOWN_STATE"]
+           "BEFORE_KNOWN_STATE", "AT_RANGE_END"]
 
 FORMAT = "bmr-prediction/1"
 CALIBRATION = "used to calibrate the run (offset or initial state), not scored"
 BEFORE_KNOWN_STATE = "before the run's state is known (not scored)"
+AT_RANGE_END = "held at the output's range end, the sensor's limit (not scored)"
 BASELINE = "single-valued curve through the middle of the model's major loop"
 
 
@@ -470,6 +472,8 @@ def predict(
     leakage = None if extended or not whole_model else _identified_leakage(model)
     tol = SATURATION_TOL * (hi - lo)
     continued: dict[str, _Continued] = {}
+    # The output's range ends over the whole recording (a sensor at its limit): those samples are not scored.
+    rails = output_rails([(x.input, x.output) for x in (bundle.runs if bundle is not None else rs)])
     out = []
     for r in rs:
         (si, oi), (so, oo) = _converters(model, r)
@@ -559,22 +563,29 @@ def predict(
             if s > first:
                 dropped[BEFORE_KNOWN_STATE] = s - first
                 first = s
+        scored = np.zeros(n, dtype=bool)
+        scored[first:] = True
+        if rails.any:
+            at_rail = rails.mask(r.output) & scored
+            if np.any(at_rail):
+                dropped[AT_RANGE_END] = int(np.count_nonzero(at_rail))
+                scored &= ~at_rail
         off_spec = _per_run(offset, r.name, "model")
         if isinstance(off_spec, str):
             if off_spec == "model":
                 shift = shift_b = 0.0
                 source = "the model's"
             elif off_spec == "run":
-                g, gain_note = _run_gain(model, y[first:], p[first:], y_lo) if g == 1.0 else (g, "")
+                g, gain_note = _run_gain(model, y[scored], p[scored], y_lo) if g == 1.0 else (g, "")
                 p = y_lo + g * (p - y_lo)
                 base = y_lo + g * (base - y_lo)
-                res = y[first:] - p[first:]
+                res = y[scored] - p[scored]
                 spread = (_offset_prior(model) or {}).get("spread")
                 # The run's own offset, shrunk towards the model's by how much training runs' offsets spread.
                 s2 = float(np.var(res)) / res.size if res.size else 0.0
                 weight = spread ** 2 / (spread ** 2 + s2) if spread is not None and spread ** 2 + s2 > 0 else 1.0
                 shift = weight * (float(np.mean(res)) if res.size else 0.0)
-                shift_b = weight * (float(np.mean(y[first:] - base[first:])) if res.size else 0.0)
+                shift_b = weight * (float(np.mean(y[scored] - base[scored])) if res.size else 0.0)
                 source = (f"the run's own, fitted on its {res.size} scored samples"
                           + (f", {weight:.2f} × that + {1 - weight:.2f} × the model's (spread {spread:.3g} between "
                              f"training runs)" if spread is not None else "") + gain_note)
@@ -608,9 +619,7 @@ def predict(
             known = cont.known_from is not None and cont.known_from < cont.starts[r.name] + n
         if not known:
             state += " (assumed: the input never reaches both ends of the model's range)"
-        scored = np.zeros(n, dtype=bool)
-        scored[first:] = True
-        e = (y - p)[first:]
+        e = (y - p)[scored]
         count, excess = model.input_excess(u)
         out.append(RunPrediction(
             name=r.name, role="identification" if r.is_identification else "evaluation", samples=n,

@@ -125,6 +125,8 @@ def html_section(d: Any) -> str:
                                                       f"held-out RMS ({q.output.unit})", "parameters"]))
     for a in d.alternatives:
         parts.append(f"<p><b>Not separable:</b> {html.escape(a.message)}.</p>")
+    if d.output_rails.any:
+        parts.append(f"<p><b>Sensor range:</b> {html.escape(d.output_rails.describe(q.output))}.</p>")
     drift = d.identification_drift
     if drift:
         parts.append(f"<p><b>Identification:</b> the branches did not close (a saturation output moved by "
