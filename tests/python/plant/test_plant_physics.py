@@ -176,3 +176,35 @@ def test_non_congruent_breaks_only_higher_order_reversals():
     # Small in absolute terms (the steel's narrow switching-field spread limits how far histories diverge) but
     # orders of magnitude above round-off.
     assert err[second:].max() > 0.01
+
+
+def test_the_per_rotor_output_map_is_one_odd_map_of_the_field_torque() -> None:
+    """``non_congruent`` bends each rotor's yield torque, ``T = M(τ2) − M(τ1)``. The idle coil's steel sits at
+    the same flux after any excursion (its hysterons all fall back at zero current), so the idle rotor's torque
+    ``r`` is a constant and the field torque is ``sign(y)·(M(r + |y|) − M(r))`` of the unbent ``y = τ2 − τ1``:
+    for the curvature map, the same map with curvature ``c / (1 + 2cρ)`` (``ρ = r/S``) and a gain — one output
+    map after one core, which the diagnosis searches. On the harder ``rig_soft`` steel the idle flux is
+    0.072 T."""
+    soft = {f"steel{k}.{p}": v for k in (1, 2) for p, v in
+            (("coercivity_a", 0.12), ("coercivity_width_a", 0.05), ("interaction_width_a", 0.6),
+             ("reversible_fraction", 0.15))}
+    rng = np.random.default_rng(5)
+    turns = np.r_[1.25, -1.25, rng.uniform(-1.2, 1.2, 40)]
+    current = np.concatenate([np.linspace(a, b, 60) for a, b in zip(np.r_[0.0, turns[:-1]], turns)])
+    runs = {}
+    for c in (0.0, 2.0):
+        act = bmr.VirtualActuator("rig_preisach", seed=3, sample_rate_hz=250.0, overrides=soft,
+                                  effects={"non_congruent": {"curvature": c}} if c else None)
+        runs[c] = act.run(current)
+    r0 = runs[0.0]
+    idle = np.r_[r0["b1_t"][r0["coil1_a"] == 0][200:], r0["b2_t"][r0["coil2_a"] == 0][200:]]
+    assert np.ptp(idle) < 1e-9
+    y, bent = runs[0.0]["field_torque_nmm"][120:], runs[2.0]["field_torque_nmm"][120:]  # after the virgin curve
+    s = 600.0  # the preset's full-scale torque
+    best = np.inf
+    for c_eff in np.linspace(0.8, 1.6, 161):
+        g = y * (1 + c_eff * np.abs(y) / s)
+        k = float(g @ bent / (g @ g))
+        best = min(best, float(np.sqrt(np.mean((bent - k * g) ** 2))))
+    assert best < 0.2  # N·mm, against a bend of more than 50 N·mm RMS
+    assert np.sqrt(np.mean((bent - y) ** 2)) > 50.0
