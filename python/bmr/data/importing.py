@@ -28,7 +28,8 @@ from bmr._core import BmrError, BundleError
 from bmr.data.bundle import Bundle, Run, write_bundle
 from bmr.data.formats import read_tables
 from bmr.data.quantities import ANGLE, Quantities, Quantity
-from bmr.data.signals import CaptureEdges, SampleRate, capture_edges, default_deadband, sample_rate
+from bmr.data.signals import (CaptureEdges, SampleRate, capture_edges, default_deadband, output_rails,
+                              sample_rate)
 from bmr.data.tables import Recorded, Table
 from bmr.data.units import format_number, unit
 
@@ -551,6 +552,9 @@ def import_logs(
     if off_protocol and not any(r.role == "identification" and r.kind != "custom" for r in runs):
         raise off_protocol[0]
     rate = sample_rate([r.time for r in runs])
+    rails = output_rails([(r.input, r.output) for r in runs])
+    if rails.any:
+        notes.append(rails.describe(quantities.output))
     meta = {"imported_from": [str(p) for p in paths], "protocol": protocol, "reversal_deadband": db}
     bundle = Bundle(device, rate.hz, runs, meta, quantities, _histories(built))
     return ImportResult(bundle, report, protocol, db, rate, skipped, notes)

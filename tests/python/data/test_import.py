@@ -190,6 +190,23 @@ def test_one_long_recording_is_split_into_a_head_that_identifies_and_a_tail_held
         import_logs([tmp_path / "sweep.csv"], input="drive_V:V", output="x_um:um", holdout_tail=0.0001)
 
 
+def test_a_log_whose_sensor_hit_its_range_end_says_so(tmp_path):
+    # The displacement channel clips at 25 µm (an amplifier at its rail) while the drive sweeps on.
+    stack = Piezo(seed=5)
+    t = np.arange(0.0, 12.0, 1.0 / RATE_HZ)
+    drive = 50.0 + 48.0 * np.sin(2 * np.pi * 0.25 * t)
+    x = stack.run(drive)
+    for name, out in (("free", x), ("clipped", np.minimum(x, 25.0))):
+        pd.DataFrame({"time_s": t, "drive_V": drive, "x_um": out}).to_csv(tmp_path / f"{name}.csv", index=False)
+    free = import_logs([tmp_path / "free.csv"], input="drive_V:V", output="x_um:um")
+    assert not any("range end" in n for n in free.notes)
+    clipped = import_logs([tmp_path / "clipped.csv"], input="drive_V:V", output="x_um:um")
+    held = int(np.count_nonzero(x >= 25.0))
+    assert held > 100
+    assert any(f"held at its range end (25 µm) on {held} of {t.size} samples" in n for n in clipped.notes)
+    assert "range end" in clipped.summary()
+
+
 def test_bad_inputs_are_named(piezo_logs, tmp_path):
     # File, column, run and protocol problems are bundle errors; units that do not convert are BmrErrors.
     with pytest.raises(bmr.BundleError, match=r"forc_01.mat \(forc_01\): no column for the output 'pos' \(columns: "
