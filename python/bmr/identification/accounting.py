@@ -7,7 +7,10 @@ from typing import Any
 
 from bmr._core import BmrError
 
-__all__ = ["RunSamples", "SampleAccount"]
+__all__ = ["AT_RANGE_END", "RunSamples", "SampleAccount"]
+
+# Samples an output sensor held at its range end (``bmr.data.signals.output_rails``): no measurement, not fitted.
+AT_RANGE_END = "held at the output's range end (the sensor's limit: no measurement)"
 
 
 @dataclass

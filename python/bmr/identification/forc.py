@@ -18,7 +18,7 @@ import numpy as np
 from bmr._core import BmrError, find_reversals, fit_curve
 from bmr.data.bundle import Run, runs_of
 from bmr.data.signals import default_deadband, output_rails
-from bmr.identification.accounting import SampleAccount
+from bmr.identification.accounting import AT_RANGE_END, SampleAccount
 from bmr.identification.signals import run_input, run_output
 from bmr.identification.spans import input_range_of, sample_noise
 
@@ -198,9 +198,11 @@ def extract_first_order_curves(
             uu, yy = uu[order], yy[order]
             uu[0] = rev
             if rails.any:
-                # Samples held at the output's range end are no measurement of the curve: the fit ends before.
+                # Samples held at the output's range end are no measurement of the curve: the fit ends before
+                # them; a curve whose reversal itself sits there has no measured start and is not a curve.
                 keep = ~np.concatenate([railed[n][a:b + 1] for n, a, b in segs])[order]
-                keep[0] = True
+                if not keep[0]:
+                    continue
                 uu, yy = uu[keep], yy[keep]
             try:
                 f = fit_curve(uu, yy, "ascending" if key == "asc" else "descending", pilot=pilot)
@@ -224,8 +226,10 @@ def extract_first_order_curves(
         on_curve = m >= 0
         out = np.isin(m, sorted(held_out)) if held_out else np.zeros(u.size, dtype=bool)
         account.add_run(r.name, u.size)
-        account.use(r.name, int(np.count_nonzero(on_curve & ~out)))
+        held = on_curve & ~out & railed[r.name]
+        account.use(r.name, int(np.count_nonzero(on_curve & ~out & ~held)))
         account.drop(r.name, HELD_OUT, int(np.count_nonzero(out)))
+        account.drop(r.name, AT_RANGE_END, int(np.count_nonzero(held)))
         early = int(np.count_nonzero(~on_curve[:firsts[r.name]]))
         account.drop(r.name, BEFORE_FIRST_REVERSAL, early)
         account.drop(r.name, NOT_FIRST_ORDER, int(np.count_nonzero(~on_curve)) - early)

@@ -32,7 +32,7 @@ from bmr import _core
 from bmr._core import BmrError, find_reversals
 from bmr.data.bundle import Run
 from bmr.data.signals import default_deadband, output_rails
-from bmr.identification.accounting import SampleAccount
+from bmr.identification.accounting import AT_RANGE_END, SampleAccount
 from bmr.identification.forc import Curve
 from bmr.identification.signals import run_input, run_output, running_integral
 from bmr.identification.spans import SATURATION_TOL, evaluation_start, input_range_of
@@ -61,7 +61,6 @@ FALL_SHARE = 0.01
 BEFORE_KNOWN_STATE = "before the run's state is known (initial_state='saturation')"
 THINNED = "thinned to max_rows (every k-th sample kept)"
 HELD_OUT = "held out (cross-validation)"
-AT_RANGE_END = "held at the output's range end (the sensor's limit: no measurement)"
 GRIDS = ("auto", "uniform", "adaptive")
 DEFAULT_GRID = "auto"
 # "auto" takes the adaptive grid for a family of first-order reversal curves: at least this many runs, and at least
