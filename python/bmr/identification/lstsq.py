@@ -490,7 +490,7 @@ def fit_tables_lstsq(
                 raise BmrError(f"run {r.name!r}: exclude mask has {held.size} samples, the run {u.size}")
             held[:s] = False  # counted as before the known state already
             w[held] = 0.0
-        railed = rails.mask(r.output) & ~held if rails.any else np.zeros(u.size, dtype=bool)
+        railed = rails.mask(r.output) & ~held
         railed[:s] = False
         at_rail = int(np.count_nonzero(railed & (w > 0)))
         w[railed] = 0.0
