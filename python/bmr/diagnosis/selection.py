@@ -40,7 +40,9 @@ have little to gain, so the interval over all samples would judge the excitation
 Recording-level effects are recording-level: a drive-scaled effect (``beyond_run_calibration``: seal friction
 growing with current) is judged on what it explains beyond a per-run gain and offset when the
 configuration has none, so a calibration that differs between recordings is named ``run_gain_offset`` and not
-after an effect that happens to scale with the drive.
+after an effect that happens to scale with the drive. Once a per-run calibration is in the configuration, a
+candidate that identifies the core tables again does so from protocol runs with their own calibrations divided out
+(:func:`judged_on`): the recordings were shown to differ in calibration, and the protocol runs are recordings too.
 
 How the fits are computed (:class:`Fitter`, one per diagnosis): the field torque of each path is simulated once
 (bounded cache); a configuration's design ``[1, effect columns…, target]`` is gathered once on the fit rows
@@ -420,6 +422,29 @@ def _with(config: Configuration, eff: Effect, value: Any, data: EvalData
     if eff.field:
         return eff.apply(config.path, value, data, None), list(config.linear)
     return eff.adjust_path(config.path, value), list(config.linear) + [(eff, value)]
+
+
+def judged_on(config: Configuration, eff: Effect) -> Configuration:
+    """The configuration ``eff`` is judged on and joins. A candidate that identifies the core tables again from the
+    protocol runs, after a per-run calibration was named on tables measured as they came (``run_gain_offset``
+    without ``"+tables"``), gets its tables from protocol runs with their own calibrations divided out too: the
+    recordings were shown to differ in calibration, and re-identified tables that kept the protocol runs' gains
+    would be distorted by them, leaving structure to the candidate that is not its own (a creep after a
+    recalibration, each fold then fitting a different share of the gain). Unchanged when the protocol runs' gains
+    are negligible (:meth:`bmr.diagnosis.effects.RunGainOffset.adjust_path`) or ``eff`` keeps the tables."""
+    if not eff.needs_reidentify or eff.name == "run_gain_offset":
+        return config
+    for i, (other, value) in enumerate(config.linear):
+        tables = getattr(other, "TABLES", None)
+        if other.name != "run_gain_offset" or tables is None or str(value).endswith(tables):
+            continue
+        path = other.adjust_path(config.path, str(value) + tables)
+        if path is config.path:
+            return config
+        linear = list(config.linear)
+        linear[i] = (other, str(value) + tables)
+        return Configuration(path, linear)
+    return config
 
 
 def _fit_with(fitter: Fitter, config: Configuration, eff: Effect, value: Any, fold: int | None
@@ -893,7 +918,9 @@ def forward_selection(fitter: Fitter, *, library: Sequence[Effect] = LIBRARY, ma
                 cands.append(Candidate.unevaluated(eff, before.rms(), data.noise_floor_nmm, missing))
             else:
                 # Without its signature, the forms the signature does not test are searched alone.
-                cands.append(evaluate(fitter, config, narrower or eff, before))
+                base = judged_on(config, eff)
+                cands.append(evaluate(fitter, base, narrower or eff,
+                                      before if base is config else heldout(fitter, base)))
             if progress is not None:
                 progress.update(1)
         for c in cands:
@@ -902,12 +929,12 @@ def forward_selection(fitter: Fitter, *, library: Sequence[Effect] = LIBRARY, ma
         ok = sorted((c for c in cands if c.accepted), key=lambda c: -c.mean_gain)
         best = None
         for c in ok:
-            trial, params = refit(fitter, config, c.effect)
+            trial, params = refit(fitter, judged_on(config, c.effect), c.effect)
             bad = _unphysical(fitter, trial, field_effects + ([c.effect] if c.effect.field else []))
             if bad:
                 c.unphysical = "; ".join(f"{name}: {', '.join(v)}" for name, v in bad.items())
                 continue
-            missing = c.effect.signature_missing(fitter, config, trial)
+            missing = c.effect.signature_missing(fitter, judged_on(config, c.effect), trial)
             if missing:
                 c.no_signature = missing
                 continue
