@@ -669,7 +669,7 @@ def nominal_field_full(data: Any, model: Any) -> list[np.ndarray]:
     """The nominal core's output along every evaluation run, whole runs from negative saturation (made once and
     kept in the diagnosis's cache: both creep forms read it for every grid value)."""
     return data.cache.get("nominal_field_full",
-                          lambda: FieldPath.nominal(model).simulate(data.runs, copy.copy(model.hysteresis)))
+                          lambda: FieldPath.nominal(model).simulate(data.runs, copy.copy(model.forward_hysteresis())))
 
 
 class Creep(Effect):
@@ -775,7 +775,7 @@ class Creep(Effect):
             lo, hi = model.hysteresis.input_range
             eps = self.LINEARISE_SHARE * (hi - lo)
             plain = nominal_field_full(data, model)
-            return np.concatenate([self._fluctuation_response(model.hysteresis, _run_input(r), eps, tau0_s,
+            return np.concatenate([self._fluctuation_response(model.forward_hysteresis(), _run_input(r), eps, tau0_s,
                                                               r.dt_s, v)[r.start:] / eps
                                    for r, v in zip(data.runs, plain)])[:, None]
 
@@ -786,7 +786,7 @@ class Creep(Effect):
         if cls._unbounded(value):
             # The nominal core's response to the field (a share of the input span) along the run.
             lo, hi = run.model.hysteresis.input_range
-            return y - cls._fluctuation_response(run.model.hysteresis, run.current, beta[0] * (hi - lo),
+            return y - cls._fluctuation_response(run.model.forward_hysteresis(), run.current, beta[0] * (hi - lo),
                                                  float(value[1]), run.dt, run.nominal_field())
         # The relaxation of the measured output approximates that of the core output (second order in fraction).
         return y - beta[0] * _core.creep_relaxation(np.asarray(y, dtype=float), cls._spectrum(value), run.dt)

@@ -159,7 +159,7 @@ class ProtocolRun:
         """The nominal core's output on the run's current from negative saturation (computed once: every creep
         correction's response to its fluctuation field is taken against it)."""
         if self._nominal_field is None:
-            h = copy.copy(self.model.hysteresis)
+            h = copy.copy(self.model.forward_hysteresis())
             h.reset(initial="negative")
             self._nominal_field = np.asarray(h.run(np.ascontiguousarray(self.current, dtype=float)), dtype=float)
         return self._nominal_field
@@ -254,7 +254,7 @@ class Reidentifier:
             w[s:] = 1.0
             if pr.at_rail is not None:
                 w[pr.at_rail] = 0.0
-            core_u = path.core_input(u, pr.dt, rate_core=self.model.hysteresis)
+            core_u = path.core_input(u, pr.dt, rate_core=self.model.forward_hysteresis())
             if path.feedback != 0.0:
                 core_y = output_map_inverse(pr.torque, path.curvature, path.scale_nmm, path.cubic)
                 core_u = core_u + path.feedback / path.scale_nmm * previous_sample(core_y)
@@ -340,7 +340,7 @@ class FieldPath:
             if reid is None:
                 reid = Reidentifier(self.model, self.protocol)
             return reid.curves(self)
-        asc, desc = self.model.hysteresis.curves()
+        asc, desc = self.model.forward_hysteresis().curves()
         if self.curvature == 0.0 and self.cubic == 0.0:
             return list(asc), list(desc)
 
@@ -356,7 +356,7 @@ class FieldPath:
         if self.tables is None and self.curvature == 0.0 and self.cubic == 0.0 and not self.reidentify:
             # The nominal core is the model's own operator: built once, not rebuilt from its stored curves (which
             # hold derived and added curves a second build need not accept).
-            h = copy.copy(self.model.hysteresis)
+            h = copy.copy(self.model.forward_hysteresis())
             h.reset(initial="negative")
             return h
         asc, desc = self.core_curves()

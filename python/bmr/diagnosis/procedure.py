@@ -600,5 +600,10 @@ def run_cli(args: Any) -> int:
     if args.model_out:
         d.extended_model.save(args.model_out)
         print(f"  wrote {args.model_out} (bmr.Compensator.from_model, bmr export)")
+        if args.model is None:
+            # The diagnosis's nominal is the paper's model (measured curves alone); identify's default tables are
+            # often finer, and an extended model is only as good as the core it extends.
+            print("  it extends the nominal model of the measured curves alone; to extend the model `bmr identify` "
+                  "chose, pass --model model.json")
     return 0
 

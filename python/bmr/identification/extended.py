@@ -27,7 +27,7 @@ def parts(model: Any) -> list[str]:
 def extended_simulation(model: Any, dt_s: float) -> Any:
     """The forward chain of ``model`` as a ``bmr.ExtendedSimulation`` at sample period ``dt_s`` (s)."""
     friction = model.friction.to_friction() if model.friction is not None else None
-    return ExtendedSimulation(model.core_hysteresis(), friction, extensions=model.extensions, dt_s=dt_s,
+    return ExtendedSimulation(model.core_hysteresis(forward=True), friction, extensions=model.extensions, dt_s=dt_s,
                               full_current_a=model.full_current_a, full_torque_nmm=model.full_torque_nmm)
 
 
