@@ -270,10 +270,10 @@ class Model:
         return float(max(abs(lo), abs(hi)))
 
     def forward_hysteresis(self) -> Any:
-        """The operator :meth:`simulate` runs, as a ``bmr.Hysteresis`` (shared: copy it before running it): the
-        signed table's (the CBH operator of its first-order curves, built once) when the model has one that
-        operator reproduces, else :attr:`hysteresis`. Forward only: a compensator inverts :attr:`hysteresis` (see
-        :meth:`compensator`)."""
+        """The operator nearest the one :meth:`simulate` runs, as a ``bmr.Hysteresis`` (shared: copy it before
+        running it): with a signed table, the CBH operator of its first-order curves (built once) when that is
+        nearer the table than :attr:`hysteresis` (:meth:`_signed_operator`); else :attr:`hysteresis`. Forward
+        only: a compensator inverts :attr:`hysteresis` (see :meth:`compensator`)."""
         table = self.signed_table
         if table is None:
             return self.hysteresis
@@ -321,9 +321,9 @@ class Model:
                 raise BmrError(f"core_tables entry: expected 'ascending' and 'descending' curves ({exc})") from None
         p = self.extension_params("non_congruent")
         cubic = p.get("cubic", 0.0) if p else 0.0
-        core = self.forward_hysteresis() if forward else self.hysteresis
+        operator = self.forward_hysteresis() if forward else self.hysteresis
         if not p or (p["curvature"] == 0.0 and cubic == 0.0):
-            return copy.copy(core)
+            return copy.copy(operator)
         scale = p["scale_nmm"] or self.full_torque_nmm
 
         def fam(curves: Any) -> list[tuple[np.ndarray, np.ndarray]]:
@@ -335,8 +335,8 @@ class Model:
                 out.append((np.asarray(u, float), core))
             return out
 
-        if core is not self.hysteresis:
-            return Hysteresis.from_curves(*(fam(c) for c in core.curves()))
+        if operator is not self.hysteresis:
+            return Hysteresis.from_curves(*(fam(c) for c in operator.curves()))
         asc, desc = self._source_curves if self._source_curves is not None else self.hysteresis.curves()
         return Hysteresis.from_curves(fam(asc), fam(desc), **self._build)
 
