@@ -89,7 +89,9 @@ def test_a_damaged_signed_table_in_a_model_file_is_a_model_file_error(tmp_path) 
             bmr.Model.load(tmp_path / "m.json")
 
 
-def test_a_signed_table_on_counter_clockwise_loops_is_named_so_and_compensated_on_its_nonnegative_table() -> None:
+def _loops_with_minor_loops() -> bmr.Bundle:
+    """A major loop and two runs of random reversals of the independent Preisach plant, recorded one after the other
+    (loops that run counter-clockwise; a signed table fits them with negative regions)."""
     rng = np.random.default_rng(5)
     plant = P.Plant()
     plant.reset()
@@ -97,7 +99,11 @@ def test_a_signed_table_on_counter_clockwise_loops_is_named_so_and_compensated_o
     for k in range(2):
         v = [float(x) for x in np.random.default_rng(20 + k).uniform(-1.1, 1.1, 8)]
         runs.append(P.record(plant, f"minor{k}", "custom", [0.0] + v, rng, fs=100.0, fresh=False))
-    bundle = bmr.Bundle("loops", 100.0, runs)
+    return bmr.Bundle("loops", 100.0, runs)
+
+
+def test_a_signed_table_on_counter_clockwise_loops_is_named_so_and_compensated_on_its_nonnegative_table() -> None:
+    bundle = _loops_with_minor_loops()
     model = bmr.identify(bundle, method="lstsq", density="signed", n_intervals=24, smoothing=1e-3)
     tables = model.identification.lstsq
     assert tables.signed and tables.orientation < -CLOCKWISE_SHARE, tables
@@ -123,19 +129,12 @@ def test_an_extended_model_runs_the_forward_core_of_a_signed_model() -> None:
     from bmr.diagnosis.extended_model import with_extensions
     from bmr.identification.extended import simulate_extended
 
-    rng = np.random.default_rng(5)
-    plant = P.Plant()
-    plant.reset()
-    runs = [P.record(plant, "major", "custom", [0.0, P.HI, P.LO, P.HI, P.LO, P.HI], rng, fs=100.0, fresh=False)]
-    for k in range(2):
-        v = [float(x) for x in np.random.default_rng(20 + k).uniform(-1.1, 1.1, 8)]
-        runs.append(P.record(plant, f"minor{k}", "custom", [0.0] + v, rng, fs=100.0, fresh=False))
-    model = bmr.identify(bmr.Bundle("loops", 100.0, runs), method="lstsq", density="signed", n_intervals=24,
-                         smoothing=1e-3)
+    bundle = _loops_with_minor_loops()
+    model = bmr.identify(bundle, method="lstsq", density="signed", n_intervals=24, smoothing=1e-3)
     forward = model.forward_hysteresis()
     assert model.signed_table is not None and forward is not model.hysteresis
     extended = with_extensions(model, [{"name": "offset", "params": {"offset_nmm": 0.0}}])
-    u = np.asarray(runs[1].input, dtype=float)
+    u = np.asarray(bundle.runs[1].input, dtype=float)
     whole = simulate_extended(extended, u, np.zeros_like(u), dt_s=0.01)
     core = copy.copy(forward)
     core.reset(initial="negative")
