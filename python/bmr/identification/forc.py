@@ -185,6 +185,8 @@ def extract_first_order_curves(
     fits: list[Any] = []
     membership = {r.name: np.full(u.size, -1, dtype=np.int64) for r, u in zip(runs, inputs)}
     held_out = {int(k) for k in exclude_curves}
+    # Samples of curves not cut because their reversal is held at the output's range end.
+    no_start = {r.name: np.zeros(u.size, dtype=bool) for r, u in zip(runs, inputs)}
     for key in ("asc", "desc"):
         for rev, segs in sorted(pools[key], key=lambda e: e[0]):
             end = hi if key == "asc" else lo
@@ -202,6 +204,8 @@ def extract_first_order_curves(
                 # them; a curve whose reversal itself sits there has no measured start and is not a curve.
                 keep = ~np.concatenate([railed[n][a:b + 1] for n, a, b in segs])[order]
                 if not keep[0]:
+                    for n, a, b in segs:
+                        no_start[n][a:b + 1] = True
                     continue
                 uu, yy = uu[keep], yy[keep]
             try:
@@ -226,13 +230,14 @@ def extract_first_order_curves(
         on_curve = m >= 0
         out = np.isin(m, sorted(held_out)) if held_out else np.zeros(u.size, dtype=bool)
         account.add_run(r.name, u.size)
-        held = on_curve & ~out & railed[r.name]
+        # At the range end: a fitted curve's railed samples, and the other samples of curves whose reversal is.
+        held = (on_curve & ~out & railed[r.name]) | (no_start[r.name] & ~on_curve)
         account.use(r.name, int(np.count_nonzero(on_curve & ~out & ~held)))
         account.drop(r.name, HELD_OUT, int(np.count_nonzero(out)))
         account.drop(r.name, AT_RANGE_END, int(np.count_nonzero(held)))
-        early = int(np.count_nonzero(~on_curve[:firsts[r.name]]))
+        early = int(np.count_nonzero(~on_curve[:firsts[r.name]] & ~held[:firsts[r.name]]))
         account.drop(r.name, BEFORE_FIRST_REVERSAL, early)
-        account.drop(r.name, NOT_FIRST_ORDER, int(np.count_nonzero(~on_curve)) - early)
+        account.drop(r.name, NOT_FIRST_ORDER, int(np.count_nonzero(~on_curve & ~held)) - early)
     n_asc = sum(1 for f in fits if f.direction == "ascending")
     kept = [f for i, f in enumerate(fits) if i not in held_out]
     return FirstOrderCurves(ascending, descending, (lo, hi), kept, account.check(), float(db), membership,
