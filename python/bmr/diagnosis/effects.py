@@ -651,6 +651,51 @@ def _run_bounds(data: Any) -> np.ndarray:
     return np.concatenate([[0], np.cumsum([r.n_eval for r in data.runs])]).astype(int)
 
 
+class _SessionTrend:
+    """The evaluation runs' calibration corrections (offset and gain on the sensed output, per run) against a
+    straight line in the runs' times: how much of their spread between runs the line leaves and how far each run
+    moves along it between its halves. ``designs[i]``: run ``i``'s ``[1, sensed]`` columns; ``fits[i]``: its
+    coefficients; ``times[i]``: its mean time; ``halves[i]``: (the coefficients' change from its first half to
+    its second, the time between the halves' means)."""
+
+    def __init__(self, designs: list[np.ndarray], fits: list[np.ndarray], times: list[float],
+                 halves: list[tuple[np.ndarray, float]]) -> None:
+        self.designs, self.halves = designs, halves
+        self.coef = np.asarray(fits)
+        self.tt = np.column_stack([np.ones(len(times)), np.asarray(times)])
+        self.n = sum(x.shape[0] for x in designs)
+
+    def _spread(self, coef: np.ndarray) -> float:
+        """Sum of squares (over the samples) of the runs' corrections ``coef`` around their mean."""
+        mean = float(np.mean(np.concatenate([x @ f for x, f in zip(self.designs, coef)])))
+        return sum(float(np.sum((x @ f - mean) ** 2)) for x, f in zip(self.designs, coef))
+
+    def spread(self, mask: np.ndarray) -> float:
+        """RMS of the masked corrections between runs."""
+        return math.sqrt(self._spread(self.coef * mask) / self.n)
+
+    def judge(self, mask: np.ndarray) -> tuple[float, float, float]:
+        """For the corrections' components in ``mask`` (1: offset, gain): the share of their spread between runs
+        the line leaves; how far the runs move along it between their halves (1: as far as the line predicts);
+        the share of the halves' change (squared) that movement explains."""
+        coef = self.coef * mask
+        between = self._spread(coef)
+        if between <= 0.0:
+            return 1.0, 0.0, 0.0
+        line = np.linalg.lstsq(self.tt, coef, rcond=None)[0]
+        share = self._spread(coef - self.tt @ line) / between
+        predicted = [x @ (line[1] * dt) for x, (_, dt) in zip(self.designs, self.halves)]
+        measured = [x @ (d * mask) for x, (d, _) in zip(self.designs, self.halves)]
+        norm = sum(float(np.sum(p * p)) for p in predicted)
+        changes = sum(float(np.sum(m * m)) for m in measured)
+        dot = sum(float(np.sum(m * p)) for m, p in zip(measured, predicted))
+        along = dot / norm if norm > 0 else 0.0
+        # The runs' halves also differ where the tables err differently over the input range each half covers:
+        # a drift explains most of that change, not a small part that happens to line up.
+        explained = dot * dot / (norm * changes) if norm > 0 and changes > 0 else 0.0
+        return share, along, explained
+
+
 def _split(data: Any, y: np.ndarray) -> list[np.ndarray]:
     """``y`` over the evaluated spans, cut run by run."""
     return np.split(np.asarray(y, dtype=float), _run_bounds(data)[1:-1])
@@ -1006,6 +1051,10 @@ class RunGainOffset(Effect):
     WITHIN_RUN_TREND = 0.5
     WITHIN_RUN_EXPLAINED = 0.2
     TREND_RUNS = 5
+    # The offsets alone or the gains alone may follow the line more closely: leaving less than this share of
+    # their spread (a line through 5 runs' random values does so in 0.5 % of sessions, through more runs more
+    # rarely), a drift needs only the runs' own movement along it (WITHIN_RUN_TREND) as confirmation.
+    COMPONENT_UNTRENDED_SHARE = 0.05
 
     def signature_missing(self, fitter: Any, before: Any, after: Any) -> str:
         """A calibration differs between recordings and holds along each. The residual of ``before`` is fitted in
@@ -1019,7 +1068,10 @@ class RunGainOffset(Effect):
         * not follow a straight line in the runs' times (at least :attr:`TREND_RUNS` runs; explaining more than
           ``1 -`` :attr:`UNTRENDED_SHARE` of their spread) along which each run also moves from its first half to its second (at least
           :attr:`WITHIN_RUN_TREND` of the change the line predicts, the line explaining at least
-          :attr:`WITHIN_RUN_EXPLAINED` of the change between the halves): what a drift along the session leaves."""
+          :attr:`WITHIN_RUN_EXPLAINED` of the change between the halves): what a drift along the session leaves;
+          nor have their offsets alone or their gains alone follow it to within :attr:`COMPONENT_UNTRENDED_SHARE`
+          (spread above the noise floor) with each run moving along it (:attr:`WITHIN_RUN_TREND`): a drifting
+          sensor offset next to a gain that follows the drive (a heating)."""
         data = fitter.data
         if len(data.runs) < 2:
             return ""
@@ -1064,28 +1116,22 @@ class RunGainOffset(Effect):
             mean = float(np.mean(np.concatenate([x @ f for x, f in zip(designs, fits)])))
             between = sum(float(np.sum((x @ f - mean) ** 2)) for x, f in zip(designs, fits))
         # The runs' offsets and gains as straight lines of the runs' times: what a drift along the session leaves.
-        tt = np.column_stack([np.ones(len(times)), np.asarray(times)])
-        coef = np.asarray(fits)
-        line = np.linalg.lstsq(tt, coef, rcond=None)[0]
-        rest = coef - tt @ line
-        mean_rest = float(np.mean(np.concatenate([x @ f for x, f in zip(designs, rest)])))
-        detrended = sum(float(np.sum((x @ f - mean_rest) ** 2)) for x, f in zip(designs, rest))
-        if detrended >= self.UNTRENDED_SHARE * between:
+        # Judged on both together, and on each alone: a sensor's offset warming up along the session while the
+        # gain follows a heating (which tracks the drive, not the clock) lines up in the offsets alone.
+        trend = _SessionTrend(designs, fits, times, halves)
+        share, along, explained = trend.judge(np.ones(2))
+        if share >= self.UNTRENDED_SHARE or along < self.WITHIN_RUN_TREND or explained < self.WITHIN_RUN_EXPLAINED:
+            for k, part in enumerate(("offsets", "gains")):
+                mask = np.eye(2)[k]
+                share, along, explained = trend.judge(mask)
+                if (share < self.COMPONENT_UNTRENDED_SHARE and along >= self.WITHIN_RUN_TREND
+                        and trend.spread(mask) > data.noise_floor_nmm):
+                    return (f"the recordings' {part} follow a straight line in time ({100 * (1 - share):.1f} % of "
+                            f"their spread between runs) that moves each run along it too ({100 * along:.0f} % of "
+                            "the line's change between its halves): a drift along the session, not a calibration "
+                            "per recording")
             return ""
-        # Calibrations drawn per recording can line up by chance; a drift also moves each run from its first half
-        # to its second as the line says.
-        predicted = [x @ (line[1] * dt) for x, (_, dt) in zip(designs, halves)]
-        measured = [x @ d for x, (d, _) in zip(designs, halves)]
-        norm = sum(float(np.sum(p * p)) for p in predicted)
-        changes = sum(float(np.sum(m * m)) for m in measured)
-        dot = sum(float(np.sum(m * p)) for m, p in zip(measured, predicted))
-        along = dot / norm if norm > 0 else 0.0
-        # The runs' halves also differ where the tables err differently over the input range each half covers:
-        # a drift explains most of that change, not a small part that happens to line up.
-        explained = dot * dot / (norm * changes) if norm > 0 and changes > 0 else 0.0
-        if along < self.WITHIN_RUN_TREND or explained < self.WITHIN_RUN_EXPLAINED:
-            return ""
-        return (f"the per-run corrections follow a trend in time ({100 * (1 - detrended / between):.0f} % of their "
+        return (f"the per-run corrections follow a trend in time ({100 * (1 - share):.0f} % of their "
                 f"spread between runs) that moves each run along it too ({100 * along:.0f} % of the trend's change "
                 f"between its halves, {100 * explained:.0f} % of their change): a drift along the session, not a "
                 "calibration per recording")

@@ -89,7 +89,7 @@ MIN_GAIN = 0.02
 MIN_EXCESS = 0.25
 NOISE_MARGIN = 1.03
 # Candidates of a round tried in pairs when none is accepted alone (:func:`_needed_pair`).
-PAIR_CANDIDATES = 3
+PAIR_CANDIDATES = 4
 # Two-sided 95 % Student t quantiles by degrees of freedom.
 _T975 = {1: 12.706, 2: 4.303, 3: 3.182, 4: 2.776, 5: 2.571, 6: 2.447, 7: 2.365, 8: 2.306, 9: 2.262, 10: 2.228}
 # Relative eigenvalue below which a direction of the scaled normal equations is treated as rank deficient.
