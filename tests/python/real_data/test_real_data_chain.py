@@ -136,3 +136,60 @@ def test_the_extended_model_of_a_signed_model_predicts_like_it(key, tmp_path):
         BENCH._cli = cli
     assert r.ok, (r.status, r.errors)
     assert r.extended_rms is not None and r.extended_rms < 1.1 * r.rms, r
+
+
+def _calibration_drift(forc_file: Path) -> tuple[float, float]:
+    """The MicroMag's own calibration measurements (one point at the calibration field before every curve):
+    their moment's change over the file along a straight line in the curve number, and that line's R²."""
+    import numpy as np
+
+    lines = forc_file.read_text(encoding="latin-1").splitlines()
+    start = next(i for i, line in enumerate(lines) if line.startswith("NData"))
+    blocks, cur = [], []
+    for line in lines[start + 1:] + [""]:
+        line = line.strip()
+        if not line:
+            if cur:
+                blocks.append(cur)
+            cur = []
+        elif line[0] in "+-" and "," in line:
+            cur.append([float(x) for x in line.split(",")[:2]])
+    # A point alone at the calibration field (the first curve is one point too, at its reversal field).
+    single = np.array([b[0] for b in blocks if len(b) == 1])
+    cal = single[single[:, 0] > 0.99 * single[:, 0].max(), 1]
+    k = np.arange(cal.size)
+    slope, icpt = np.polyfit(k, cal, 1)
+    r2 = 1.0 - float(np.var(cal - (slope * k + icpt)) / np.var(cal))
+    return float(slope * cal.size), r2
+
+
+@pytest.mark.slow
+def test_the_magnetometers_drift_is_named_as_its_calibration_points_measure_it(tmp_path):
+    # The MicroMag measures a calibration point at saturation before every FORC; on the sediment file those points
+    # fall along a straight line (R² 0.999) by 1.03e-8 A·m² over the 120 curves. The diagnosis never reads them
+    # (the import cuts each curve after its calibration point): the curves' offsets alone follow the session's
+    # time, so a drift is named, not a calibration per curve, and its rate over the bundle's time (the curves back
+    # to back, 851 s) gives -0.86e-8 A·m².
+    import dataclasses
+    import json
+
+    import bmr
+
+    ds = SETS["sediment_forc"]
+    if not ds.present():
+        pytest.skip(f"needs {', '.join(map(str, ds.paths()))} (see ../shared/data/README.md for its source)")
+    r = BENCH.run_chain(dataclasses.replace(ds, diagnose=True), tmp_path)
+    assert r.ok, (r.status, r.errors)
+    d = json.loads((tmp_path / "diagnosis.json").read_text())
+    named = {e["name"]: e["params"] for e in d["effects"]}
+    assert "sensor_drift" in named and "run_gain_offset" not in named, d["effects"]
+    bundle = bmr.read_bundle(tmp_path / "bundle")
+    # The bundle's time: the curves back to back, each sample one averaging time.
+    duration = 0.0
+    for run in bundle.runs:
+        t = run.data["t_s"].to_numpy()
+        duration += float(t[-1] - t[0]) + (float(t[1] - t[0]) if t.size > 1 else 0.0)
+    measured, r2 = _calibration_drift(ds.paths()[0])
+    assert r2 > 0.99, r2
+    named_drift = named["sensor_drift"]["rate_nmm_per_s"] * duration
+    assert 0.6 < named_drift / measured < 1.4, (named_drift, measured)
