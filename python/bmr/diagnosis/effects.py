@@ -119,6 +119,11 @@ class Effect(ABC):
         """Whether the nonlinear parameter is continuous (refined by a golden-section search)."""
         return False
 
+    def settle(self, path: FieldPath) -> FieldPath:
+        """A field effect's path as it is judged and kept: its search ranks values on tables identified once, and
+        the values chosen may need more (the rate dependence's slopes at their fixed point). Default: as is."""
+        return path
+
     def along(self, a: Any, b: Any) -> tuple[float, float, Any] | None:
         """The line between grid values ``a`` and ``b`` the refinement searches: ``(x_a, x_b, value_of(x))``, or
         None when no continuous path joins them. Default: plain numbers."""
@@ -656,7 +661,8 @@ class _SessionTrend:
     straight line in the runs' times: how much of their spread between runs the line leaves and how far each run
     moves along it between its halves. ``designs[i]``: run ``i``'s ``[1, sensed]`` columns; ``fits[i]``: its
     coefficients; ``times[i]``: its mean time; ``halves[i]``: (the coefficients' change from its first half to
-    its second, the time between the halves' means)."""
+    its second, the time between the halves' means), for the first ``len(halves)`` runs only (the evaluation runs;
+    protocol runs after them join the line, not the within-run test)."""
 
     def __init__(self, designs: list[np.ndarray], fits: list[np.ndarray], times: list[float],
                  halves: list[tuple[np.ndarray, float]]) -> None:
@@ -903,6 +909,12 @@ class RateDependence(Effect):
     def refine(self) -> bool:
         return True
 
+    def settle(self, path: FieldPath) -> FieldPath:
+        # The lag follows the core's slopes: those of the tables the path identifies, not the nominal core's.
+        if path.rate_tau_s <= 0.0 or not path.reidentify or path.reidentifier is None:
+            return path
+        return path.with_(rate_slopes=path.reidentifier.settle_slopes(path))
+
 
 class RunGainOffset(Effect):
     """Each evaluation run has its own output offset and, when the data support it, its own gain (calibration
@@ -1113,8 +1125,6 @@ class RunGainOffset(Effect):
                 times.append(t)
             if len(fits) < self.TREND_RUNS:
                 return ""
-            mean = float(np.mean(np.concatenate([x @ f for x, f in zip(designs, fits)])))
-            between = sum(float(np.sum((x @ f - mean) ** 2)) for x, f in zip(designs, fits))
         # The runs' offsets and gains as straight lines of the runs' times: what a drift along the session leaves.
         # Judged on both together, and on each alone: a sensor's offset warming up along the session while the
         # gain follows a heating (which tracks the drive, not the clock) lines up in the offsets alone.

@@ -38,6 +38,12 @@ __all__ = ["FieldPath", "Reidentifier", "ProtocolRun", "lag", "delay", "output_m
 # Least-squares re-identification: table intervals and regression rows (speed vs resolution).
 REIDENTIFY_INTERVALS = 40
 REIDENTIFY_ROWS = 20_000
+# Identifications of a rate-dependent path's tables with the slopes of the tables identified before (see
+# Reidentifier.settle_slopes): 2 passes left a coil lag to name beside a dynamic field, 4 none.
+RATE_SLOPE_PASSES = 4
+# ... stopping early once a pass moves no point of the tables' first-order curves by more than this share of the
+# noise floor.
+RATE_SLOPE_SETTLED = 0.1
 
 Curves = tuple[list[tuple[np.ndarray, np.ndarray]], list[tuple[np.ndarray, np.ndarray]]]
 
@@ -191,6 +197,10 @@ class Reidentifier:
         self._regressions: OrderedDict[tuple, Any] = OrderedDict()
         self._kept: tuple[tuple, Any] | None = None  # the regression asked for again (counted in max_inputs)
         self._tables: OrderedDict[tuple, Curves] = OrderedDict()
+        # Cores whose slopes set a rate dependence's lag (FieldPath.rate_slopes n is the n-th) and the number each
+        # settled path ended at (settle_slopes).
+        self._slope_cores: list[Any] = []
+        self._settled: dict[tuple, int] = {}
         self._passive: np.ndarray | None = None
         self.fits = 0  # least-squares solves done (for the benchmarks)
         self.regressions = 0  # input histories prepared
@@ -218,7 +228,7 @@ class Reidentifier:
 
     def curves(self, path: "FieldPath") -> Curves:
         key = (path.lag_tau_s, path.delay_s, path.rate_tau_s, path.feedback, path.curvature, path.cubic,
-               path.corrections)
+               path.corrections, path.rate_slopes if path.rate_tau_s > 0.0 else 0)
         if key in self._tables:
             self._tables.move_to_end(key)
             return self._tables[key]
@@ -228,11 +238,51 @@ class Reidentifier:
             self._tables.popitem(last=False)
         return tables
 
+    def settle_slopes(self, path: "FieldPath") -> int:
+        """The rate dependence's lag follows the core's slopes, taken at first from the nominal core, which was
+        identified from runs the rate dependence itself distorted: the tables of ``path`` are identified again
+        with the slopes of the core they describe, :data:`RATE_SLOPE_PASSES` times (towards that fixed point).
+        Returns the number that names the last slope core (``FieldPath.rate_slopes``); 0 when the path has no
+        rate dependence or a core is rejected."""
+        if path.rate_tau_s <= 0.0:
+            return 0
+        key = (path.lag_tau_s, path.delay_s, path.rate_tau_s, path.feedback, path.curvature, path.cubic,
+               path.corrections, path.rate_slopes)
+        if key in self._settled:
+            return self._settled[key]
+        n = path.rate_slopes
+        before = None
+        for _ in range(RATE_SLOPE_PASSES):
+            asc, desc = self.curves(path.with_(rate_slopes=n))
+            outputs = np.concatenate([y for _, y in asc] + [y for _, y in desc])
+            if before is not None and before.shape == outputs.shape and np.max(np.abs(outputs - before)) < (
+                    RATE_SLOPE_SETTLED * self._noise_floor()):
+                break
+            before = outputs
+            try:
+                core = Hysteresis.from_curves(list(asc), list(desc), initial="negative")
+            except BmrError:
+                break
+            self._slope_cores.append(core)
+            n = len(self._slope_cores)
+        self._settled[key] = n
+        return n
+
+    def _noise_floor(self) -> float:
+        """The output noise floor of the diagnosis (output units; the output span's 1e-3 without one)."""
+        floor = getattr(self.context, "noise_floor_nmm", None)
+        if floor is not None and floor > 0:
+            return float(floor)
+        lo, hi = self.model.hysteresis.output_range
+        return 1e-3 * float(hi - lo)
+
     def _regression(self, path: "FieldPath") -> Any:
         """The prepared least squares of the protocol runs under ``path``'s input stages (with a mean field: the
         core's input shifted by the feedback times the measured output of the sample before, mapped to the core's
-        side of the output map)."""
-        key = (path.lag_tau_s, path.delay_s, path.rate_tau_s, path.feedback)
+        side of the output map; with a rate dependence, its lag following the slopes of the core
+        ``path.rate_slopes`` names)."""
+        key = (path.lag_tau_s, path.delay_s, path.rate_tau_s, path.feedback,
+               path.rate_slopes if path.rate_tau_s > 0.0 else 0)
         if self._kept is not None and self._kept[0] == key:
             return self._kept[1]
         if key in self._regressions:
@@ -243,6 +293,16 @@ class Reidentifier:
                 self._regressions[self._kept[0]] = self._kept[1]
             self._kept = (key, reg)
             return reg
+        slope_core = self._slope_cores[path.rate_slopes - 1] if path.rate_slopes else self.model.forward_hysteresis()
+        reg = self._prepare(path, slope_core)
+        self.regressions += 1
+        self._regressions[key] = reg
+        while len(self._regressions) + (self._kept is not None) > self.max_inputs:
+            self._regressions.popitem(last=False)
+        return reg
+
+    def _prepare(self, path: "FieldPath", slope_core: Any) -> Any:
+        """:meth:`_regression` built (not cached)."""
         lo, hi = self.input_range
         inputs, weights = [], []
         for pr in self.runs:
@@ -254,7 +314,7 @@ class Reidentifier:
             w[s:] = 1.0
             if pr.at_rail is not None:
                 w[pr.at_rail] = 0.0
-            core_u = path.core_input(u, pr.dt, rate_core=self.model.forward_hysteresis())
+            core_u = path.core_input(u, pr.dt, rate_core=slope_core)
             if path.feedback != 0.0:
                 core_y = output_map_inverse(pr.torque, path.curvature, path.scale_nmm, path.cubic)
                 core_u = core_u + path.feedback / path.scale_nmm * previous_sample(core_y)
@@ -267,14 +327,9 @@ class Reidentifier:
             keep[np.flatnonzero(w)[::stride]] = True
             w[~keep] = 0.0
         # One output offset per protocol run: each is its own recording (a zero or a remanence of its own).
-        reg = _core.EverettRegression(np.linspace(lo, hi, REIDENTIFY_INTERVALS + 1),
-                                      [(u, w, k) for k, (u, w) in enumerate(zip(inputs, weights))], len(inputs),
-                                      smoothing=1e-4, ridge=1e-9)
-        self.regressions += 1
-        self._regressions[key] = reg
-        while len(self._regressions) + (self._kept is not None) > self.max_inputs:
-            self._regressions.popitem(last=False)
-        return reg
+        return _core.EverettRegression(np.linspace(lo, hi, REIDENTIFY_INTERVALS + 1),
+                                       [(u, w, k) for k, (u, w) in enumerate(zip(inputs, weights))], len(inputs),
+                                       smoothing=1e-4, ridge=1e-9)
 
     def _identify(self, path: "FieldPath") -> Curves:
         """Core tables identified again from the protocol runs as the core sees them — current through the delay
@@ -306,6 +361,9 @@ class FieldPath:
     delay_s: float = 0.0
     # rate_dependence: time constant of the core-input lag at the loop's mean slope (s).
     rate_tau_s: float = 0.0
+    # rate_dependence: the core whose slopes set the protocol runs' lag when the tables are identified again
+    # (0: the nominal core; n: the n-th core of the reidentifier, see Reidentifier.settle_slopes).
+    rate_slopes: int = 0
     curvature: float = 0.0
     cubic: float = 0.0  # non_congruent: the output map's odd cubic term
     # non_congruent: the mean field, input added per full-scale core output y/S of the sample before (input units).
@@ -329,7 +387,7 @@ class FieldPath:
 
     def key(self) -> tuple:
         return (self.lag_tau_s, self.delay_s, self.rate_tau_s, self.feedback, self.curvature, self.cubic,
-                id(self.tables), self.reidentify, self.corrections)
+                id(self.tables), self.reidentify, self.corrections, self.rate_slopes)
 
     def core_curves(self) -> Curves:
         """First-order curves of the Preisach core (the model's, mapped through ``g⁻¹``, or the refined ones)."""

@@ -458,6 +458,8 @@ def _fit_with(fitter: Fitter, config: Configuration, eff: Effect, value: Any, fo
     data = fitter.data
     index = data.folds if fold is None else fold
     path, linear = _with(config, eff, value, data)
+    if eff.field:
+        path = eff.settle(path)
     ff = fitter.solve(path, linear)
     beta = ff.beta[index]
     if not eff.field:
@@ -685,6 +687,27 @@ def evaluate(fitter: Fitter, config: Configuration, eff: Effect, before: Heldout
         train_sse = n_train * np.log(np.maximum(train_sse, 1e-300) / n_train) + widths[:, None] * np.log(n_train)
     reidentifies = type(eff).update_path is not Effect.update_path
     best = [int(np.argmin(train_sse[:, k])) for k in range(data.folds)]
+    if eff.field:
+        # The values the folds chose are fitted again on their settled paths (Effect.settle), and each fold
+        # chooses again among them: the quick identification may rank a value first that settles worse.
+        near = sorted(set(best))
+        changed = False
+        for i in near:
+            path, linear = _with(config, eff, grid[i], data)
+            settled = eff.settle(path)
+            if settled is not path:
+                fits[i] = fitter.solve(settled, linear)
+                changed = True
+        if changed:
+            settled_sse = np.full_like(train_sse, np.inf)
+            for i in near:
+                ff = fits[i]
+                assert ff is not None
+                sse = np.where(np.isnan(ff.sse_train[:data.folds]), np.inf, ff.sse_train[:data.folds])
+                with np.errstate(divide="ignore", invalid="ignore"):
+                    settled_sse[i] = (n_train * np.log(np.maximum(sse, 1e-300) / n_train)
+                                      + widths[i] * np.log(n_train))
+            best = [int(np.argmin(settled_sse[:, k])) for k in range(data.folds)]
     if eff.gain_beyond_refitted_tables and not compared.path.reidentify:
         refitted = {i for i in set(best) if _with(config, eff, grid[i], data)[0].reidentify}
         if refitted:
@@ -715,6 +738,7 @@ def evaluate(fitter: Fitter, config: Configuration, eff: Effect, before: Heldout
             ff, _, path, linear = _fit_with(fitter, config, eff, grid[best[k]], k)
         elif mask is not None:
             path, linear = _with(config, eff, grid[best[k]], data)
+            path = eff.settle(path) if eff.field else path
         if mask is not None:
             local_after[k] = _masked_test_sse(fitter, path, linear, mask, fold=k)[k]
         evaluated[k] = ff
@@ -828,10 +852,10 @@ def refit(fitter: Fitter, config: Configuration, eff: Effect) -> tuple[Configura
     data = fitter.data
     grid = eff.grid(data)
 
-    def sse(v: Any) -> float:
+    def sse(v: Any, settle: bool = False) -> float:
         # The information criterion of the fit on all data (as the selection ranks grid values).
         path, linear = _with(config, eff, v, data)
-        ff = fitter.solve(path, linear)
+        ff = fitter.solve(eff.settle(path) if settle and eff.field else path, linear)
         if eff.ranks_in_range and not eff.field and not _in_range(eff, config, v, ff, data.folds, data):
             return math.inf
         n = max(float(np.sum(ff.n_test)), 2.0)
@@ -843,15 +867,23 @@ def refit(fitter: Fitter, config: Configuration, eff: Effect) -> tuple[Configura
     else:
         scores = [sse(v) for v in grid]
     i = int(np.argmin(scores))
+    settle = eff.field and type(eff).settle is not Effect.settle
+    if settle:
+        # Ranked again on settled paths (Effect.settle), the best and its neighbours, and refined on them.
+        near = range(max(i - 1, 0), min(i + 2, len(grid)))
+        settled = {j: sse(grid[j], settle=True) for j in near}
+        i = min(settled, key=lambda j: settled[j])
+        scores[i] = settled[i]
     best = grid[i]
     line = eff.along(grid[max(i - 1, 0)], grid[min(i + 1, len(grid) - 1)]) if len(grid) > 2 else None
     if eff.refine() and line is not None:
         lo_x, hi_x, value_of = line
         if lo_x > 0 and hi_x > 0:
-            cand = value_of(math.exp(_golden(lambda z: sse(value_of(math.exp(z))), math.log(lo_x), math.log(hi_x))))
+            cand = value_of(math.exp(_golden(lambda z: sse(value_of(math.exp(z)), settle), math.log(lo_x),
+                                             math.log(hi_x))))
         else:
-            cand = value_of(_golden(lambda x: sse(value_of(x)), lo_x, hi_x))
-        if sse(cand) < scores[i]:
+            cand = value_of(_golden(lambda x: sse(value_of(x), settle), lo_x, hi_x))
+        if sse(cand, settle) < scores[i]:
             best = cand
     ff, beta, path, linear = _fit_with(fitter, config, eff, best, None)
     new = Configuration(path, linear, beta)
