@@ -911,7 +911,7 @@ class RateDependence(Effect):
 
     def settle(self, path: FieldPath) -> FieldPath:
         # The lag follows the core's slopes: those of the tables the path identifies, not the nominal core's.
-        if path.rate_tau_s <= 0.0 or not path.reidentify or path.reidentifier is None:
+        if path.rate_tau_s <= 0.0 or not path.reidentify or not path.protocol or path.reidentifier is None:
             return path
         return path.with_(rate_slopes=path.reidentifier.settle_slopes(path))
 

@@ -242,10 +242,10 @@ class Reidentifier:
         """The rate dependence's lag follows the core's slopes, taken at first from the nominal core, which was
         identified from runs the rate dependence itself distorted: the tables of ``path`` are identified again
         with the slopes of the core they describe, :data:`RATE_SLOPE_PASSES` times (towards that fixed point).
-        Returns the number that names the last slope core (``FieldPath.rate_slopes``); 0 when the path has no
-        rate dependence or a core is rejected."""
-        if path.rate_tau_s <= 0.0:
-            return 0
+        Returns the number that names the last slope core (``FieldPath.rate_slopes``); the path's own when it
+        has no rate dependence or there are no protocol runs (nothing to identify), or the first core is rejected."""
+        if path.rate_tau_s <= 0.0 or not self.runs:
+            return path.rate_slopes
         key = (path.lag_tau_s, path.delay_s, path.rate_tau_s, path.feedback, path.curvature, path.cubic,
                path.corrections, path.rate_slopes)
         if key in self._settled:
