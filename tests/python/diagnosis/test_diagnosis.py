@@ -309,3 +309,16 @@ def test_the_example_control_loop_steps_the_model_files_compensator_at_1_khz(lag
     assert ext["tracking_rms_nmm"] < 0.7 * nom["tracking_rms_nmm"], (ext["tracking_rms_nmm"], nom["tracking_rms_nmm"])
     assert 0.0 < ext["step_us"]["median"] <= ext["step_us"]["max"]
     assert example.main([str(path), "--preset", PRESET, "--effect", "coil_lag:tau_s=0.03", "--seconds", "0.05"]) == 0
+
+
+def test_a_rate_dependence_is_searched_on_a_bundle_without_protocol_runs() -> None:
+    # Tables by least squares on the evaluation runs alone (no first-order recordings, as on the SLAC magnet's
+    # runs): the rate dependence's slopes have no protocol runs to settle on, and its search must not try to.
+    from bmr.simulation.excitation import MEDIUM_EFFECTS, diagnosis_bundle
+
+    full = diagnosis_bundle("rig_preisach", effects={"rate_dependence": MEDIUM_EFFECTS["rate_dependence"]}, seed=1000)
+    protocol = {r.name for r in full.roles().protocol}
+    bundle = bmr.Bundle(full.actuator, full.sample_rate_hz, [r for r in full.runs if r.name not in protocol])
+    assert not bundle.roles().protocol
+    d = bmr.diagnose(bundle, progress=False, closed_loop=False)
+    assert "rate_dependence" in {r["name"] for r in d.to_dict()["rejected"]} | {e["name"] for e in d.effects}
