@@ -226,9 +226,14 @@ class Reidentifier:
             count += d.size
         return math.sqrt(total / count) if count else 0.0
 
+    @staticmethod
+    def _tables_key(path: "FieldPath") -> tuple:
+        """What the re-identified tables of ``path`` depend on."""
+        return (path.lag_tau_s, path.delay_s, path.rate_tau_s, path.feedback, path.curvature, path.cubic,
+                path.corrections, path.rate_slopes if path.rate_tau_s > 0.0 else 0)
+
     def curves(self, path: "FieldPath") -> Curves:
-        key = (path.lag_tau_s, path.delay_s, path.rate_tau_s, path.feedback, path.curvature, path.cubic,
-               path.corrections, path.rate_slopes if path.rate_tau_s > 0.0 else 0)
+        key = self._tables_key(path)
         if key in self._tables:
             self._tables.move_to_end(key)
             return self._tables[key]
@@ -246,8 +251,7 @@ class Reidentifier:
         has no rate dependence or there are no protocol runs (nothing to identify), or the first core is rejected."""
         if path.rate_tau_s <= 0.0 or not self.runs:
             return path.rate_slopes
-        key = (path.lag_tau_s, path.delay_s, path.rate_tau_s, path.feedback, path.curvature, path.cubic,
-               path.corrections, path.rate_slopes)
+        key = self._tables_key(path)
         if key in self._settled:
             return self._settled[key]
         n = path.rate_slopes

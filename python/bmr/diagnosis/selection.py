@@ -670,7 +670,6 @@ def evaluate(fitter: Fitter, config: Configuration, eff: Effect, before: Heldout
     done = [f for f in fits if f is not None]
     train_sse = np.array([f.sse_train[:data.folds] if f is not None else np.full(data.folds, np.inf)
                           for f in fits])
-    train_sse = np.where(np.isnan(train_sse), np.inf, train_sse)
     if eff.ranks_in_range and not eff.field:
         # Each fold ranks only the values whose parameters, fitted on its training blocks, stay in range, as the
         # fit on all data does (:func:`refit`): a value fitted against the effect's physics (a negative yield
@@ -683,8 +682,14 @@ def evaluate(fitter: Fitter, config: Configuration, eff: Effect, before: Heldout
     # per-run gains): rank them on the training blocks by the Bayesian information criterion.
     n_train = np.maximum(np.sum(done[0].n_test) - done[0].n_test, 2.0)
     widths = np.array([sum(f.widths) if f is not None else 0 for f in fits], dtype=float)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        train_sse = n_train * np.log(np.maximum(train_sse, 1e-300) / n_train) + widths[:, None] * np.log(n_train)
+
+    def criterion(sse: np.ndarray, width: Any) -> np.ndarray:
+        # Training sums of squares (NaN: no fit) and column counts → the information criterion per fold.
+        sse = np.where(np.isnan(sse), np.inf, sse)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            return n_train * np.log(np.maximum(sse, 1e-300) / n_train) + width * np.log(n_train)
+
+    train_sse = criterion(train_sse, widths[:, None])
     reidentifies = type(eff).update_path is not Effect.update_path
     best = [int(np.argmin(train_sse[:, k])) for k in range(data.folds)]
     if eff.field:
@@ -703,10 +708,7 @@ def evaluate(fitter: Fitter, config: Configuration, eff: Effect, before: Heldout
             for i in near:
                 ff = fits[i]
                 assert ff is not None
-                sse = np.where(np.isnan(ff.sse_train[:data.folds]), np.inf, ff.sse_train[:data.folds])
-                with np.errstate(divide="ignore", invalid="ignore"):
-                    settled_sse[i] = (n_train * np.log(np.maximum(sse, 1e-300) / n_train)
-                                      + widths[i] * np.log(n_train))
+                settled_sse[i] = criterion(ff.sse_train[:data.folds], widths[i])
             best = [int(np.argmin(settled_sse[:, k])) for k in range(data.folds)]
     if eff.gain_beyond_refitted_tables and not compared.path.reidentify:
         refitted = {i for i in set(best) if _with(config, eff, grid[i], data)[0].reidentify}
