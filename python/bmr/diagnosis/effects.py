@@ -189,11 +189,15 @@ class CoilLag(Effect):
         sample, and so does how a lag already on the path is sampled (a lag of ``tau`` sampled with the input held
         over each sample trails a ramp by ``tau − dt/2``, one with the input taken at the sample's end by ``tau``:
         for a rate dependence, the dynamic field of a backward-Euler plant, up to half a sample more where the
-        branch is steep). Such a lag is the sampling of the path's timing, not a relaxation the data show."""
+        branch is steep). Such a lag is the sampling of the path's timing, not a relaxation the data show. A longer
+        lag must show as the residual growing with the drive's rate (:func:`rate_growth_missing`)."""
         tau = float(after.path.lag_tau_s) if after is not None else 0.0
         dt = min(r.dt_s for r in fitter.data.runs)
-        if not 0.0 < tau < 0.5 * dt:
+        if tau <= 0.0:
             return ""
+        if tau >= 0.5 * dt:
+            shift = time_shift(fitter, after.path, after.path.with_(lag_tau_s=0.0))
+            return rate_growth_missing(fitter, before, shift, f"the fitted lag ({1e3 * tau:.3g} ms)")
         return (f"the lag ({1e3 * tau:.3g} ms) is shorter than half the sample period ({1e3 * dt:.3g} ms): it relaxes "
                 "within one sample, a sub-sample shift that how the path's timing is sampled makes as well (record "
                 "at a higher sample rate to see its approach)")
@@ -915,6 +919,62 @@ class RateDependence(Effect):
             return path
         return path.with_(rate_slopes=path.reidentifier.settle_slopes(path))
 
+    def signature_missing(self, fitter: Any, before: Any, after: Any) -> str:
+        """The residual grows with the drive's rate as the fitted dynamic field predicts
+        (:func:`rate_growth_missing`)."""
+        if after is None or after.path.rate_tau_s <= 0.0:
+            return ""
+        path = after.path
+        shift = time_shift(fitter, path, path.with_(rate_tau_s=0.0, rate_slopes=0))
+        what = f"the fitted dynamic field (tau {1e3 * path.rate_tau_s:.3g} ms)"
+        return rate_growth_missing(fitter, before, shift, what)
+
+
+# Share of a fitted time shift (lag, dynamic field) that the residual without it must show as growth with the rate
+# beyond a width change at one speed: the gain must come from the rate, not from a shift absorbing something else
+# the tables miss.
+RATE_GROWTH_SHARE = 0.5
+
+
+def time_shift(fitter: Any, path: FieldPath, unshifted: FieldPath) -> np.ndarray:
+    """What an effect fitted on ``path`` adds to the field output over the evaluated spans: ``path``'s field minus
+    that of ``unshifted`` (``path`` without the effect) run on ``path``'s tables."""
+    return fitter.field(path) - fitter.field(unshifted.with_(tables=path.core_curves(), reidentify=False))
+
+
+def rate_growth_missing(fitter: Any, before: Any, d_all: np.ndarray, what: str) -> str:
+    """Why the residual of the configuration ``before`` (without the effect) does not grow with the drive's rate
+    as the effect's fitted shift ``d_all`` (:func:`time_shift`, ``≈ −tau·slope·du/dt``) predicts ("" when it
+    does).
+    At one speed the shift is a wider loop ``w = d/|du/dt|``, which tables identified at another speed absorb. The
+    residual fitted on ``[each run's constant, w, d]`` must give ``d`` a coefficient of at least
+    :data:`RATE_GROWTH_SHARE`, and ``d`` must differ from a width (the share of it the constants and ``w`` leave at
+    least :attr:`Viscous.SECOND_SPEED_SHARE`): when every sample moves at one speed a shift is a wider loop."""
+    data = fitter.data
+    residual, _ = fitter.fit(before.path, before.linear)
+    rate = evaluated_input_rate(data)
+    moving = np.abs(rate) > 1e-3 * float(np.sqrt(np.mean(rate ** 2)))
+    width = np.divide(d_all, np.abs(rate), out=np.zeros_like(d_all), where=moving)
+    ok = np.isfinite(residual) & np.isfinite(d_all)
+    bounds = _run_bounds(data)
+    constants = np.zeros((rate.size, len(data.runs)))
+    for j in range(len(data.runs)):
+        constants[bounds[j]:bounds[j + 1], j] = 1.0
+    used = np.any(constants[ok], axis=0)
+    base = np.column_stack([constants[ok][:, used], width[ok]])
+    d = d_all[ok]
+    if not np.any(d):
+        return f"{what} does not move the output"
+    beyond = d - base @ np.linalg.lstsq(base, d, rcond=None)[0]
+    if float(np.sqrt(np.sum(beyond ** 2) / np.sum(d ** 2))) < Viscous.SECOND_SPEED_SHARE:
+        return ("the input moves at one speed: a shift in time is a wider loop there (record the same loop at a "
+                "second drive speed)")
+    c = float(np.linalg.lstsq(np.column_stack([base, d]), residual[ok], rcond=None)[0][-1])
+    if c >= RATE_GROWTH_SHARE:
+        return ""
+    return (f"the residual grows with the rate by {c:.2f} of what {what} predicts beyond the loop's width (at "
+            f"least {RATE_GROWTH_SHARE:g} asked): its gain is not the rate's")
+
 
 class RunGainOffset(Effect):
     """Each evaluation run has its own output offset and, when the data support it, its own gain (calibration
@@ -1249,6 +1309,12 @@ class Accommodation(Effect):
         return True
 
 
+def evaluated_input_rate(data: Any) -> np.ndarray:
+    """:func:`input_rate` of every run over the evaluated spans (computed once per diagnosis)."""
+    return data.cache.get("input_rate", lambda: np.concatenate(
+        [input_rate(_run_input(r), r.dt_s)[r.start:] for r in data.runs]))
+
+
 def input_rate(u: np.ndarray, dt_s: float) -> np.ndarray:
     """``du/dt`` by the backward difference over each sample (input units/s; 0 at the first sample): the rate the
     ``viscous`` stage of the core (:class:`bmr.ExtendedSimulation`, the compensator) sees."""
@@ -1297,10 +1363,7 @@ class Viscous(Effect):
         return _core.effect_parameters()["viscous"]["params"]["v0"]
 
     def columns(self, data, value, y_field, model):
-        def rate() -> np.ndarray:
-            return np.concatenate([input_rate(_run_input(r), r.dt_s)[r.start:] for r in data.runs])[:, None]
-
-        q = data.cache.get("viscous_rate", rate)
+        q = evaluated_input_rate(data)[:, None]
         if value is None:
             return q
         return data.cache.get(("viscous_yield", float(value)),
