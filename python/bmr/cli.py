@@ -11,6 +11,7 @@ from typing import Sequence
 from bmr._core import PRESETS, BmrError
 from bmr.data.formats import FORMATS
 from bmr.identification.lstsq import DEFAULT_GRID, DENSITIES, GRIDS
+from bmr.simulation.excitation import SEPARATING_RUNS
 
 BUNDLE_HELP = "bundle folder (manifest.json plus one CSV or Parquet file per run; see `bmr simulate`)"
 
@@ -41,6 +42,11 @@ def _parser() -> argparse.ArgumentParser:
                    help="change a physical parameter of the preset (repeatable; names in bmr.ACTUATOR_PARAMETERS)")
     s.add_argument("--seed", type=int, default=0, help=seed_help)
     s.add_argument("--quick", action="store_true", help="shorter runs")
+    s.add_argument("--separate", action="append", default=[], choices=tuple(SEPARATING_RUNS), metavar="KIND",
+                   help="append a run that separates effects the set cannot tell apart (repeatable; what "
+                        "`bmr diagnose` asks for): " + "; ".join(f"{k}: {v[0]}" for k, v in SEPARATING_RUNS.items()))
+    s.add_argument("--forc-reversals", type=int, default=None, metavar="N",
+                   help="reversals per first-order family (default 21, quick 11): finer tables")
     s.add_argument("--format", choices=("csv", "parquet"), default="csv", help="run file format (default: csv)")
     s.add_argument("-o", "--out", required=True, help="bundle folder to write")
 
@@ -175,7 +181,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         if args.command == "demo":
             from bmr.demo import run_cli
         elif args.command == "simulate":
-            from bmr.simulation.experiments import run_cli
+            from bmr.simulation.excitation import run_cli
         elif args.command == "import":
             from bmr.data.importing import run_cli
         elif args.command == "identify":

@@ -56,6 +56,9 @@ class Effect(ABC):
     # The excitation whose response shows this effect's own signature (what to record when the data cannot tell
     # it from another effect).
     excitation = "a run with a different excitation"
+    # The run of ``bmr simulate --separate`` that records that excitation on the virtual actuator (a key of
+    # ``bmr.simulation.excitation.SEPARATING_RUNS``; None: none does).
+    separating_run: str | None = None
     needs_reidentify = False  # the effect needs least-squares core tables (compare against those)
     # Order in which fitted effects are removed from the protocol runs before re-identification: additive terms
     # (rank 0) before multiplicative gains (rank 1).
@@ -165,6 +168,7 @@ class Effect(ABC):
 class CoilLag(Effect):
     name = "coil_lag"
     excitation = "input steps held long enough to see the approach (a first-order lag relaxes, a delay shifts)"
+    separating_run = "dwell"
     field = True
     doc = "field lags the commanded current: first-order lag of time constant tau_s"
 
@@ -206,6 +210,7 @@ class CoilLag(Effect):
 class TimeDelay(Effect):
     name = "time_delay"
     excitation = "input steps held long enough to see the approach (a delay shifts, a first-order lag relaxes)"
+    separating_run = "dwell"
     field = True
     doc = "pure delay of delay_s between the command and the field"
 
@@ -238,6 +243,7 @@ class NonCongruent(Effect):
 
     name = "non_congruent"
     excitation = "minor loops between the same input extremes at different histories (their size changes)"
+    separating_run = "minor_loops"
     field = True
     needs_reidentify = True
     doc = ("output map after a Preisach core: T = S n (1 + curvature |n| + cubic n²)/(1 + curvature + cubic), "
@@ -431,6 +437,7 @@ def field_zero(model: Any) -> float:
 class ThermalDrift(Effect):
     name = "thermal_drift"
     excitation = "a long run near full input followed by a rest (the gain falls as the coils heat and recovers)"
+    separating_run = "heat_rest"
     doc = ("coil heating lowers the torque gain: field torque × (1 − gain_loss·x), x the heating state of time "
            "constant tau_s")
     removal_rank = 1
@@ -514,6 +521,7 @@ class FrictionCurrent(Effect):
     name = "friction_current"
     beyond_run_calibration = True
     excitation = "rotation at several constant currents (angle ripple growing with |current|)"
+    separating_run = "constant_currents"
     doc = "seal friction grows with current: angle-dependent friction × (1 + gain_per_a·|I|)"
 
     def columns(self, data, value, y_field, model):
@@ -540,6 +548,7 @@ class FrictionCurrent(Effect):
 class FrictionHarmonics(Effect):
     name = "friction_harmonics"
     excitation = "rotation at constant current over several revolutions (a line at the harmonic's order)"
+    separating_run = "constant_currents"
     doc = "a friction harmonic above the 3rd: amplitude_nmm·sin(order·θ + phase_rad)"
 
     def grid(self, data: EvalData) -> list[Any]:
@@ -566,6 +575,7 @@ class FrictionHarmonics(Effect):
 class TorqueRipple(Effect):
     name = "torque_ripple"
     excitation = "rotation at several constant torques (once-per-revolution ripple proportional to torque)"
+    separating_run = "constant_currents"
     doc = "eccentric gap: field × (1 + eps·cos(θ + phase_rad))"
     removal_rank = 1
 
@@ -593,6 +603,7 @@ class TorqueRipple(Effect):
 class SensorDrift(Effect):
     name = "sensor_drift"
     excitation = "dwells at zero input spread over the session (the zero moves with time)"
+    separating_run = "dwell"
     doc = "torque sensor offset drifting linearly with time at rate_nmm_per_s"
 
     needs_reidentify = True
@@ -750,6 +761,7 @@ class Creep(Effect):
 
     name = "creep"
     excitation = "a dwell after a reversal (relaxation logarithmic in the time since it)"
+    separating_run = "dwell"
     doc = "output relaxes after every change: y = v + fraction·mean_τ(lag(v, τ) − v), τ log-uniform in a range"
     needs_reidentify = True
     FRACTIONS = (0.0025, 0.005, 0.01, 0.02, 0.04, 0.08)
@@ -897,6 +909,7 @@ class RateDependence(Effect):
 
     name = "rate_dependence"
     excitation = "the same loop at a second drive speed (widening where the branch is steep)"
+    separating_run = "second_speed"
     field = True
     doc = "core input lags with a time constant proportional to the branch's differential slope (dynamic field)"
     needs_reidentify = True
@@ -995,6 +1008,7 @@ class RunGainOffset(Effect):
 
     name = "run_gain_offset"
     excitation = "a repeat of a run (the same input history recorded again)"
+    separating_run = "repeat"
     doc = "per-run gain and offset of the measured output (calibration between recordings)"
     # Undone first when the protocol runs are corrected: the sensor's calibration is the outermost stage.
     removal_rank = -1
@@ -1248,6 +1262,7 @@ class Leakage(Effect):
 
     name = "leakage"
     excitation = "a dwell at a nonzero input (the output keeps moving in proportion to the input)"
+    separating_run = "dwell"
     doc = "the measured output integrates the input: rate_per_s · ∫u dt from each run's start"
     needs_reidentify = True
 
@@ -1280,6 +1295,7 @@ class Accommodation(Effect):
 
     name = "accommodation"
     excitation = "minor loops cycled many times between the same extremes"
+    separating_run = "minor_loops"
     doc = "minor loops drift over repeated cycling: shift → −kappa·(loop centre − middle), settling in `cycles`"
 
     def grid(self, data: Any) -> list[Any]:
@@ -1339,6 +1355,7 @@ class Viscous(Effect):
     name = "viscous"
     excitation = ("the same loop at a second drive speed (a rate-proportional loss widens the loop and leaves its "
                   "tips in place; a time shift moves the tips)")
+    separating_run = "second_speed"
     doc = "a loss of the input's rate adds to the output: c·du/dt + f_y·tanh((du/dt)/v0)"
     needs_reidentify = True
     ranks_in_range = True

@@ -143,17 +143,27 @@ class Alternative:
     gains: tuple[float, float]
     difference_interval: tuple[float, float]
     excitation: str
+    # The runs of ``bmr simulate --separate`` that record that excitation on the virtual actuator.
+    separating_runs: tuple[str, ...] = ()
 
     @property
     def message(self) -> str:
-        return (f"{self.chosen} or {self.other}: indistinguishable on this excitation (held-out gains "
+        text = (f"{self.chosen} or {self.other}: indistinguishable on this excitation (held-out gains "
                 f"{100 * self.gains[0]:.1f} % and {100 * self.gains[1]:.1f} %); {self.excitation} would separate "
                 "them")
+        if self.separating_runs:
+            text += f" (on the virtual actuator: bmr simulate {self.simulate_options})"
+        return text
+
+    @property
+    def simulate_options(self) -> str:
+        """The ``bmr simulate`` options that append the separating runs."""
+        return " ".join(f"--separate {kind}" for kind in self.separating_runs)
 
     def to_dict(self) -> dict[str, Any]:
         return {"chosen": self.chosen, "other": self.other, "gains": list(self.gains),
                 "difference_interval": list(self.difference_interval), "excitation": self.excitation,
-                "message": self.message}
+                "separating_runs": list(self.separating_runs), "message": self.message}
 
 
 @dataclass
@@ -1127,6 +1137,7 @@ def _alternatives(fitter: Fitter, config: Configuration, best: Candidate, others
             continue
         ea, eb = best.effect.excitation, c.effect.excitation
         excitation = ea if ea == eb else f"{ea}, or {eb}"
+        runs = tuple(dict.fromkeys(k for k in (best.effect.separating_run, c.effect.separating_run) if k))
         out.append(Alternative(best.effect.name, c.effect.name, (best.mean_gain, c.mean_gain), (lo, hi),
-                               excitation))
+                               excitation, runs))
     return out

@@ -1,21 +1,30 @@
-"""An excitation that shows what the paper's protocol runs hide: nested minor loops (higher-order reversals) at
-many levels of the current range. Congruency violations (``non_congruent``) only show after such reversals, so
-a bundle meant for diagnosis gains from one ``custom`` run of them.
+"""Excitations that show what the paper's protocol runs hide, and ``bmr simulate``.
 
-Units: current A, rate A/s.
+Nested minor loops (higher-order reversals) at many levels of the current range: congruency violations
+(``non_congruent``) only show after such reversals, so a bundle meant for diagnosis gains from one ``custom`` run of
+them. The runs that separate two effects one bundle's excitation cannot tell apart (:data:`SEPARATING_RUNS`: a
+dwell after reversals, a second drive speed, a repeat of a run, ...): the diagnosis names the one it needs
+(``bmr.Diagnosis.alternatives``) and ``bmr simulate --separate KIND`` appends it to the virtual actuator's bundle.
+
+Units: current A, rate A/s, time s.
 """
 from __future__ import annotations
 
-from typing import Any, Sequence
+import sys
+import time
+from pathlib import Path
+from typing import Any, Callable, Sequence
 
 import numpy as np
 
-from bmr._core import ExcitationError
-from bmr.data.bundle import Bundle, Run
-from bmr.simulation.experiments import FULL_CURRENT_A, OPENING_RATE_A_PER_S, custom, ramp_path, simulate_bundle
+from bmr._core import BmrError, ExcitationError, VirtualActuator
+from bmr.data.bundle import Bundle, Run, write_bundle
+from bmr.data.files import check_output_folder
+from bmr.simulation.experiments import (FULL_CURRENT_A, OPENING_RATE_A_PER_S, custom, experiment_count, multipeak,
+                                        ramp_path, simulate_bundle, triangle)
 
 __all__ = ["minor_loop_vertices", "minor_loops", "repeated_loop_vertices", "repeated_loops", "diagnosis_bundle",
-           "FAST_LOOP_RATE_A_PER_S", "MEDIUM_EFFECTS"]
+           "FAST_LOOP_RATE_A_PER_S", "MEDIUM_EFFECTS", "SEPARATING_RUNS", "separating_run", "run_cli"]
 
 # A medium size of every physical effect of the vocabulary on the ``rig_preisach`` actuator: large enough for a
 # quick diagnosis bundle to show it, small enough to be realistic. What the calibration and the closed-loop checks
@@ -130,3 +139,139 @@ def diagnosis_bundle(preset: str = "rig_preisach", *, effects: Any = None, seed:
                                        lambda a: repeated_loops(a, rate_a_per_s=FAST_LOOP_RATE_A_PER_S,
                                                                 name="repeated_loops_fast",
                                                                 opening_rate_a_per_s=opening)])
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# Runs that separate effects
+
+
+def _held(levels: Sequence[float], hold_s: float, sample_rate_hz: float) -> np.ndarray:
+    """Each of ``levels`` (A) held for ``hold_s``, stepped from one to the next."""
+    if not (np.isfinite(hold_s) and hold_s > 0):
+        raise ExcitationError(f"hold time must be positive, got {hold_s!r}")
+    return np.repeat(np.asarray(levels, dtype=float), max(2, int(round(hold_s * sample_rate_hz))))
+
+
+def _dwell(actuator: VirtualActuator, quick: bool, opening: float) -> Run:
+    # Steps after reversals at both signs and at zero, each held: creep relaxes logarithmically in the time since
+    # the reversal, a coil lag relaxes over its time constant, a delay only shifts the step, a leakage keeps moving
+    # at a nonzero input, a sensor's zero moves from one zero hold to the next.
+    levels = [f * FULL_CURRENT_A for f in (1.0, 0.4, 0.8, 0.0, -0.2, -1.0, -0.4, -0.8, 0.0, 0.2, 0.0)]
+    hold = 2.0 if quick else 10.0
+    run = custom(actuator, _held(levels, hold, actuator.sample_rate_hz), name="separate_dwell",
+                 opening_rate_a_per_s=opening)
+    run.meta.update({"levels_a": levels, "dwell_s": hold})
+    return run
+
+
+def _heat_rest(actuator: VirtualActuator, quick: bool, opening: float) -> Run:
+    # Near-full input held, then zero for as long: the coils heat (the gain falls) and cool (it recovers).
+    hold = 20.0 if quick else 120.0
+    levels = [0.9 * FULL_CURRENT_A, 0.0]
+    run = custom(actuator, _held(levels, hold, actuator.sample_rate_hz), name="separate_heat_rest",
+                 opening_rate_a_per_s=opening)
+    run.meta.update({"levels_a": levels, "hold_s": hold})
+    return run
+
+
+def _constant_currents(actuator: VirtualActuator, quick: bool, opening: float) -> Run:
+    # The rotor turns through several revolutions at each of several constant currents: the seal friction's
+    # growth with the current, its harmonics and the torque ripple each show as lines in the angle.
+    levels = [f * FULL_CURRENT_A for f in (0.0, 0.3, 0.6, 0.9, -0.3, -0.6, -0.9, 0.0)]
+    hold = 3.0 if quick else 8.0
+    run = custom(actuator, _held(levels, hold, actuator.sample_rate_hz), name="separate_constant_currents",
+                 opening_rate_a_per_s=opening)
+    run.meta.update({"levels_a": levels, "hold_s": hold})
+    return run
+
+
+def _minor_loops(actuator: VirtualActuator, quick: bool, opening: float) -> Run:
+    # Minor loops between the same extremes, first approached from positive saturation, then from negative, each
+    # cycled three times: a non-congruent loop changes its size with the history, accommodation drifts it.
+    a, b = -0.2 * FULL_CURRENT_A, 0.4 * FULL_CURRENT_A
+    vertices = [FULL_CURRENT_A] + [a, b] * 3 + [-FULL_CURRENT_A] + [b, a] * 3 + [0.0]
+    rate = 1.0 if quick else 0.25
+    body = ramp_path(0.0, vertices, rate / actuator.sample_rate_hz)
+    run = custom(actuator, body, name="separate_minor_loops", opening_rate_a_per_s=opening)
+    run.meta.update({"vertices_a": vertices, "rate_a_per_s": rate})
+    return run
+
+
+def _second_speed(actuator: VirtualActuator, quick: bool, opening: float) -> Run:
+    # The set's triangle at eight times its speed: a dynamic field widens the loop where the branch is steep, a
+    # loss everywhere and leaves the tips in place, a time shift moves the tips.
+    rate, duration = (4.0, 20.0) if quick else (1.0, 200.0)
+    return triangle(actuator, rate_a_per_s=rate, duration_s=duration, name="separate_second_speed",
+                    opening_rate_a_per_s=opening)
+
+
+def _repeat(actuator: VirtualActuator, quick: bool, opening: float) -> Run:
+    # The set's multi-peak run recorded again: the same input history, so what differs is the recording's.
+    return multipeak(actuator, duration_s=20.0 if quick else 200.0, name="separate_repeat",
+                     opening_rate_a_per_s=opening)
+
+
+# Kind → (what the run is, its protocol ``(actuator, quick, opening rate) → Run``).
+SEPARATING_RUNS: dict[str, tuple[str, Callable[[VirtualActuator, bool, float], Run]]] = {
+    "dwell": ("input steps after reversals, each held (at both signs and at zero)", _dwell),
+    "second_speed": ("the triangle at eight times its speed", _second_speed),
+    "repeat": ("the multi-peak run recorded again", _repeat),
+    "minor_loops": ("minor loops between the same extremes approached from both saturations, each cycled three "
+                    "times", _minor_loops),
+    "heat_rest": ("near-full input held, then a rest at zero as long", _heat_rest),
+    "constant_currents": ("several revolutions at each of several constant currents", _constant_currents),
+}
+
+
+def separating_run(kind: str, *, quick: bool = False) -> Callable[[VirtualActuator], Run]:
+    """The protocol of the separating run ``kind`` (a key of :data:`SEPARATING_RUNS`) for
+    ``simulate_bundle(extra_runs=...)``; ``quick`` as the bundle's."""
+    if kind not in SEPARATING_RUNS:
+        raise BmrError(f"unknown separating run {kind!r}; use one of {', '.join(SEPARATING_RUNS)}")
+    make = SEPARATING_RUNS[kind][1]
+    opening = 2.5 if quick else OPENING_RATE_A_PER_S
+    return lambda actuator: make(actuator, quick, opening)
+
+
+def _parse_overrides(items: Sequence[str]) -> dict[str, float]:
+    """``["sensor.noise_n=0", ...]`` → ``{"sensor.noise_n": 0.0}``, with a clear error for malformed items."""
+    out: dict[str, float] = {}
+    for item in items:
+        name, sep, value = item.partition("=")
+        try:
+            if not sep or not name.strip():
+                raise ValueError
+            out[name.strip()] = float(value)
+        except ValueError:
+            raise BmrError(f"--override {item!r}: expected GROUP.PARAM=NUMBER, e.g. sensor.noise_n=0") from None
+    return out
+
+
+def run_cli(args: Any) -> int:
+    """``bmr simulate``: write the experiment set, then the separating runs asked for (``--separate``), as a
+    bundle, with a progress bar on stderr (simulation and writing of each run)."""
+    from tqdm import tqdm
+
+    t0 = time.perf_counter()
+    effects = list(args.effect or [])
+    overrides = _parse_overrides(getattr(args, "override", None) or [])
+    separate = list(dict.fromkeys(getattr(args, "separate", None) or []))
+    reversals = getattr(args, "forc_reversals", None)
+    # Everything that can be wrong is found before the progress bar starts: the output folder, the effects, the
+    # parameters (an actuator built once with them) and the runs asked for.
+    check_output_folder(args.out, "bundle folder")
+    VirtualActuator(args.preset, effects=effects or None, overrides=overrides or None)
+    extra = [separating_run(kind, quick=bool(args.quick)) for kind in separate]
+    if reversals is not None and not 2 <= int(reversals) <= 201:
+        raise BmrError(f"--forc-reversals {reversals}: expected 2 to 201 reversals per first-order family")
+    n_runs = experiment_count(bool(args.quick)) + len(extra)
+    with tqdm(total=2 * n_runs, file=sys.stderr, unit="step", desc="bmr simulate") as bar:
+        bundle = simulate_bundle(args.preset, effects=effects, seed=args.seed, quick=args.quick,
+                                 overrides=overrides or None, extra_runs=extra, forc_reversals=reversals,
+                                 on_run=lambda run: (bar.set_postfix_str(f"simulated {run.name}"), bar.update(1)))
+        out = write_bundle(bundle, Path(args.out), fmt=args.format,
+                           on_run_written=lambda run: (bar.set_postfix_str(f"wrote {run.name}"), bar.update(1)))
+    rows = sum(len(r.data) for r in bundle.runs)
+    print(f"bmr simulate: wrote {len(bundle.runs)} runs, {rows} samples at {bundle.sample_rate_hz:g} Hz to {out} "
+          f"in {time.perf_counter() - t0:.1f} s", file=sys.stderr)
+    return 0

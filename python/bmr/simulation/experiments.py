@@ -1,4 +1,5 @@
-"""The paper's experiment protocols on the virtual actuator, bundles of them, and ``bmr simulate``.
+"""The paper's experiment protocols on the virtual actuator and bundles of them (``bmr simulate``:
+:func:`bmr.simulation.excitation.run_cli`).
 
 Each protocol drives a :class:`bmr.VirtualActuator` (continuing from its current state) and returns a
 :class:`bmr.Run`. Every run opens with an excursion to both saturations — nominal current
@@ -16,17 +17,13 @@ quasi-static experiment set of about 2 600 s (1 200 s multi-step, 200 s runs) wr
 """
 from __future__ import annotations
 
-import sys
-import time
-from pathlib import Path
 from typing import Any, Callable, Mapping, Sequence
 
 import numpy as np
 import pandas as pd
 
 from bmr._core import BmrError, ExcitationError, VirtualActuator
-from bmr.data.bundle import Bundle, Run, write_bundle
-from bmr.data.files import check_output_folder
+from bmr.data.bundle import Bundle, Run
 
 FULL_CURRENT_A = 1.25
 """Saturating nominal current of the protocols (±10 units of 0.125 A on the paper's rig)."""
@@ -41,6 +38,7 @@ __all__ = [
     "BUNDLE_SAMPLE_RATE_HZ",
     "FULL_CURRENT_A",
     "custom",
+    "experiment_count",
     "MULTIPEAK_SEED",
     "OPENING_RATE_A_PER_S",
     "first_order_ascending",
@@ -52,7 +50,6 @@ __all__ = [
     "ramp_path",
     "reference_multipeak",
     "reference_triangle",
-    "run_cli",
     "simulate_bundle",
     "tracking",
     "triangle",
@@ -434,6 +431,11 @@ def _plan(quick: bool, compensator: Any, fs: float, reversals: int | None = None
     return plan
 
 
+def experiment_count(quick: bool) -> int:
+    """The number of runs of the experiment set without a compensator (``quick``: the short set)."""
+    return len(_plan(quick, None, BUNDLE_SAMPLE_RATE_HZ))
+
+
 def simulate_bundle(preset: str = "bmr2013", *, effects: Mapping[str, Any] | Sequence[str] | None = None,
                     seed: int = 0, quick: bool = False, compensator: Any = None,
                     sample_rate_hz: float = BUNDLE_SAMPLE_RATE_HZ,
@@ -480,43 +482,3 @@ def simulate_bundle(preset: str = "bmr2013", *, effects: Mapping[str, Any] | Seq
     # Every run was recorded on this one actuator after the previous: one measurement history.
     return Bundle(actuator=actuator.name, sample_rate_hz=actuator.sample_rate_hz, runs=runs, meta=meta,
                   histories=[[r.name for r in runs]] if len(runs) > 1 else [])
-
-
-def _parse_overrides(items: Sequence[str]) -> dict[str, float]:
-    """``["sensor.noise_n=0", ...]`` → ``{"sensor.noise_n": 0.0}``, with a clear error for malformed items."""
-    out: dict[str, float] = {}
-    for item in items:
-        name, sep, value = item.partition("=")
-        try:
-            if not sep or not name.strip():
-                raise ValueError
-            out[name.strip()] = float(value)
-        except ValueError:
-            raise BmrError(f"--override {item!r}: expected GROUP.PARAM=NUMBER, e.g. sensor.noise_n=0") from None
-    return out
-
-
-def run_cli(args: Any) -> int:
-    """``bmr simulate``: write the experiment set as a bundle, with a progress bar on stderr (simulation and
-    writing of each run)."""
-    from tqdm import tqdm
-
-    t0 = time.perf_counter()
-    effects = list(args.effect or [])
-    overrides = _parse_overrides(getattr(args, "override", None) or [])
-    # Everything that can be wrong is found before the progress bar starts: the output folder, the effects and
-    # the parameters (an actuator built once with them).
-    check_output_folder(args.out, "bundle folder")
-    VirtualActuator(args.preset, effects=effects or None, overrides=overrides or None)
-    # Plan length: the set without a compensator.
-    n_runs = len(_plan(bool(args.quick), None, BUNDLE_SAMPLE_RATE_HZ))
-    with tqdm(total=2 * n_runs, file=sys.stderr, unit="step", desc="bmr simulate") as bar:
-        bundle = simulate_bundle(args.preset, effects=effects, seed=args.seed, quick=args.quick,
-                                 overrides=overrides or None,
-                                 on_run=lambda run: (bar.set_postfix_str(f"simulated {run.name}"), bar.update(1)))
-        out = write_bundle(bundle, Path(args.out), fmt=args.format,
-                           on_run_written=lambda run: (bar.set_postfix_str(f"wrote {run.name}"), bar.update(1)))
-    rows = sum(len(r.data) for r in bundle.runs)
-    print(f"bmr simulate: wrote {len(bundle.runs)} runs, {rows} samples at {bundle.sample_rate_hz:g} Hz to {out} "
-          f"in {time.perf_counter() - t0:.1f} s", file=sys.stderr)
-    return 0

@@ -10,7 +10,7 @@ import pytest
 import bmr
 import bmr.demo
 import bmr.diagnosis.procedure
-import bmr.simulation.experiments
+import bmr.simulation.excitation
 from bmr.cli import main
 
 
@@ -68,7 +68,7 @@ def test_os_errors_from_anywhere_are_one_line(capsys, monkeypatch):
     def denied(args):
         raise PermissionError(13, "Permission denied", "/root/secret.csv")
 
-    monkeypatch.setattr(bmr.simulation.experiments, "run_cli", denied)
+    monkeypatch.setattr(bmr.simulation.excitation, "run_cli", denied)
     assert main(["simulate", "-o", "x"]) == 2
     _one_line_error(capsys, "bmr simulate: error: '/root/secret.csv': Permission denied")
 

@@ -33,6 +33,10 @@ def test_out_of_range_reads_the_vocabulary() -> None:
     a = Alternative("coil_lag", "time_delay", (0.4, 0.38), (-0.03, 0.07), "input steps")
     assert "coil_lag or time_delay: indistinguishable on this excitation" in a.message
     assert a.to_dict()["excitation"] == "input steps"
+    assert "bmr simulate" not in a.message
+    b = Alternative("coil_lag", "creep", (0.4, 0.38), (-0.03, 0.07), "a dwell", ("dwell",))
+    assert b.message.endswith("(on the virtual actuator: bmr simulate --separate dwell)")
+    assert b.to_dict()["separating_runs"] == ["dwell"]
 
 
 # Quick effects of the piezo device at sizes from barely visible to far beyond the medium calibration size.
