@@ -20,7 +20,7 @@ fault; ``"none"``), ``effects`` (accepted in order: ``name``, ``params``, ``held
 with, each judged once the other was in, when neither passed alone), ``rejected`` (the same; ``folds_evaluated`` below the
 number of folds when the candidate was clearly not accepted on its first folds), ``noise_floor``,
 ``residual_rms`` (held-out RMS of the extended model), ``unexplained`` (``signal``, ``strength`` RMS),
-``alternatives`` (pairs of effects the excitation could not tell apart, with what would separate them),
+``alternatives`` (pairs of effects the excitation could not tell apart, with what shows each one's signature),
 ``identification_drift`` (the leakage the nominal identification fitted with its tables when their branches did
 not close), ``history`` (per measurement history of the bundle, what the model run through it cannot explain: the
 level at each run's start, repeated loops that do not retrace, the candidate effects that explain them and which

@@ -28,7 +28,8 @@ resolve), a ``thermal_drift`` that would carry more heat into a run than the cur
 ``sensor_drift`` whose trend one recording makes, a ``run_gain_offset`` that changes along a recording or
 follows the session's time) is rejected the same way, and is no alternative to another either. When another accepted candidate of the same round explains as much (the paired fold
 gains differ by less than their 95 % interval) and is no longer needed once the chosen one is in, the two are
-reported as indistinguishable on this excitation (:class:`Alternative`), with what would separate them.
+reported as indistinguishable on this excitation (:class:`Alternative`), with the excitation that shows each one's
+own signature.
 
 An effect that acts on part of the samples only (:meth:`bmr.diagnosis.effects.Effect.acts_on`: an output map
 after a congruent core shows only on the higher-order reversal curves, the first-order ones are in the tables) is
@@ -149,8 +150,8 @@ class Alternative:
     @property
     def message(self) -> str:
         text = (f"{self.chosen} or {self.other}: indistinguishable on this excitation (held-out gains "
-                f"{100 * self.gains[0]:.1f} % and {100 * self.gains[1]:.1f} %); {self.excitation} would separate "
-                "them")
+                f"{100 * self.gains[0]:.1f} % and {100 * self.gains[1]:.1f} %); {self.excitation} would show each "
+                "one's own signature")
         if self.separating_runs:
             text += f" (on the virtual actuator: bmr simulate {self.simulate_options})"
         return text
