@@ -179,7 +179,14 @@ class CoilLag(Effect):
 
     def apply(self, path, value, data, train):
         # Tables cut from first-order curves of a lagged current are inconsistent; identify them by least squares.
-        return path.with_(lag_tau_s=float(value), reidentify=True)
+        # A lag trails a ramp by its time constant, as a delay does: a delay fitted before it took that shift too,
+        # and keeps only what the lag leaves (whole samples), so that the two together shift ramps as before.
+        tau = float(value)
+        delay = path.delay_s
+        if delay > 0.0:
+            dt = min(r.dt_s for r in data.runs)
+            delay = max(0.0, round((delay - tau) / dt) * dt)
+        return path.with_(lag_tau_s=tau, delay_s=delay, reidentify=True)
 
     def params(self, value, beta, path):
         return {"tau_s": float(path.lag_tau_s)}
@@ -200,6 +207,10 @@ class CoilLag(Effect):
         if tau <= 0.0:
             return ""
         if tau >= 0.5 * dt:
+            if before.path.delay_s > 0.0 or before.path.rate_tau_s > 0.0:
+                # Beside a time shift already on the path, the ramps' shift is that one's: what the lag adds is
+                # its approach after steps.
+                return ""
             shift = time_shift(fitter, after.path, after.path.with_(lag_tau_s=0.0))
             return rate_growth_missing(fitter, before, shift, f"the fitted lag ({1e3 * tau:.3g} ms)")
         return (f"the lag ({1e3 * tau:.3g} ms) is shorter than half the sample period ({1e3 * dt:.3g} ms): it relaxes "
@@ -224,7 +235,9 @@ class TimeDelay(Effect):
     needs_reidentify = True
 
     def apply(self, path, value, data, train):
-        return path.with_(delay_s=float(value), reidentify=True)
+        # A lag fitted before the delay took its shift of ramps too, and keeps only what the delay leaves.
+        d = float(value)
+        return path.with_(delay_s=d, lag_tau_s=max(0.0, path.lag_tau_s - d), reidentify=True)
 
     def params(self, value, beta, path):
         return {"delay_s": float(path.delay_s)}
@@ -936,6 +949,9 @@ class RateDependence(Effect):
         """The residual grows with the drive's rate as the fitted dynamic field predicts
         (:func:`rate_growth_missing`)."""
         if after is None or after.path.rate_tau_s <= 0.0:
+            return ""
+        if before.path.delay_s > 0.0 or before.path.lag_tau_s > 0.0:
+            # Beside a time shift already on the path, the ramps' shift is that one's.
             return ""
         path = after.path
         shift = time_shift(fitter, path, path.with_(rate_tau_s=0.0, rate_slopes=0))

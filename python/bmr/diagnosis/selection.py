@@ -865,14 +865,17 @@ def refit(fitter: Fitter, config: Configuration, eff: Effect) -> tuple[Configura
     data = fitter.data
     grid = eff.grid(data)
 
-    def sse(v: Any, settle: bool = False) -> float:
+    def crit(cfg: Configuration, v: Any, settle: bool = False) -> float:
         # The information criterion of the fit on all data (as the selection ranks grid values).
-        path, linear = _with(config, eff, v, data)
+        path, linear = _with(cfg, eff, v, data)
         ff = fitter.solve(eff.settle(path) if settle and eff.field else path, linear)
         if eff.ranks_in_range and not eff.field and not _in_range(eff, config, v, ff, data.folds, data):
             return math.inf
         n = max(float(np.sum(ff.n_test)), 2.0)
         return float(n * math.log(max(float(ff.sse_train[data.folds]), 1e-300) / n) + sum(ff.widths) * math.log(n))
+
+    def sse(v: Any, settle: bool = False) -> float:
+        return crit(config, v, settle)
 
     scanned = _scan(eff, data, len(grid), lambda j: np.array([sse(grid[j])]))
     if scanned is not None:
@@ -898,12 +901,53 @@ def refit(fitter: Fitter, config: Configuration, eff: Effect) -> tuple[Configura
             cand = value_of(_golden(lambda x: sse(value_of(x), settle), lo_x, hi_x))
         if sse(cand, settle) < scores[i]:
             best = cand
+    if (eff.name == "coil_lag" and config.path.delay_s > 0.0) or (
+            eff.name == "time_delay" and config.path.lag_tau_s > 0.0):
+        config, best = _retune_timing(fitter, config, eff, best, crit)
     ff, beta, path, linear = _fit_with(fitter, config, eff, best, None)
     new = Configuration(path, linear, beta)
     # The effect's own linear parameters follow the constant and the earlier effects' columns.
     start = 1 + sum(ff.widths[:len(config.linear)])
     own = beta[start:] if not eff.field else np.zeros(0)
     return new, eff.params(best, own, path)
+
+
+# Whole samples by which a delay is moved, either way, when it and a coil lag are fitted together.
+RETUNE_DELAY_SAMPLES = 3
+
+
+def _retune_timing(fitter: Fitter, config: Configuration, eff: Effect, value: float,
+                   crit: Callable[[Configuration, float], float]) -> tuple[Configuration, float]:
+    """A coil lag joining a delay fitted before it, or a delay joining a lag: the two shift ramps alike, so the
+    one fitted first took the other's shift of ramps too, and keeps what the newcomer leaves (``apply`` keeps their
+    sum), off by the newcomer's share of the steps. Both are searched together: whole samples of delay within
+    :data:`RETUNE_DELAY_SAMPLES` of the value so found, the lag refined by golden section for each. ``crit(
+    configuration, value)``: the criterion the fit on all data ranks ``eff``'s values by. Returns the
+    configuration (carrying the sum the newcomer's ``apply`` divides) and ``eff``'s value."""
+    dt = min(r.dt_s for r in fitter.data.runs)
+    lag_joins = eff.name == "coil_lag"
+    if lag_joins:
+        tau, d0 = value, max(0.0, round((config.path.delay_s - value) / dt) * dt)
+    else:
+        d0, tau = value, config.path.lag_tau_s - value
+    if not tau > 0.0:
+        return config, value
+
+    def joined(d: float, t: float) -> tuple[Configuration, float]:
+        path = config.path.with_(delay_s=d + t) if lag_joins else config.path.with_(lag_tau_s=t + d)
+        return Configuration(path, config.linear, config.beta), (t if lag_joins else d)
+
+    best = (crit(*joined(d0, tau)), d0, tau)
+    for k in range(-RETUNE_DELAY_SAMPLES, RETUNE_DELAY_SAMPLES + 1):
+        d = d0 + k * dt
+        if d < 0.0 or (d == 0.0 and not lag_joins):
+            continue
+        t = math.exp(_golden(lambda z, d=d: crit(*joined(d, math.exp(z))), math.log(0.5 * tau),
+                             math.log(2.0 * tau)))
+        score = crit(*joined(d, t))
+        if score < best[0]:
+            best = (score, d, t)
+    return joined(best[1], best[2])
 
 
 def linear_params(fitter: Fitter, config: Configuration) -> dict[str, dict[str, float]]:
