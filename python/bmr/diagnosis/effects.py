@@ -973,9 +973,8 @@ def time_shift(fitter: Any, path: FieldPath, unshifted: FieldPath) -> np.ndarray
 
 def rate_growth_missing(fitter: Any, before: Any, d_all: np.ndarray, what: str) -> str:
     """Why the residual of the configuration ``before`` (without the effect) does not grow with the drive's rate
-    as the effect's fitted shift ``d_all`` (:func:`time_shift`, ``≈ −tau·slope·du/dt``) predicts ("" when it
-    does).
-    At one speed the shift is a wider loop ``w = d/|du/dt|``, which tables identified at another speed absorb. The
+    as the effect's fitted shift ``d_all`` (:func:`time_shift`, ``≈ −tau·slope·du/dt``) predicts ("": it does). At
+    one speed the shift is a wider loop ``w = d/|du/dt|``, which tables identified at another speed absorb. The
     residual fitted on ``[each run's constant, w, d]`` must give ``d`` a coefficient of at least
     :data:`RATE_GROWTH_SHARE`, and ``d`` must differ from a width (the share of it the constants and ``w`` leave at
     least :attr:`Viscous.SECOND_SPEED_SHARE`): when every sample moves at one speed a shift is a wider loop."""

@@ -869,7 +869,7 @@ def refit(fitter: Fitter, config: Configuration, eff: Effect) -> tuple[Configura
         # The information criterion of the fit on all data (as the selection ranks grid values).
         path, linear = _with(cfg, eff, v, data)
         ff = fitter.solve(eff.settle(path) if settle and eff.field else path, linear)
-        if eff.ranks_in_range and not eff.field and not _in_range(eff, config, v, ff, data.folds, data):
+        if eff.ranks_in_range and not eff.field and not _in_range(eff, cfg, v, ff, data.folds, data):
             return math.inf
         n = max(float(np.sum(ff.n_test)), 2.0)
         return float(n * math.log(max(float(ff.sse_train[data.folds]), 1e-300) / n) + sum(ff.widths) * math.log(n))
