@@ -679,6 +679,19 @@ class SensorDrift(Effect):
 CREEP_TAUS_S = tuple(float(v) for v in np.geomspace(0.01, 1000.0, 16))
 
 
+def run_indicator(data: Any) -> np.ndarray:
+    """One column per evaluation run, 1 on its evaluated span and 0 elsewhere (made once per diagnosis)."""
+
+    def make() -> np.ndarray:
+        bounds = _run_bounds(data)
+        ind = np.zeros((int(bounds[-1]), len(data.runs)))
+        for j in range(len(data.runs)):
+            ind[bounds[j]:bounds[j + 1], j] = 1.0
+        return ind
+
+    return data.cache.get("run_indicator", make)
+
+
 def _run_bounds(data: Any) -> np.ndarray:
     """Where each run's evaluated span starts in the concatenated arrays, then where the last one ends."""
     return np.concatenate([[0], np.cumsum([r.n_eval for r in data.runs])]).astype(int)
@@ -984,10 +997,7 @@ def rate_growth_missing(fitter: Any, before: Any, d_all: np.ndarray, what: str) 
     moving = np.abs(rate) > 1e-3 * float(np.sqrt(np.mean(rate ** 2)))
     width = np.divide(d_all, np.abs(rate), out=np.zeros_like(d_all), where=moving)
     ok = np.isfinite(residual) & np.isfinite(d_all)
-    bounds = _run_bounds(data)
-    constants = np.zeros((rate.size, len(data.runs)))
-    for j in range(len(data.runs)):
-        constants[bounds[j]:bounds[j + 1], j] = 1.0
+    constants = run_indicator(data)
     used = np.any(constants[ok], axis=0)
     base = np.column_stack([constants[ok][:, used], width[ok]])
     d = d_all[ok]
@@ -1117,15 +1127,7 @@ class RunGainOffset(Effect):
         return (y + f) / g - f
 
     def columns(self, data, value, y_field, model):
-        def make() -> np.ndarray:
-            ind = np.zeros((y_field.size, len(data.runs)))
-            start = 0
-            for j, r in enumerate(data.runs):
-                ind[start:start + r.n_eval, j] = 1.0
-                start += r.n_eval
-            return ind
-
-        ind = data.cache.get(("run_indicator", y_field.size), make)
+        ind = run_indicator(data)
         value = self._base(value)
         if value == "offset":
             return ind
@@ -1439,10 +1441,9 @@ class Viscous(Effect):
             return "the input never moves"
         against = []
         bounds = _run_bounds(data)
-        constants = np.zeros((rate.size, len(data.runs)))
+        constants = run_indicator(data)
         for j, run in enumerate(data.runs):
             lo, hi = bounds[j], bounds[j + 1]
-            constants[lo:hi, j] = 1.0
             keep = ok[lo:hi]
             q, r = rate[lo:hi][keep], residual[lo:hi][keep]
             if r.size < 3 or not np.any(q):

@@ -145,11 +145,14 @@ def diagnosis_bundle(preset: str = "rig_preisach", *, effects: Any = None, seed:
 # Runs that separate effects
 
 
-def _held(levels: Sequence[float], hold_s: float, sample_rate_hz: float) -> np.ndarray:
-    """Each of ``levels`` (A) held for ``hold_s``, stepped from one to the next."""
+def _held_run(actuator: VirtualActuator, name: str, levels: Sequence[float], hold_s: float, opening: float) -> Run:
+    """A ``custom`` run stepping through ``levels`` (A), each held for ``hold_s``."""
     if not (np.isfinite(hold_s) and hold_s > 0):
         raise ExcitationError(f"hold time must be positive, got {hold_s!r}")
-    return np.repeat(np.asarray(levels, dtype=float), max(2, int(round(hold_s * sample_rate_hz))))
+    body = np.repeat(np.asarray(levels, dtype=float), max(2, int(round(hold_s * actuator.sample_rate_hz))))
+    run = custom(actuator, body, name=name, opening_rate_a_per_s=opening)
+    run.meta.update({"levels_a": list(levels), "hold_s": hold_s})
+    return run
 
 
 def _dwell(actuator: VirtualActuator, quick: bool, opening: float) -> Run:
@@ -157,32 +160,19 @@ def _dwell(actuator: VirtualActuator, quick: bool, opening: float) -> Run:
     # the reversal, a coil lag relaxes over its time constant, a delay only shifts the step, a leakage keeps moving
     # at a nonzero input, a sensor's zero moves from one zero hold to the next.
     levels = [f * FULL_CURRENT_A for f in (1.0, 0.4, 0.8, 0.0, -0.2, -1.0, -0.4, -0.8, 0.0, 0.2, 0.0)]
-    hold = 2.0 if quick else 10.0
-    run = custom(actuator, _held(levels, hold, actuator.sample_rate_hz), name="separate_dwell",
-                 opening_rate_a_per_s=opening)
-    run.meta.update({"levels_a": levels, "dwell_s": hold})
-    return run
+    return _held_run(actuator, "separate_dwell", levels, 2.0 if quick else 10.0, opening)
 
 
 def _heat_rest(actuator: VirtualActuator, quick: bool, opening: float) -> Run:
     # Near-full input held, then zero for as long: the coils heat (the gain falls) and cool (it recovers).
-    hold = 20.0 if quick else 120.0
-    levels = [0.9 * FULL_CURRENT_A, 0.0]
-    run = custom(actuator, _held(levels, hold, actuator.sample_rate_hz), name="separate_heat_rest",
-                 opening_rate_a_per_s=opening)
-    run.meta.update({"levels_a": levels, "hold_s": hold})
-    return run
+    return _held_run(actuator, "separate_heat_rest", [0.9 * FULL_CURRENT_A, 0.0], 20.0 if quick else 120.0, opening)
 
 
 def _constant_currents(actuator: VirtualActuator, quick: bool, opening: float) -> Run:
     # The rotor turns through several revolutions at each of several constant currents: the seal friction's
     # growth with the current, its harmonics and the torque ripple each show as lines in the angle.
     levels = [f * FULL_CURRENT_A for f in (0.0, 0.3, 0.6, 0.9, -0.3, -0.6, -0.9, 0.0)]
-    hold = 3.0 if quick else 8.0
-    run = custom(actuator, _held(levels, hold, actuator.sample_rate_hz), name="separate_constant_currents",
-                 opening_rate_a_per_s=opening)
-    run.meta.update({"levels_a": levels, "hold_s": hold})
-    return run
+    return _held_run(actuator, "separate_constant_currents", levels, 3.0 if quick else 8.0, opening)
 
 
 def _minor_loops(actuator: VirtualActuator, quick: bool, opening: float) -> Run:
