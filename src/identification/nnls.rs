@@ -194,16 +194,31 @@ fn pivot(
     let mut best_infeasible = usize::MAX;
     let mut backup_left = 3usize;
     let tol = 1e-12 * (0..n).map(|i| q[i * n + i]).fold(0.0, f64::max);
-    for _ in 0..max_iter {
-        *iterations += 1;
-        let condition = solve_passive(q, c, passive, x, workspace)?;
-        gradient(q, c, x, grad);
-        let infeasible: Vec<usize> = (0..n)
+    let infeasible_of = |x: &[f64], grad: &[f64], passive: &[bool]| -> Vec<usize> {
+        (0..n)
             .filter(|&i| {
                 constrained[i] && ((passive[i] && x[i] < 0.0) || (!passive[i] && grad[i] < -tol))
             })
-            .collect();
+            .collect()
+    };
+    workspace.base = None;
+    for _ in 0..max_iter {
+        *iterations += 1;
+        // A set a few exchanges away from the last factored one is solved through that factor; the answer's
+        // set is always solved again on a factor of its own (its bits and condition estimate are that solve's).
+        let mut condition = match solve_passive_updated(q, c, passive, x, workspace) {
+            Some(exact) => exact,
+            None => Some(solve_passive(q, c, passive, x, workspace)?),
+        };
+        gradient(q, c, x, grad);
+        let mut infeasible = infeasible_of(x, grad, passive);
+        if infeasible.is_empty() && condition.is_none() {
+            condition = Some(solve_passive(q, c, passive, x, workspace)?);
+            gradient(q, c, x, grad);
+            infeasible = infeasible_of(x, grad, passive);
+        }
         if infeasible.is_empty() {
+            let condition = condition.unwrap_or(f64::INFINITY);
             for (xi, &ci) in x.iter_mut().zip(constrained) {
                 if ci && *xi < 0.0 {
                     *xi = 0.0;
@@ -325,6 +340,8 @@ struct PassiveWorkspace {
     scratch: Option<(usize, MemBuffer)>,
     /// Times the factor storage was allocated (once per new largest passive set).
     allocations: usize,
+    /// The condition estimate of the factor held (of the set `idx`), None when it holds none.
+    base: Option<f64>,
 }
 
 impl PassiveWorkspace {
@@ -389,6 +406,7 @@ fn solve_passive(
     );
     if factored.is_err() {
         workspace.idx = idx;
+        workspace.base = None;
         return None;
     }
     for s in 1..k {
@@ -414,13 +432,119 @@ fn solve_passive(
     }
     workspace.idx = idx;
     if x.iter().any(|v| !v.is_finite()) {
+        workspace.base = None;
         return None;
     }
-    Some(if lo > 0.0 {
+    let condition = if lo > 0.0 {
         (hi / lo) * (hi / lo)
     } else {
         f64::INFINITY
-    })
+    };
+    workspace.base = Some(condition);
+    Some(condition)
+}
+
+/// Exchanges (variables left plus variables joined) up to this share of the factored set are solved through
+/// its factor: each costs two triangular solves, a fresh factor a third of the set's size in them.
+const UPDATE_SHARE: usize = 10;
+
+/// `x_F = Q_FF⁻¹ c_F` through the factor `workspace` holds of another set `F₀` (see [`solve_passive`]): the
+/// variables `R = F₀ ∖ F` held at zero by multipliers and those of `A = F ∖ F₀` bordered on, one small saddle
+/// system for them (the Schur complement of `Q_F₀F₀`). The same minimiser as a fresh factor of `Q_FF` up to
+/// round-off; it serves to find the answer's set, which is then solved fresh. Returns None when there is no
+/// factor, the exchanges are too many or the system is not numerically solvable (solve fresh then);
+/// `Some(Some(condition))` when `F` is `F₀` itself (the fresh solve's bits), `Some(None)` otherwise.
+fn solve_passive_updated(
+    q: &[f64],
+    c: &[f64],
+    passive: &[bool],
+    x: &mut [f64],
+    workspace: &PassiveWorkspace,
+) -> Option<Option<f64>> {
+    use faer::prelude::Solve;
+    let base_condition = workspace.base?;
+    let n = c.len();
+    let idx = &workspace.idx;
+    let k = idx.len();
+    let l = workspace.factor.as_ref()?.as_ref().submatrix(0, 0, k, k);
+    let mut in_base = alloc::vec![usize::MAX; n];
+    for (r, &i) in idx.iter().enumerate() {
+        in_base[i] = r;
+    }
+    // The exchanges: positions (in F₀) of the variables that left, then the variables that joined.
+    let left: Vec<usize> = (0..k).filter(|&r| !passive[idx[r]]).collect();
+    let joined: Vec<usize> = (0..n)
+        .filter(|&i| passive[i] && in_base[i] == usize::MAX)
+        .collect();
+    let (a, m) = (joined.len(), joined.len() + left.len());
+    if m > k.max(UPDATE_SHARE) / UPDATE_SHARE {
+        return None;
+    }
+    // Columns [Q_F₀A | E_R | c_F₀], solved in place by L Lᵀ: M = Q_F₀F₀⁻¹ [Q_F₀A | E_R], z = Q_F₀F₀⁻¹ c_F₀.
+    // Q as the factor reads it: its lower triangle (Q is symmetric up to round-off).
+    let lower = |i: usize, j: usize| q[i.max(j) * n + i.min(j)];
+    let border = |r: usize, j: usize| -> f64 {
+        if j < a {
+            lower(idx[r], joined[j])
+        } else if j < m {
+            f64::from(u8::from(left[j - a] == r))
+        } else {
+            c[idx[r]]
+        }
+    };
+    let mut sol = Mat::<f64>::from_fn(k, m + 1, border);
+    llt::solve::solve_in_place_with_conj(
+        l,
+        Conj::No,
+        sol.as_mut(),
+        Par::Seq,
+        MemStack::new(&mut []),
+    );
+    // The saddle system for [x_A, multipliers of R]: S = [Q_AA 0; 0 0] − Bᵀ M, s = [c_A; 0] − Bᵀ z.
+    let dot_border = |i: usize, j: usize| -> f64 {
+        if i < a {
+            (0..k)
+                .map(|r| lower(idx[r], joined[i]) * sol[(r, j)])
+                .sum::<f64>()
+        } else {
+            sol[(left[i - a], j)]
+        }
+    };
+    let s = Mat::<f64>::from_fn(m, m, |i, j| {
+        let own = if i < a && j < a {
+            lower(joined[i], joined[j])
+        } else {
+            0.0
+        };
+        own - dot_border(i, j)
+    });
+    let rhs = Mat::<f64>::from_fn(
+        m,
+        1,
+        |i, _| if i < a { c[joined[i]] } else { 0.0 } - dot_border(i, m),
+    );
+    let y = if m == 0 {
+        rhs
+    } else {
+        s.as_ref().partial_piv_lu().solve(&rhs)
+    };
+    x.iter_mut().for_each(|v| *v = 0.0);
+    for (r, &i) in idx.iter().enumerate() {
+        if passive[i] {
+            x[i] = if m == 0 {
+                sol[(r, 0)]
+            } else {
+                sol[(r, m)] - (0..m).map(|j| sol[(r, j)] * y[(j, 0)]).sum::<f64>()
+            };
+        }
+    }
+    for (j, &i) in joined.iter().enumerate() {
+        x[i] = y[(j, 0)];
+    }
+    if x.iter().any(|v| !v.is_finite()) {
+        return None;
+    }
+    Some((m == 0).then_some(base_condition))
 }
 
 #[cfg(test)]
@@ -579,10 +703,9 @@ mod tests {
         Some((x, (hi / lo) * (hi / lo)))
     }
 
-    #[test]
-    fn passive_systems_share_one_factor_storage_and_solve_as_a_fresh_factor_to_the_bit() {
-        // A dense, slightly asymmetric (as Cᵀ G C is by round-off) positive definite Q of 150 unknowns.
-        let n = 150;
+    /// The dense test matrix of the factor tests (`n` unknowns, not symmetric: a factor reads its lower
+    /// triangle, positive definite) and a linear term.
+    fn dense_problem(n: usize) -> (Vec<f64>, Vec<f64>) {
         let mut q = alloc::vec![0.0; n * n];
         for i in 0..n {
             for j in 0..n {
@@ -593,6 +716,95 @@ mod tests {
             q[i * n + i] += n as f64;
         }
         let c: Vec<f64> = (0..n).map(|i| ((i * 37) % 17) as f64 - 8.0).collect();
+        (q, c)
+    }
+
+    #[test]
+    fn a_set_a_few_exchanges_from_the_factored_one_solves_through_its_factor() {
+        let n = 150;
+        let (q, c) = dense_problem(n);
+        let mut workspace = PassiveWorkspace::default();
+        let base: Vec<bool> = (0..n).map(|i| i % 3 != 0).collect();
+        let mut x = alloc::vec![0.0; n];
+        let cond = solve_passive(&q, &c, &base, &mut x, &mut workspace).unwrap();
+        // The factored set itself: the fresh solve's bits and its condition estimate.
+        let mut again = alloc::vec![1.0; n];
+        let same = solve_passive_updated(&q, &c, &base, &mut again, &workspace).unwrap();
+        assert_eq!((again.clone(), same), (x.clone(), Some(cond)));
+        // Variables leaving and joining (at the ends and inside): the minimiser of a fresh factor, to round-off.
+        for (leave, join) in [
+            (&[1usize, 2][..], &[0usize][..]),
+            (&[], &[3, 147]),
+            (&[148, 2, 74], &[]),
+            (&[5, 146], &[6, 9, 144]),
+        ] {
+            let mut set = base.clone();
+            for &i in leave {
+                assert!(set[i]);
+                set[i] = false;
+            }
+            for &i in join {
+                assert!(!set[i]);
+                set[i] = true;
+            }
+            let mut y = alloc::vec![1.0; n];
+            assert_eq!(
+                solve_passive_updated(&q, &c, &set, &mut y, &workspace),
+                Some(None)
+            );
+            let (fresh, _) = solve_passive_fresh(&q, &c, &set).unwrap();
+            for (i, (a, b)) in y.iter().zip(&fresh).enumerate() {
+                assert!(
+                    (a - b).abs() <= 1e-12 * b.abs().max(1.0),
+                    "{leave:?} {join:?} x[{i}]: {a} vs {b}"
+                );
+                assert!(set[i] || *a == 0.0, "x[{i}] off the set is {a}");
+            }
+        }
+        // Past a tenth of the set, a fresh factor (None); with no factor held, likewise.
+        let far: Vec<bool> = (0..n).map(|i| i % 3 != 1).collect();
+        assert_eq!(
+            solve_passive_updated(&q, &c, &far, &mut x, &workspace),
+            None
+        );
+        assert_eq!(
+            solve_passive_updated(&q, &c, &base, &mut x, &PassiveWorkspace::default()),
+            None
+        );
+    }
+
+    #[test]
+    fn the_answer_is_the_fresh_solve_of_its_own_set_to_the_bit() {
+        // Pivoting from a warm start a few exchanges away runs through the factor of the start's set; the answer
+        // returned is nonetheless the fresh factor's solve of the final set.
+        let n = 150;
+        let (q, mut c) = dense_problem(n);
+        for (i, v) in c.iter_mut().enumerate() {
+            *v += 40.0 * ((i as f64) * 0.21).sin();
+        }
+        let constrained = alloc::vec![true; n];
+        let cold = nnls_gram(&q, &c, &constrained, 500).unwrap();
+        let mut start = cold.passive.clone();
+        for i in [3usize, 40, 41, 97, 120] {
+            start[i] = !start[i];
+        }
+        let warm = nnls_gram_warm(&q, &c, &constrained, 500, Some(&start)).unwrap();
+        assert!(
+            warm.converged && !warm.descent && warm.iterations > 1,
+            "{warm:?}"
+        );
+        assert_eq!(warm.passive, cold.passive);
+        let (fresh, cond) = solve_passive_fresh(&q, &c, &warm.passive).unwrap();
+        let clipped: Vec<f64> = fresh.iter().map(|&v| v.max(0.0)).collect();
+        assert_eq!(warm.x, clipped);
+        assert_eq!(warm.condition.to_bits(), cond.to_bits());
+        assert_eq!(warm.x, cold.x);
+    }
+
+    #[test]
+    fn passive_systems_share_one_factor_storage_and_solve_as_a_fresh_factor_to_the_bit() {
+        let n = 150;
+        let (q, c) = dense_problem(n);
         let mut workspace = PassiveWorkspace::default();
         // Passive sets of several sizes, the largest first (as a warm-started pivoting shrinks its set).
         for (m, size) in [
