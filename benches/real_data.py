@@ -1,6 +1,6 @@
 """Every recording in ``../shared/data`` through the command line as a new user runs it — ``bmr import`` →
-``bmr identify`` → ``bmr predict`` (→ ``bmr diagnose`` where it is quick) with held-out runs and bmr's defaults —
-next to the best reference figure for that data.
+``bmr identify`` → ``bmr predict`` (→ ``bmr diagnose --model`` of that model where it is quick) with held-out runs
+and bmr's defaults — next to the best reference figure for that data.
 
     python benches/real_data.py            # print the table
     python benches/real_data.py --record   # and record it as the ``real_data`` section of docs/results.md
@@ -177,8 +177,9 @@ def run_chain(ds: DataSet, workdir: Path, figures: bool = False) -> ChainResult:
              ("predict", ["predict", str(model), str(bundle), "--json", str(pred)])]
     extended = workdir / "extended.json"
     if ds.diagnose:
-        steps.append(("diagnose", ["diagnose", str(bundle), "--json", str(workdir / "diagnosis.json"),
-                                   "--model-out", str(extended)]))
+        # The README's chain: the diagnosis extends the model identify chose.
+        steps.append(("diagnose", ["diagnose", str(bundle), "--model", str(model), "--json",
+                                   str(workdir / "diagnosis.json"), "--model-out", str(extended)]))
         steps.append(("predict extended", ["predict", str(extended), str(bundle), "--json",
                                            str(workdir / "extended_prediction.json")]))
     for step, args in steps:
@@ -233,7 +234,7 @@ def run_all(datasets: tuple[DataSet, ...] = DATASETS, figures: bool = False) -> 
 def render(values: dict[str, Any]) -> str:
     """The docs/results.md table."""
     rows = ["| data set (held out) | chain | held-out RMS | % of span | single-valued baseline | extended model "
-            "(`diagnose --model-out`) | reference |", "|---|---|---|---|---|---|---|"]
+            "(`diagnose --model model.json --model-out`) | reference |", "|---|---|---|---|---|---|---|"]
     for r in values["results"]:
         u = r["unit"]
         chain = "ok" if all(s == 0 for s in r["status"].values()) else "; ".join(

@@ -122,18 +122,7 @@ def test_the_extended_model_of_a_signed_model_predicts_like_it(key, tmp_path):
     ds = SETS[key]
     if not ds.present():
         pytest.skip(f"needs {', '.join(map(str, ds.paths()))} (see ../shared/data/README.md for its source)")
-    cli = BENCH._cli
-
-    def with_model(args):
-        if args and args[0] == "diagnose":
-            args = [*args, "--model", str(Path(args[1]).parent / "model.json")]
-        return cli(args)
-
-    BENCH._cli = with_model
-    try:
-        r = BENCH.run_chain(dataclasses.replace(ds, diagnose=True), tmp_path)
-    finally:
-        BENCH._cli = cli
+    r = BENCH.run_chain(dataclasses.replace(ds, diagnose=True), tmp_path)
     assert r.ok, (r.status, r.errors)
     assert r.extended_rms is not None and r.extended_rms < 1.1 * r.rms, r
 
