@@ -673,9 +673,13 @@ def evaluate(fitter: Fitter, config: Configuration, eff: Effect, before: Heldout
         before = heldout(fitter, config)
     compared = config
     if eff.needs_reidentify and not config.path.reidentify:
-        # Compare at equal table method: the gain is the effect's, not the least-squares tables'.
-        compared = Configuration(config.path.with_(reidentify=True), config.linear)
-        before = heldout(fitter, compared)
+        # Compare at equal table method: the gain is the effect's, not the least-squares tables'. Unless those
+        # tables predict worse than the configuration's own: the gain is then over the model the configuration is
+        # (else an effect could be named whose extended model predicts worse than the model it extends).
+        on_tables = Configuration(config.path.with_(reidentify=True), config.linear)
+        before_on_tables = heldout(fitter, on_tables)
+        if np.sum(before_on_tables.sse) <= np.sum(before.sse):
+            compared, before = on_tables, before_on_tables
     grid = eff.grid(data)
     fits = _grid_fits(fitter, config, eff, grid, slice(0, data.folds))
     done = [f for f in fits if f is not None]
