@@ -3,7 +3,9 @@
 //!
 //! Block principal pivoting (Kim & Park 2011) first: each iteration solves one unconstrained system on the
 //! passive set with a Cholesky factorisation (faer) and exchanges every infeasible variable at once; when that
-//! stops reducing the number of infeasibilities it exchanges a single variable (Murty's rule). Pivoting is exact
+//! stops reducing the number of infeasibilities it exchanges a single variable (Murty's rule). A set a few
+//! exchanges from the last factored one is solved through that factor instead (a small saddle system for the
+//! exchanged variables); the set the answer is read from is always factored itself. Pivoting is exact
 //! but on ill-conditioned problems (a drifting, slowly varying input leaves many Preisach cells nearly
 //! collinear) round-off can make it cycle, and each iteration costs a factorisation. So when it has not
 //! finished within `max_iter` iterations, or a passive system is not numerically positive definite, the solve
