@@ -975,7 +975,7 @@ class RateDependence(Effect):
 # Share of a fitted time shift (lag, dynamic field) that the residual without it must show as growth with the rate
 # beyond a width change at one speed: the gain must come from the rate, not from a shift absorbing something else
 # the tables miss.
-RATE_GROWTH_SHARE = 0.5
+RATE_GROWTH_SHARE = 0.4
 
 
 def time_shift(fitter: Any, path: FieldPath, unshifted: FieldPath) -> np.ndarray:

@@ -72,6 +72,17 @@ def test_hidden_mechanism_is_named(mechanism):
     _assert_named(d, [mechanism])
 
 
+def test_a_coil_with_a_slow_eddy_loop_is_named_coil_lag():
+    # 80 % of every current change arrives in 4 ms, 20 % in 100 ms: one lag of 24 ms fits best (13.5 -> 4.8 N·mm
+    # held out), and the residual without it grows with the rate by 0.50 of what that lag predicts (a single time
+    # constant overstates the growth at the fastest drive). Against the 0.5 asked before, the lag was refused and
+    # the dynamic field named instead (13.5 -> 5.5).
+    d = bmr.diagnose(ip.independent_bundle({"coil_eddy_circuit": {"tau_coil_s": 0.004, "eddy_share": 0.2,
+                                                                  "tau_eddy_s": 0.1}}, seed=SEED),
+                     progress=False, closed_loop=False)
+    _assert_named(d, ["coil_eddy_circuit"])
+
+
 def test_an_extended_model_never_predicts_worse_than_the_model_it_extends():
     # A saturating yield map (cubic -0.3) on the diagnosis protocol: tables identified again by least squares
     # without the map predict worse (2.40 N·mm held out) than the measured curves' own (1.96). Judged against those
