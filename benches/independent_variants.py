@@ -3,7 +3,9 @@ calibration cells use: each mechanism with another time constant, order, phase, 
 strength. The diagnosis was never tuned on these. One line per bundle: the names given, whether one is right for
 the mechanism and which are wrong, the held-out RMS nominal → extended and the noise floor (N·mm).
 
-Usage: ``python benches/independent_variants.py [--protocol coarse] [--seed N] [MECHANISM ...]``
+``--pairs``: two variants of different mechanisms in one bundle instead (:data:`PAIRS`), both to be named.
+
+Usage: ``python benches/independent_variants.py [--protocol coarse] [--seed N] [--pairs] [MECHANISM ...]``
 """
 from __future__ import annotations
 
@@ -35,12 +37,19 @@ VARIANTS: dict[str, list[dict[str, float]]] = {
     "eddy_field": [{"k_s": 0.02}],
 }
 
+# Pairs of the variants above (each mechanism's first variant).
+PAIRS: list[tuple[str, str]] = [("coil_eddy_circuit", "seal_lobes"), ("coil_heating", "bridge_warmup"),
+                                ("log_after_effect", "recalibration"), ("fractional_delay", "reptation"),
+                                ("rate_loss", "eccentric_gap"), ("moving_preisach", "parallel_conductance"),
+                                ("eddy_field", "field_normal_force")]
+
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("mechanisms", nargs="*", help=f"any of {', '.join(VARIANTS)} (default: all)")
     ap.add_argument("--protocol", default="diagnosis", choices=("diagnosis", "coarse"))
     ap.add_argument("--seed", type=int, default=1000)
+    ap.add_argument("--pairs", action="store_true", help="two mechanisms per bundle (PAIRS) instead of one")
     args = ap.parse_args(argv)
     unknown = [m for m in args.mechanisms if m not in VARIANTS]
     if unknown:
@@ -49,23 +58,27 @@ def main(argv: list[str] | None = None) -> int:
     import independent_plant as ip
     from bmr.diagnosis.effects import PHYSICAL
 
+    if args.pairs:
+        cases = [{a: VARIANTS[a][0], b: VARIANTS[b][0]} for a, b in PAIRS
+                 if not args.mechanisms or a in args.mechanisms or b in args.mechanisms]
+    else:
+        cases = [{m: p} for m in args.mechanisms or list(VARIANTS) for p in VARIANTS[m]]
     right = wrong = total = 0
-    for mechanism in args.mechanisms or list(VARIANTS):
-        expected = ip.MECHANISMS[mechanism].names
-        for params in VARIANTS[mechanism]:
-            c0 = time.process_time()
-            bundle = ip.independent_bundle({mechanism: params}, seed=args.seed, protocol=args.protocol)
-            d = bmr.diagnose(bundle, progress=False, closed_loop=False)
-            named = [e["name"] for e in d.effects]
-            bad = [n for n in named if n in PHYSICAL and n not in expected]
-            total += 1
-            right += any(n in expected for n in named)
-            wrong += bool(bad)
-            print(f"{mechanism} {params}: {', '.join(named) or 'nothing'}"
-                  f"{'' if any(n in expected for n in named) else ' (missed)'}"
-                  f"{f' (wrong: {bad})' if bad else ''}; held out {d.nominal_heldout_rms:.3g} -> "
-                  f"{d.residual_rms:.3g} N·mm (noise {d.noise_floor:.3g}); {time.process_time() - c0:.1f} CPU-s",
-                  flush=True)
+    for mechanisms in cases:
+        expected = {n for m in mechanisms for n in ip.MECHANISMS[m].names}
+        c0 = time.process_time()
+        bundle = ip.independent_bundle(mechanisms, seed=args.seed, protocol=args.protocol)
+        d = bmr.diagnose(bundle, progress=False, closed_loop=False)
+        named = [e["name"] for e in d.effects]
+        missed = [m for m in mechanisms if not any(n in named for n in ip.MECHANISMS[m].names)]
+        bad = [n for n in named if n in PHYSICAL and n not in expected]
+        total += 1
+        right += not missed
+        wrong += bool(bad)
+        print(f"{mechanisms}: {', '.join(named) or 'nothing'}{f' (missed: {missed})' if missed else ''}"
+              f"{f' (wrong: {bad})' if bad else ''}; held out {d.nominal_heldout_rms:.3g} -> "
+              f"{d.residual_rms:.3g} N·mm (noise {d.noise_floor:.3g}); {time.process_time() - c0:.1f} CPU-s",
+              flush=True)
     print(f"{right} of {total} named right, {wrong} with a wrong name ({args.protocol} protocol, seed {args.seed})")
     return 0
 
