@@ -15,6 +15,7 @@ import time
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "tests" / "python"))
+sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 VARIANTS: dict[str, list[dict[str, float]]] = {
     "coil_eddy_circuit": [{"tau_coil_s": 0.004, "eddy_share": 0.2, "tau_eddy_s": 0.1},
@@ -56,7 +57,7 @@ def main(argv: list[str] | None = None) -> int:
         ap.error(f"unknown mechanism(s) {', '.join(unknown)}")
     import bmr
     import independent_plant as ip
-    from bmr.diagnosis.effects import PHYSICAL
+    from diagnosis_calibration import _row  # the calibration's scoring: a name, or "a or b", right or wrong
 
     if args.pairs:
         cases = [{a: VARIANTS[a][0], b: VARIANTS[b][0]} for a, b in PAIRS
@@ -65,20 +66,18 @@ def main(argv: list[str] | None = None) -> int:
         cases = [{m: p} for m in args.mechanisms or list(VARIANTS) for p in VARIANTS[m]]
     right = wrong = total = 0
     for mechanisms in cases:
-        expected = {n for m in mechanisms for n in ip.MECHANISMS[m].names}
         c0 = time.process_time()
         bundle = ip.independent_bundle(mechanisms, seed=args.seed, protocol=args.protocol)
-        d = bmr.diagnose(bundle, progress=False, closed_loop=False)
-        named = [e["name"] for e in d.effects]
-        missed = [m for m in mechanisms if not any(n in named for n in ip.MECHANISMS[m].names)]
-        bad = [n for n in named if n in PHYSICAL and n not in expected]
+        d = bmr.diagnose(bundle, progress=False, closed_loop=False).to_dict()
+        row = _row({"effects": mechanisms, "expect": [list(ip.MECHANISMS[m].names) for m in mechanisms]}, d,
+                   time.process_time() - c0, None)
         total += 1
-        right += not missed
-        wrong += bool(bad)
-        print(f"{mechanisms}: {', '.join(named) or 'nothing'}{f' (missed: {missed})' if missed else ''}"
-              f"{f' (wrong: {bad})' if bad else ''}; held out {d.nominal_heldout_rms:.3g} -> "
-              f"{d.residual_rms:.3g} N·mm (noise {d.noise_floor:.3g}); {time.process_time() - c0:.1f} CPU-s",
-              flush=True)
+        right += row["detected"]
+        wrong += row["wrong"]
+        bad = f" (wrong: {', '.join(row['wrong_names'])})" if row["wrong"] else ""
+        print(f"{mechanisms}: {', '.join(row['reports']) or 'nothing'}{'' if row['detected'] else ' (missed)'}{bad}; "
+              f"held out {row['nominal']:.3g} -> {row['final']:.3g} N·mm (noise {row['noise']:.3g}); "
+              f"{row['cpu_s']:.1f} CPU-s", flush=True)
     print(f"{right} of {total} named right, {wrong} with a wrong name ({args.protocol} protocol, seed {args.seed})")
     return 0
 
