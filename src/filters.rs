@@ -1,6 +1,6 @@
 //! Per-sample filters shared by the virtual actuator, the compensator stages and the batch functions the Python
-//! diagnosis calls: the exact first-order lag, its exact inverse (lead), an integer-sample delay line and the
-//! coil heating state. `no_std`, allocation-free, the sample period fixed at construction.
+//! diagnosis calls: the exact first-order lag, its exact inverse (lead), an integer-sample delay line, the
+//! coil heating state and the leakage integral of a charge measurement. `no_std`, allocation-free, the sample period fixed at construction.
 //!
 //! The lag is the zero-order-hold discretisation of `y' = (x − y)/τ`: with the input held over a period `dt`,
 //! `y[n] = p·y[n−1] + (1 − p)·x[n]`, `p = exp(−dt/τ)`, exact for a held input (a converter's output is).
@@ -13,6 +13,25 @@ pub fn lag_pole(dt_s: f64, tau_s: f64) -> f64 {
     } else {
         0.0
     }
+}
+
+/// Factor by which a charge amplifier's leakage integral decays over one sample: `exp(−decay·dt)` (1 for an
+/// ideal integrator, `decay_per_s` 0 or less).
+#[inline]
+pub fn leak_pole(dt_s: f64, decay_per_s: f64) -> f64 {
+    if decay_per_s > 0.0 {
+        libm::exp(-decay_per_s * dt_s)
+    } else {
+        1.0
+    }
+}
+
+/// One sample of the charge a leakage current `x` leaves on a charge amplifier whose feedback discharges it
+/// (`q' = x − decay·q`, `pole` from [`leak_pole`]): trapezoids of the input, the older end and the charge before
+/// decayed over the period, `q[n] = p·q[n−1] + dt/2·(x[n] + p·x[n−1])`. With `pole` 1 exactly the trapezoid rule.
+#[inline]
+pub fn leak_step(q: f64, pole: f64, dt_s: f64, x: f64, last_x: f64) -> f64 {
+    pole * q + 0.5 * dt_s * (x + pole * last_x)
 }
 
 /// First-order lag `y[n] = p·y[n−1] + (1 − p)·x[n]` (see the module doc).
@@ -190,6 +209,28 @@ impl Heating {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn leak_integral_is_the_trapezoid_rule_without_decay_and_settles_at_input_over_decay_with_it() {
+        let dt = 1e-3;
+        let (mut q, mut last) = (0.0, 0.0);
+        for n in 0..1000 {
+            let x = n as f64 * dt; // a ramp: its integral t²/2 is exact for trapezoids
+            q = leak_step(q, leak_pole(dt, 0.0), dt, x, last);
+            last = x;
+        }
+        assert!((q - 0.5 * (999.0 * dt) * (999.0 * dt)).abs() < 1e-12, "{q}");
+        // A held input x with decay d: q(t) = x/d · (1 − exp(−d t)), steady at x/d.
+        let (d, x) = (2.0, 3.0);
+        let pole = leak_pole(dt, d);
+        let mut q = 0.0;
+        for n in 1..=5000 {
+            q = leak_step(q, pole, dt, x, x);
+            let t = n as f64 * dt;
+            let exact = x / d * (1.0 - libm::exp(-d * t));
+            assert!((q - exact).abs() < 1e-6 * x / d, "n {n}: {q} vs {exact}");
+        }
+    }
 
     #[test]
     fn lead_inverts_lag_and_lag_matches_the_continuous_step_response() {

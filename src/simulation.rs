@@ -50,6 +50,8 @@ pub struct Simulation<S, D, const N: usize, const K: usize> {
     /// Integral of the coil current since the reset (A·s, trapezoids) and the last coil current (`leakage`).
     leak_integral: f64,
     last_coil: f64,
+    /// The leakage integral's decay over one sample (`filters::leak_pole`).
+    leak_pole: f64,
 }
 
 impl<S: AsRef<[f64]>, D: AsRef<[f64]> + AsMut<[f64]>, const N: usize, const K: usize>
@@ -93,6 +95,7 @@ impl<S: AsRef<[f64]>, D: AsRef<[f64]> + AsMut<[f64]>, const N: usize, const K: u
             index: 0,
             leak_integral: 0.0,
             last_coil: 0.0,
+            leak_pole: crate::filters::leak_pole(dt_s, stages.leak_decay_per_s),
         })
     }
 
@@ -176,7 +179,13 @@ impl<S: AsRef<[f64]>, D: AsRef<[f64]> + AsMut<[f64]>, const N: usize, const K: u
         let t_s = self.t0_s + self.dt_s * self.index as f64;
         self.index += 1;
         if self.index > 1 {
-            self.leak_integral += 0.5 * self.dt_s * (coil + self.last_coil);
+            self.leak_integral = crate::filters::leak_step(
+                self.leak_integral,
+                self.leak_pole,
+                self.dt_s,
+                coil,
+                self.last_coil,
+            );
         }
         self.last_coil = coil;
         SimSample {

@@ -741,6 +741,8 @@ macro_rules! stage_list {
             $($(#[$doc])* pub $field: Option<$ty>,)*
             /// `leakage`: measured output added per unit of input-time (output/(input·s)); measurement only.
             pub leak_per_s: f64,
+            /// `leakage`: rate at which the charge amplifier discharges the integral (1/s; 0: ideal integrator).
+            pub leak_decay_per_s: f64,
             /// `non_congruent`'s mean field: stateless, it acts between the stages before the core and the core
             /// (after the output map in the list: one effect).
             pub mean_field: Option<MeanField>,
@@ -997,7 +999,10 @@ impl Stages {
                     }
                 }
                 EffectKind::SensorDrift | EffectKind::RunGainOffset => {}
-                EffectKind::Leakage => st.leak_per_s = v[0],
+                EffectKind::Leakage => {
+                    st.leak_per_s = v[0];
+                    st.leak_decay_per_s = v[1];
+                }
                 EffectKind::Creep => {
                     if v[0] != 0.0 || v[3] != 0.0 {
                         let c = Creep::log_uniform(v[0], v[1], v[2], dt_s, 0.0)

@@ -276,9 +276,12 @@ vocabulary! {
          p("offset_sd", "N·mm", 3.0, 0.0, 1e6, "standard deviation of the per-run offset (output units)")];
     Leakage = "leakage", Sensor, NOT_IN_LOOP, NO_ANGLE,
         "The measured output integrates the input: a leakage current through the sample into a charge \
-         amplifier (ferroelectric, charge measurements) adds rate_per_s * integral of u dt from the start of \
-         the run. Signature: residual that follows the running integral of the input.",
-        [p("rate_per_s", "N·mm/(A·s)", 1.0, -1e6, 1e6, "output added per unit of input-time (output/(input·s))")];
+         amplifier (ferroelectric, charge measurements) adds rate_per_s * q, q the charge from the start of \
+         the run, q' = u - decay_per_s * q (the amplifier's feedback discharges it; 0: an ideal integrator, \
+         q = integral of u dt). Signature: a residual that follows that charge in every recording.",
+        [p("rate_per_s", "N·mm/(A·s)", 1.0, -1e6, 1e6, "output added per unit of input-time (output/(input·s))"),
+         p("decay_per_s", "1/s", 0.0, 0.0, 10.0,
+           "rate at which the charge amplifier's feedback discharges the integral (1/its time constant)")];
     Accommodation = "accommodation", Field,
         stage(7, NO_PERIOD, "reversal memory (input, output units) and the shift (output units)"), NO_ANGLE,
         "Minor loops drift over repeated cycling between the same extremes (accommodation, reptation): once the \

@@ -509,6 +509,10 @@ def heating_state(current_a: _ArrayLike, tau_s: float, dt_s: float, full_current
                   initial: float = 0.0) -> np.ndarray:
     """Coil heating state (1 = steady full current) driven by ``(I/I_full)²`` with time constant ``tau_s``."""
 
+def leak_integral(x: _ArrayLike, dt_s: float, decay_per_s: float = 0.0) -> np.ndarray:
+    """The leakage integral of ``x`` from its first sample (0 there): ``q' = x − decay·q`` by trapezoids, the
+    charge a leakage current leaves on a charge amplifier discharging it at ``decay_per_s`` (0: ``∫x dt``)."""
+
 def creep_relaxation(v: _ArrayLike, taus_s: _ArrayLike, dt_s: float) -> np.ndarray:
     """Mean over ``taus_s`` of ``lag(v, τ) − v`` per sample (exact lags from rest at ``v[0]``): the creep output of
     an equal-weight spectrum is ``v + fraction · relaxation``."""

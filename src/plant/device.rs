@@ -226,6 +226,8 @@ pub struct VirtualDevice {
     heating: Heating,
     drift_per_s: f64,
     leak_per_s: f64,
+    /// The leakage integral's decay over one sample (`filters::leak_pole`; 1: an ideal integrator).
+    leak_pole: f64,
     leak_integral: f64,
     last_applied: f64,
     /// `viscous`: loss per unit of input rate (output units · s per input unit), yield output (output units) and
@@ -249,6 +251,7 @@ impl VirtualDevice {
         let (mut creep, mut curvature, mut cubic, mut accommodation) = (None, 0.0, 0.0, None);
         let mut feedback = 0.0;
         let (mut thermal_loss, mut thermal_tau_s, mut drift, mut leak) = (0.0, 0.0, 0.0, 0.0);
+        let mut leak_pole = 1.0;
         let mut run_gain_offset = None;
         let mut viscous = (0.0, 0.0, 1.0);
         for e in config.effects.iter() {
@@ -295,7 +298,13 @@ impl VirtualDevice {
                     thermal_tau_s = tau_s;
                 }
                 Effect::SensorDrift { rate_nmm_per_s } => drift = rate_nmm_per_s,
-                Effect::Leakage { rate_per_s } => leak = rate_per_s,
+                Effect::Leakage {
+                    rate_per_s,
+                    decay_per_s,
+                } => {
+                    leak = rate_per_s;
+                    leak_pole = crate::filters::leak_pole(dt_s, decay_per_s);
+                }
                 Effect::RunGainOffset { gain_sd, offset_sd } => {
                     run_gain_offset = Some((gain_sd, offset_sd))
                 }
@@ -325,6 +334,7 @@ impl VirtualDevice {
             heating: Heating::new(thermal_tau_s, dt_s, half, 0.0),
             drift_per_s: drift,
             leak_per_s: leak,
+            leak_pole,
             leak_integral: 0.0,
             last_applied: 0.0,
             viscous,
@@ -432,7 +442,13 @@ impl VirtualDevice {
             let x = self.heating.step(applied - c);
             y = cfg.output_offset + (y - cfg.output_offset) * (1.0 - self.thermal_loss * x);
         }
-        self.leak_integral += 0.5 * self.dt_s * ((applied - c) + (self.last_applied - c));
+        self.leak_integral = crate::filters::leak_step(
+            self.leak_integral,
+            self.leak_pole,
+            self.dt_s,
+            applied - c,
+            self.last_applied - c,
+        );
         self.last_applied = applied;
         let sensed = self.run_gain * (y + self.leak_per_s * self.leak_integral)
             + self.run_offset

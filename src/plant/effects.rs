@@ -67,6 +67,7 @@ pub enum Effect {
     },
     Leakage {
         rate_per_s: f64,
+        decay_per_s: f64,
     },
     Accommodation {
         kappa: f64,
@@ -160,7 +161,10 @@ impl Effect {
                 gain_sd: v[0],
                 offset_sd: v[1],
             },
-            EffectKind::Leakage => Effect::Leakage { rate_per_s: v[0] },
+            EffectKind::Leakage => Effect::Leakage {
+                rate_per_s: v[0],
+                decay_per_s: v[1],
+            },
             EffectKind::Accommodation => Effect::Accommodation {
                 kappa: v[0],
                 cycles: v[1],
@@ -202,7 +206,10 @@ impl Effect {
             } => vec![fraction, tau_min_s, tau_max_s, fluctuation, tau0_s],
             Effect::RateDependence { tau_s } => vec![tau_s],
             Effect::RunGainOffset { gain_sd, offset_sd } => vec![gain_sd, offset_sd],
-            Effect::Leakage { rate_per_s } => vec![rate_per_s],
+            Effect::Leakage {
+                rate_per_s,
+                decay_per_s,
+            } => vec![rate_per_s, decay_per_s],
             Effect::Accommodation { kappa, cycles } => vec![kappa, cycles],
             Effect::Viscous { c, f_y, v0 } => vec![c, f_y, v0],
         };

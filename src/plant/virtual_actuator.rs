@@ -280,6 +280,8 @@ struct ActiveEffects {
     /// Spread of the per-run sensor gain and offset (N·mm).
     run_gain_offset: Option<(f64, f64)>,
     leak_per_s: f64,
+    /// The leakage integral's decay over one sample (`filters::leak_pole`; 1: an ideal integrator).
+    leak_pole: f64,
     /// Minor-loop accommodation: (kappa, cycles).
     accommodation: Option<(f64, f64)>,
     /// `viscous`: loss torque per unit of field-current rate (N·mm·s/A), yield torque (N·mm), yield rate (A/s).
@@ -310,6 +312,7 @@ impl ActiveEffects {
             rate_tau_s: 0.0,
             run_gain_offset: None,
             leak_per_s: 0.0,
+            leak_pole: 1.0,
             accommodation: None,
             viscous: (0.0, 0.0, 1.0),
         };
@@ -353,7 +356,13 @@ impl ActiveEffects {
                 Effect::RunGainOffset { gain_sd, offset_sd } => {
                     a.run_gain_offset = Some((gain_sd, offset_sd))
                 }
-                Effect::Leakage { rate_per_s } => a.leak_per_s = rate_per_s,
+                Effect::Leakage {
+                    rate_per_s,
+                    decay_per_s,
+                } => {
+                    a.leak_per_s = rate_per_s;
+                    a.leak_pole = crate::filters::leak_pole(dt_s, decay_per_s);
+                }
                 Effect::Accommodation { kappa, cycles } => a.accommodation = Some((kappa, cycles)),
                 Effect::Viscous { c, f_y, v0 } => a.viscous = (c, f_y, v0),
             }
@@ -841,7 +850,13 @@ impl VirtualActuator {
         let drift = self.fx.drift_nmm_per_s * t_s;
         // What reaches the sensor: a charge-type measurement integrates the leakage (trapezoids of the applied
         // command), scaled and offset by this run's calibration.
-        self.leak_integral += 0.5 * self.dt_s * (applied + self.last_applied);
+        self.leak_integral = crate::filters::leak_step(
+            self.leak_integral,
+            self.fx.leak_pole,
+            self.dt_s,
+            applied,
+            self.last_applied,
+        );
         self.last_applied = applied;
         let sensed = self.run_gain * (torque_true_nmm + self.fx.leak_per_s * self.leak_integral)
             + self.run_offset_nmm;

@@ -1,9 +1,9 @@
 //! Batch versions of the per-sample filters (`crate::filters`) for the Python diagnosis: `lag`, `lead`, `delay`,
-//! `heating_state`. Each runs the very filter the plant and the compensator step, over a whole array.
+//! `heating_state`, `leak_integral`. Each runs the very filter the plant and the compensator step, over a whole array.
 use numpy::PyArray1;
 use pyo3::prelude::*;
 
-use crate::filters::{DelayLine, Heating, Lag, Lead};
+use crate::filters::{DelayLine, Heating, Lag, Lead, leak_pole, leak_step};
 use crate::python::BmrError;
 use crate::python::arrays::{DETACH_LEN, extract_f64_array, to_numpy};
 
@@ -124,10 +124,37 @@ fn heating_state<'py>(
     }))
 }
 
+/// The leakage integral of `x` from its first sample (0 there): `q[n] = p·q[n−1] + dt/2·(x[n] + p·x[n−1])`,
+/// `p = exp(−decay·dt)`: the charge a leakage current leaves on a charge amplifier that discharges it at
+/// `decay_per_s` (0: an ideal integrator, the trapezoid rule).
+#[pyfunction]
+#[pyo3(signature = (x, dt_s, decay_per_s=0.0))]
+fn leak_integral<'py>(
+    py: Python<'py>,
+    x: &Bound<'py, PyAny>,
+    dt_s: f64,
+    decay_per_s: f64,
+) -> PyResult<Bound<'py, PyArray1<f64>>> {
+    let dt_s = check("dt_s", dt_s, true)?;
+    let decay = check("decay_per_s", decay_per_s, false)?;
+    let x = extract_f64_array(x, "x")?;
+    Ok(map_array(py, x, move |mut x| {
+        let pole = leak_pole(dt_s, decay);
+        let (mut q, mut last) = (0.0, x.first().copied().unwrap_or(0.0));
+        x.iter_mut().for_each(|v| {
+            q = leak_step(q, pole, dt_s, *v, last);
+            last = *v;
+            *v = q;
+        });
+        x
+    }))
+}
+
 pub(crate) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(lag, m)?)?;
     m.add_function(wrap_pyfunction!(lead, m)?)?;
     m.add_function(wrap_pyfunction!(delay, m)?)?;
     m.add_function(wrap_pyfunction!(heating_state, m)?)?;
+    m.add_function(wrap_pyfunction!(leak_integral, m)?)?;
     Ok(())
 }

@@ -41,7 +41,6 @@ from bmr import _core
 from bmr._core import BmrError
 from bmr.diagnosis.field import REIDENTIFY_INTERVALS, FieldPath, steepest_slope
 from bmr.diagnosis.residuals import EvalData, reversal_order
-from bmr.identification.signals import running_integral
 
 __all__ = ["Effect", "LIBRARY", "PHYSICAL", "ANGLE_EFFECTS", "thermal_state", "CREEP_TAUS_S"]
 
@@ -1283,35 +1282,46 @@ class RunGainOffset(Effect):
 
 
 class Leakage(Effect):
-    """The measured output integrates the input: ``rate_per_s · ∫u dt`` from the start of each run (trapezoids of
-    the input, as a charge amplifier integrates a leakage current)."""
+    """The measured output integrates the input: ``rate_per_s · q`` from the start of each run, ``q`` the charge a
+    leakage current leaves on a charge amplifier whose feedback discharges it at ``decay_per_s``
+    (``q' = u − decay·q``; 0: an ideal integrator, ``∫u dt``; :func:`bmr._core.leak_integral`)."""
 
     name = "leakage"
     excitation = "a dwell at a nonzero input (the output keeps moving in proportion to the input)"
     separating_run = "dwell"
-    doc = "the measured output integrates the input: rate_per_s · ∫u dt from each run's start"
+    doc = ("the measured output integrates the input: rate_per_s · q from each run's start, q' = u − decay_per_s·q "
+           "(a charge amplifier's discharge; 0: ∫u dt)")
     needs_reidentify = True
 
-    def columns(self, data, value, y_field, model):
-        def make() -> np.ndarray:
-            out = []
-            for r in data.runs:
-                u = _run_input(r)
-                out.append(running_integral(u, np.arange(u.size) * r.dt_s)[r.start:])
-            return np.concatenate(out)[:, None]
+    # Time constants (s) of the charge amplifier's discharge searched besides an ideal integrator, each kept only
+    # up to twice the longest evaluation run (beyond, it is an integrator there).
+    AMPLIFIER_TAUS_S = (1000.0, 300.0, 100.0, 30.0, 10.0, 3.0)
 
-        return data.cache.get("leakage_integral", make)
+    def grid(self, data: EvalData) -> list[Any]:
+        longest = max(r.current_a.size * r.dt_s for r in data.runs)
+        return [0.0] + [1.0 / tau for tau in self.AMPLIFIER_TAUS_S if tau <= 2.0 * longest]
+
+    def refine(self) -> bool:
+        return True
+
+    def columns(self, data, value, y_field, model):
+        decay = float(value)
+
+        def make() -> np.ndarray:
+            q = [_core.leak_integral(_run_input(r), r.dt_s, decay)[r.start:] for r in data.runs]
+            return data.concat(q)[:, None]
+
+        return data.cache.get(("leakage_integral", decay), make)
 
     def update_path(self, path, value, own_beta, data):
         return path.with_correction(self, value, own_beta)
 
     @staticmethod
     def remove(y, value, beta, run):
-        u = run.current
-        return y - beta[0] * running_integral(u, np.arange(u.size) * run.dt)
+        return y - beta[0] * _core.leak_integral(run.current, run.dt, float(value))
 
     def params(self, value, beta, path):
-        return {"rate_per_s": float(beta[0])}
+        return {"rate_per_s": float(beta[0]), "decay_per_s": float(value)}
 
     # Every run left out, the others' coefficient on the input's integral must keep this share of the one over all.
     LEAVE_ONE_OUT_SHARE = 0.25
@@ -1322,7 +1332,8 @@ class Leakage(Effect):
         coefficient, in the same direction, with any one run left out. The misfit an after-effect leaves in one
         recording can follow that integral there (creep with t0 = 10 ms next to per-recording calibrations on the
         paper's protocol: leakage gained 5 % of a residual 1.17 × the noise), but not in the others."""
-        column = self.columns(fitter.data, None, None, None)[:, 0]
+        value = after.linear[-1][1] if after is not None and after.linear and after.linear[-1][0] is self else 0.0
+        column = self.columns(fitter.data, value, None, None)[:, 0]
         overall, weak = leave_one_run_out(fitter, before, column, self.LEAVE_ONE_OUT_SHARE)
         if not weak:
             return ""

@@ -115,6 +115,20 @@ def test_leakage_integrates_the_input_and_restarts_with_each_recording():
     assert abs(d2[0]) < 0.01
 
 
+def test_a_charge_amplifier_discharges_the_leakage_integral_towards_its_steady_charge():
+    # q' = u - decay q: held at 0.5 A with decay 0.5/s, the added output 2 N·mm/(A·s) × q settles at 2 × 0.5/0.5.
+    u = np.full(int(30 * FS), 0.5)
+    act = bmr.VirtualActuator("ideal", sample_rate_hz=FS,
+                              effects={"leakage": {"rate_per_s": 2.0, "decay_per_s": 0.5}})
+    ref = bmr.VirtualActuator("ideal", sample_rate_hz=FS)
+    d = act.run(u)["torque_nmm"] - ref.run(u)["torque_nmm"]
+    t = np.arange(u.size) / FS
+    np.testing.assert_allclose(d, 2.0 * (1.0 - np.exp(-0.5 * t)), atol=2e-3)
+    # The diagnosis's column is the same integral (of the input from the 0 A before the first sample).
+    q = bmr._core.leak_integral(np.concatenate([[0.0], u]), 1.0 / FS, 0.5)[1:]
+    np.testing.assert_allclose(d, 2.0 * q, rtol=0, atol=1e-9)
+
+
 def test_accommodation_drifts_repeated_minor_loops_and_saturation_wipes_it():
     verts = [1.25]
     for _ in range(8):

@@ -43,7 +43,7 @@ def test_vocabulary_and_parameter_listing():
                 "torque_ripple": {"eps", "phase_rad"}, "sensor_drift": {"rate_nmm_per_s"},
                 "time_delay": {"delay_s"}, "non_congruent": {"curvature", "scale_nmm", "cubic", "feedback"},
                 "creep": {"fraction", "tau_min_s", "tau_max_s", "fluctuation", "tau0_s"}, "rate_dependence": {"tau_s"},
-                "run_gain_offset": {"gain_sd", "offset_sd"}, "leakage": {"rate_per_s"},
+                "run_gain_offset": {"gain_sd", "offset_sd"}, "leakage": {"rate_per_s", "decay_per_s"},
                 "accommodation": {"kappa", "cycles"}, "viscous": {"c", "f_y", "v0"}}
     for name, keys in expected.items():
         assert set(params[name]["params"]) == keys
