@@ -69,6 +69,7 @@ __all__ = [
     "friction_series",
     "heating_state",
     "lag",
+    "leak_integral",
     "lead",
     "output_map",
     "output_map_inverse",
