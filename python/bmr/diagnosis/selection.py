@@ -1134,7 +1134,7 @@ def _needed_pair(fitter: Fitter, config: Configuration, cands: Sequence[Candidat
                      key=lambda c: -c.mean_gain)[:PAIR_CANDIDATES]
     # The second effect of a pair may improve only the folds the first does not dominate (a 6 ms delay and a
     # reptation: the delay's correction cancels the reptation's shifts in one time block, so either alone loses
-    # there): candidates that explain a quarter of some fold's excess join as second partners.
+    # there): the candidates that gain most in one fold, at least a quarter, join as second partners.
     partners = sorted((c for c in cands if c.fold_gains.size and c not in hopeful and not c.unphysical
                        and c.mean_gain > 0 and float(np.max(c.fold_gains)) >= MIN_EXCESS),
                       key=lambda c: -float(np.max(c.fold_gains)))[:PAIR_PARTNERS]
