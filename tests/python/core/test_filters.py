@@ -49,6 +49,8 @@ def test_heating_state_matches_the_plants_thermal_drift():
     lambda: _core.lead([1.0], 0.1, 0.0),
     lambda: _core.delay([1.0], math.nan, 1e-3),
     lambda: _core.heating_state([1.0], 1.0, 1e-3, 0.0),
+    lambda: _core.leak_integral([1.0], 1e-3, -0.1),
+    lambda: _core.leak_integral([1.0], 0.0),
 ])
 def test_bad_parameters_are_bmr_errors(call):
     with pytest.raises(bmr.BmrError):

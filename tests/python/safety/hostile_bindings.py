@@ -162,6 +162,7 @@ def _targets() -> list[tuple[str, object, dict[str, object]]]:
         ("friction_series", core.friction_series, {}),
         ("heating_state", core.heating_state, {"current_a": U, "tau_s": 0.1, "initial": 0.0}),
         ("lag", core.lag, {}),
+        ("leak_integral", core.leak_integral, {"x": U, "dt_s": 1e-3, "decay_per_s": 0.1}),
         ("lead", core.lead, {}),
         ("output_map", core.output_map, {}),
         ("output_map_inverse", core.output_map_inverse, {}),
