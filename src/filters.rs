@@ -1,6 +1,7 @@
 //! Per-sample filters shared by the virtual actuator, the compensator stages and the batch functions the Python
 //! diagnosis calls: the exact first-order lag, its exact inverse (lead), an integer-sample delay line, the
-//! coil heating state and the leakage integral of a charge measurement. `no_std`, allocation-free, the sample period fixed at construction.
+//! coil heating state and the leakage integral of a charge measurement. `no_std`, allocation-free, the sample
+//! period fixed at construction.
 //!
 //! The lag is the zero-order-hold discretisation of `y' = (x − y)/τ`: with the input held over a period `dt`,
 //! `y[n] = p·y[n−1] + (1 − p)·x[n]`, `p = exp(−dt/τ)`, exact for a held input (a converter's output is).
