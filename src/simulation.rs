@@ -47,7 +47,8 @@ pub struct Simulation<S, D, const N: usize, const K: usize> {
     drift_nmm_per_s: f64,
     t0_s: f64,
     index: u64,
-    /// Integral of the coil current since the reset (A·s, trapezoids) and the last coil current (`leakage`).
+    /// Leakage charge of the coil current since the reset (A·s, `filters::leak_step`) and the last coil current
+    /// (`leakage`).
     leak_integral: f64,
     last_coil: f64,
     /// The leakage integral's decay over one sample (`filters::leak_pole`).

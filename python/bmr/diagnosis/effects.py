@@ -635,28 +635,30 @@ class SensorDrift(Effect):
     def params(self, value, beta, path):
         return {"rate_nmm_per_s": float(beta[0])}
 
-    # Every run left out, the trend of the others must keep at least this share of the trend over all runs.
-    LEAVE_ONE_OUT_SHARE = 0.25
-
     def signature_missing(self, fitter: Any, before: Any, after: Any) -> str:
         """A sensor's zero moves with time all through the session: the residual of ``before``, fitted on a straight
-        line in time over all runs, keeps at least :attr:`LEAVE_ONE_OUT_SHARE` of that slope, in the same
+        line in time over all runs, keeps at least :data:`LEAVE_ONE_OUT_SHARE` of that slope, in the same
         direction, with any one run left out. A step between one recording and the others (the tables identified
         between them, a gain that the coils' heating changed in one run) tilts a line through all runs too, but
         not through the others."""
-        overall, weak = leave_one_run_out(fitter, before, fitter.data.t_abs, self.LEAVE_ONE_OUT_SHARE)
+        overall, weak = leave_one_run_out(fitter, before, fitter.data.t_abs)
         if not weak:
             return ""
         return (f"the trend ({overall:.3g} per s) comes from single recordings: without them the others keep "
                 f"{weak} of it")
 
 
-def leave_one_run_out(fitter: Any, before: Any, column: np.ndarray, share: float) -> tuple[float, str]:
+# Every run left out, the others' coefficient must keep at least this share of the one over all runs
+# (:func:`leave_one_run_out`).
+LEAVE_ONE_OUT_SHARE = 0.25
+
+
+def leave_one_run_out(fitter: Any, before: Any, column: np.ndarray) -> tuple[float, str]:
     """The residual of ``before`` fitted on ``column`` (one value per evaluated sample) plus a constant over all runs,
     and again with each run left out: the coefficient over all runs and the runs without which the others keep
-    less than ``share`` of it in the same direction (``"name: share, ..."``; empty when every run keeps it, when
-    the coefficient is zero or when there is a single run). A device's property acts in every recording; one
-    recording's own misfit tilts a fit through all runs but not through the others."""
+    less than :data:`LEAVE_ONE_OUT_SHARE` of it in the same direction (``"name: share, ..."``; empty when every run
+    keeps it, when the coefficient is zero or when there is a single run). A device's property acts in every
+    recording; one recording's own misfit tilts a fit through all runs but not through the others."""
     data = fitter.data
     residual, _ = fitter.fit(before.path, before.linear)
     ok = np.isfinite(residual) & np.isfinite(column)
@@ -676,7 +678,7 @@ def leave_one_run_out(fitter: Any, before: Any, column: np.ndarray, share: float
         rest = ok.copy()
         rest[bounds[j]:bounds[j + 1]] = False
         kept = coefficient(rest) / overall
-        if math.isfinite(kept) and kept < share:
+        if math.isfinite(kept) and kept < LEAVE_ONE_OUT_SHARE:
             weak.append(f"{run.name}: {kept:.2f}")
     return overall, ", ".join(weak)
 
@@ -1325,18 +1327,15 @@ class Leakage(Effect):
     def params(self, value, beta, path):
         return {"rate_per_s": float(beta[0]), "decay_per_s": float(value)}
 
-    # Every run left out, the others' coefficient on the input's integral must keep this share of the one over all.
-    LEAVE_ONE_OUT_SHARE = 0.25
-
     def signature_missing(self, fitter: Any, before: Any, after: Any) -> str:
         """A leakage is the device's: every recording integrates its input at the same rate. The residual of
-        ``before`` fitted on the running integral of the input keeps at least :attr:`LEAVE_ONE_OUT_SHARE` of its
+        ``before`` fitted on the running integral of the input keeps at least :data:`LEAVE_ONE_OUT_SHARE` of its
         coefficient, in the same direction, with any one run left out. The misfit an after-effect leaves in one
         recording can follow that integral there (creep with t0 = 10 ms next to per-recording calibrations on the
         paper's protocol: leakage gained 5 % of a residual 1.17 × the noise), but not in the others."""
         value = after.linear[-1][1] if after is not None and after.linear and after.linear[-1][0] is self else 0.0
         column = self.columns(fitter.data, value, None, None)[:, 0]
-        overall, weak = leave_one_run_out(fitter, before, column, self.LEAVE_ONE_OUT_SHARE)
+        overall, weak = leave_one_run_out(fitter, before, column)
         if not weak:
             return ""
         return (f"the integral's coefficient ({overall:.3g} per s) comes from single recordings: without them the "

@@ -231,15 +231,19 @@ def test_a_transport_delay_is_named_next_to_reptation():
     assert abs(delay["delay_s"] - truth) <= 0.25 * truth, delay
 
 
+# A 6 ms delay next to a reptation reaching 60 % of its shift per reversal (constants the calibration does not use).
+SHORT_DELAY_FAST_REPTATION = {"fractional_delay": {"delay_s": 0.006},
+                              "reptation": {"share": 0.08, "per_reversal": 0.6}}
+
+
 def test_a_short_delay_next_to_a_faster_reptation_is_named_on_the_papers_protocol():
     # A 6 ms delay and a reptation reaching 60 % of its shift per reversal: in the time block of the multi-peak
     # run the delay's correction cancels the reptation's shifts (-18 %), so the delay alone was refused (gains 78,
     # -18, 71, 6, 13 %), and the reptation, which gains in that block only, was never tried next to it: nothing was
     # named and 11.6 N·mm (noise 1.48) left.
-    mechanisms = {"fractional_delay": {"delay_s": 0.006}, "reptation": {"share": 0.08, "per_reversal": 0.6}}
-    d = bmr.diagnose(ip.independent_bundle(mechanisms, seed=SEED, protocol="coarse"), progress=False,
-                     closed_loop=False)
-    _assert_named(d, list(mechanisms))
+    d = bmr.diagnose(ip.independent_bundle(SHORT_DELAY_FAST_REPTATION, seed=SEED, protocol="coarse"),
+                     progress=False, closed_loop=False)
+    _assert_named(d, list(SHORT_DELAY_FAST_REPTATION))
     assert d.residual_rms < 0.5 * d.nominal_heldout_rms, (d.residual_rms, d.nominal_heldout_rms)
 
 
@@ -247,9 +251,9 @@ def test_a_delay_that_explains_more_than_the_coil_lag_in_every_fold_is_not_passe
     # The same pair on the diagnosis protocol, seed 2000: after the reptation, the delay gains 38 % held out with
     # every fold at least as much as the coil lag's 27 %, but spread wider (its 95 % interval reached -0.002), so the
     # lag alone was accepted and named (wrong; 4.93 N·mm left, 4.09 with the delay).
-    mechanisms = {"fractional_delay": {"delay_s": 0.006}, "reptation": {"share": 0.08, "per_reversal": 0.6}}
-    d = bmr.diagnose(ip.independent_bundle(mechanisms, seed=2000), progress=False, closed_loop=False)
-    _assert_named(d, list(mechanisms))
+    d = bmr.diagnose(ip.independent_bundle(SHORT_DELAY_FAST_REPTATION, seed=2000), progress=False,
+                     closed_loop=False)
+    _assert_named(d, list(SHORT_DELAY_FAST_REPTATION))
 
 
 def test_a_charge_amplifier_that_discharges_in_seconds_is_leakage_not_creep():
