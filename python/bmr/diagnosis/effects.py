@@ -264,8 +264,11 @@ class NonCongruent(Effect):
     CUBICS = (-0.25, -0.12, 0.06, 0.12, 0.2, 0.3, 0.45, 0.65, 0.9, 1.3, 1.9, 2.8)
     # Mean-field feedback as a share of the full current (input units per full-scale output); positive:
     # magnetizing. Bounded above by the single-valued loop (see outside_physics). Every value is an input history
-    # of its own (a regression prepared again): a short family, scanned whole and refined by golden section.
-    FEEDBACKS = (-0.12, 0.06, 0.14, 0.24)
+    # of its own (a regression prepared again): scanned coarse to fine like the map's families, refined by golden
+    # section. The full-scale output S is the nominal tables' largest output, counted from the off-state's
+    # remanence, so it can be well above the core's own saturation: a moving Preisach with 0.3 A per 600 N·mm of
+    # core output on a 1.25 A drive is 0.42 of the full current over the S = 1050 N·mm its tables give.
+    FEEDBACKS = (-0.24, -0.17, -0.12, -0.06, 0.06, 0.14, 0.24, 0.36, 0.5)
     # The residual's mean square on the higher-order reversal curves (reversal order 2 and above, the curves the
     # first-order tables do not measure) must exceed that on the major loop and the first-order curves by this
     # share of the noise floor's square.
