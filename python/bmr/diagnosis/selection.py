@@ -859,19 +859,25 @@ def _chosen_where_it_acts(acting: dict[int, np.ndarray], best: list[int]) -> lis
     return [keys[int(np.argmin(table[:, k]))] if best[k] in acting else best[k] for k in range(len(best))]
 
 
-def _masked_train_sse(fitter: Fitter, path: FieldPath, linear: Sequence[tuple[Effect, Any]], mask: np.ndarray,
-                      ff: FoldFit) -> np.ndarray:
-    """Training sums of squares of each fold over its training rows inside ``mask`` (the fit rows of the other
-    folds), each fold with the parameters ``ff`` fitted on its training blocks."""
+def _masked_rows(fitter: Fitter, path: FieldPath, linear: Sequence[tuple[Effect, Any]], mask: np.ndarray
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Over the fit rows inside ``mask``, in fold order: the measured output less the path's field torque, the
+    design rows and each row's fold."""
     data = fitter.data
     x, y = fitter.design(path, linear)
     rows = data.fit_rows
     inside = np.flatnonzero(mask[rows])
-    fold_of = np.searchsorted(data.fold_bounds, inside, side="right") - 1
     sel = rows[inside]
-    target, design = fitter.measured[sel] - y[sel], x[sel]
-    out = np.empty(data.folds)
-    for k in range(data.folds):
+    return fitter.measured[sel] - y[sel], x[sel], np.searchsorted(data.fold_bounds, inside, side="right") - 1
+
+
+def _masked_train_sse(fitter: Fitter, path: FieldPath, linear: Sequence[tuple[Effect, Any]], mask: np.ndarray,
+                      ff: FoldFit) -> np.ndarray:
+    """Training sums of squares of each fold over its training rows inside ``mask`` (the fit rows of the other
+    folds), each fold with the parameters ``ff`` fitted on its training blocks."""
+    target, design, fold_of = _masked_rows(fitter, path, linear, mask)
+    out = np.empty(fitter.data.folds)
+    for k in range(out.size):
         train = fold_of != k
         r = target[train] - design[train] @ ff.beta[k]
         out[k] = float(np.dot(r, r)) if np.all(np.isfinite(r)) else np.inf
@@ -882,15 +888,12 @@ def _masked_test_sse(fitter: Fitter, path: FieldPath, linear: Sequence[tuple[Eff
                      fold: int | None = None) -> np.ndarray:
     """Held-out sums of squares of each fold (or only ``fold``; the others 0) over its rows inside ``mask``, each
     fold with the parameters fitted on its training blocks."""
-    data = fitter.data
     ff = fitter.solve(path, linear)
-    x, y = fitter.design(path, linear)
-    b, rows = data.fold_bounds, data.fit_rows
-    out = np.zeros(data.folds)
-    for k in range(data.folds) if fold is None else [fold]:
-        sel = rows[b[k]:b[k + 1]]
-        sel = sel[mask[sel]]
-        r = fitter.measured[sel] - y[sel] - x[sel] @ ff.beta[k]
+    target, design, fold_of = _masked_rows(fitter, path, linear, mask)
+    out = np.zeros(fitter.data.folds)
+    for k in range(out.size) if fold is None else [fold]:
+        held = fold_of == k
+        r = target[held] - design[held] @ ff.beta[k]
         out[k] = float(np.dot(r, r)) if np.all(np.isfinite(r)) else np.inf
     return out
 
