@@ -398,9 +398,11 @@ def fit_everett(
     max_iter: int = 500,
     drift: Sequence[np.ndarray] | None = None,
     signed: bool = False,
+    diagonal_smoothing: float = 0.0,
 ) -> EverettFit:
     """Regularised NNLS Everett table from runs ``(u, y, weight, offset_col[, history[, gain]])``, with one
-    shared coefficient of a per-run ``drift`` regressor when given; ``signed``: masses free in sign."""
+    shared coefficient of a per-run ``drift`` regressor when given; ``signed``: masses free in sign;
+    ``diagonal_smoothing``: share of the smoothness penalty along the diagonal (equal ``α − β``), in [0, 1]."""
 
 @final
 class EverettFit:
@@ -442,6 +444,7 @@ class EverettRegression:
         smoothing: float = 1e-4,
         ridge: float = 1e-9,
         max_iter: int = 500,
+        diagonal_smoothing: float = 0.0,
     ) -> Self: ...
     @property
     def n_rows(self) -> int: ...
@@ -470,6 +473,7 @@ class EverettFolds:
         max_iter: int = 500,
         warm_start: Sequence[bool] | np.ndarray | None = None,
         signed: bool = False,
+        diagonal_smoothing: float = 0.0,
     ) -> list[tuple[float, float]]: ...
 
 EFFECTS: tuple[str, ...]

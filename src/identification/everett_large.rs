@@ -161,7 +161,7 @@ impl EverettRows {
         if y.is_empty() {
             return Err(IdentificationError::NoSamples);
         }
-        let (pairs, trace_d) = smoothness_pairs(grid);
+        let (pairs, trace_d) = smoothness_pairs(grid, 0.0);
         Ok(Self {
             grid: grid.clone(),
             n_nodes,
@@ -315,8 +315,16 @@ impl EverettRows {
         drop(gy);
         // Regularisation weights as the dense path takes them (tr Q over the node block).
         let trace_q = diag[..nn].iter().sum::<f64>().max(f64::MIN_POSITIVE);
-        let lambda_s = if options.smoothing > 0.0 && self.trace_d > 0.0 {
-            options.smoothing * trace_q / self.trace_d
+        // The isotropic pairs are kept; a diagonal share makes its own.
+        let other;
+        let (pairs, trace_d) = if options.diagonal_smoothing == 0.0 {
+            (&self.pairs[..], self.trace_d)
+        } else {
+            other = smoothness_pairs(&self.grid, options.diagonal_smoothing);
+            (&other.0[..], other.1)
+        };
+        let lambda_s = if options.smoothing > 0.0 && trace_d > 0.0 {
+            options.smoothing * trace_q / trace_d
         } else {
             0.0
         };
@@ -331,7 +339,7 @@ impl EverettRows {
         for d in &mut diag[..nn] {
             *d += lambda_r;
         }
-        for &((a, sa), (b, sb)) in &self.pairs {
+        for &((a, sa), (b, sb)) in pairs {
             diag[a] += lambda_s * sa * sa;
             diag[b] += lambda_s * sb * sb;
         }
@@ -375,7 +383,7 @@ impl EverettRows {
                 *o += lambda_r * vi;
             }
             if lambda_s > 0.0 {
-                for &((a, sa), (b, sb)) in &self.pairs {
+                for &((a, sa), (b, sb)) in pairs {
                     let d = lambda_s * (sa * v[a] - sb * v[b]);
                     out[a] += sa * d;
                     out[b] -= sb * d;

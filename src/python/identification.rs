@@ -392,7 +392,8 @@ fn drift_columns(drift: Option<Vec<Array<'_>>>, runs: usize) -> PyResult<Vec<Vec
 /// regressor whose single coefficient is fitted with the table (e.g. the running integral of the input for a
 /// leakage), reported as `EverettFit.drift`. Returns an `EverettFit`.
 #[pyfunction]
-#[pyo3(signature = (grid, runs, n_offsets=1, *, smoothing=1e-4, ridge=1e-9, max_iter=500, drift=None, signed=false))]
+#[pyo3(signature = (grid, runs, n_offsets=1, *, smoothing=1e-4, ridge=1e-9, max_iter=500, drift=None, signed=false,
+                    diagonal_smoothing=0.0))]
 #[allow(clippy::too_many_arguments)]
 fn fit_everett<'py>(
     py: Python<'py>,
@@ -404,6 +405,7 @@ fn fit_everett<'py>(
     max_iter: usize,
     drift: Option<Vec<Array<'py>>>,
     signed: bool,
+    diagonal_smoothing: f64,
 ) -> PyResult<PyEverettFit> {
     let grid = EverettGrid::new(extract_f64_array(&grid, "grid")?)
         .map_err(|e| identification_err("Everett table fit", e))?;
@@ -418,6 +420,7 @@ fn fit_everett<'py>(
         ridge,
         max_iter,
         signed,
+        diagonal_smoothing,
     };
     let fit = py
         .detach(|| {
@@ -631,7 +634,9 @@ impl PyEverettFolds {
     /// Every fold's held-out `(sse, weight)` (output units², row weights) of the table fitted on the rest with
     /// this `smoothing` and `ridge`; each fold's solve is warm-started from its solve at the nearest smoothing,
     /// its first one from `warm_start` (a passive set of `n_unknowns` entries, e.g. a fit of the whole).
-    #[pyo3(signature = (smoothing=1e-4, *, ridge=1e-9, max_iter=500, warm_start=None, signed=false))]
+    #[pyo3(signature = (smoothing=1e-4, *, ridge=1e-9, max_iter=500, warm_start=None, signed=false,
+                        diagonal_smoothing=0.0))]
+    #[allow(clippy::too_many_arguments)]
     fn score(
         &mut self,
         py: Python<'_>,
@@ -640,12 +645,14 @@ impl PyEverettFolds {
         max_iter: usize,
         warm_start: Option<Vec<bool>>,
         signed: bool,
+        diagonal_smoothing: f64,
     ) -> PyResult<Vec<(f64, f64)>> {
         let options = EverettFitOptions {
             smoothing,
             ridge,
             max_iter,
             signed,
+            diagonal_smoothing,
         };
         let inner = &mut self.inner;
         let scores = py
@@ -668,7 +675,9 @@ pub struct PyEverettRegression {
 #[pymethods]
 impl PyEverettRegression {
     #[new]
-    #[pyo3(signature = (grid, inputs, n_offsets=1, *, smoothing=1e-4, ridge=1e-9, max_iter=500))]
+    #[pyo3(signature = (grid, inputs, n_offsets=1, *, smoothing=1e-4, ridge=1e-9, max_iter=500,
+                        diagonal_smoothing=0.0))]
+    #[allow(clippy::too_many_arguments)]
     fn new(
         py: Python<'_>,
         grid: Array<'_>,
@@ -677,6 +686,7 @@ impl PyEverettRegression {
         smoothing: f64,
         ridge: f64,
         max_iter: usize,
+        diagonal_smoothing: f64,
     ) -> PyResult<Self> {
         let grid = EverettGrid::new(extract_f64_array(&grid, "grid")?)
             .map_err(|e| identification_err("Everett table fit", e))?;
@@ -695,6 +705,7 @@ impl PyEverettRegression {
             smoothing,
             ridge,
             max_iter,
+            diagonal_smoothing,
             ..EverettFitOptions::default()
         };
         let inner = py

@@ -31,6 +31,7 @@ import numpy as np
 from bmr import _core
 from bmr._core import BmrError, Hysteresis
 from bmr.identification.spans import SATURATION_TOL, evaluation_start
+from bmr.identification.table_choice import SWEEP_DEADBAND, fold_of_each_sample, pooled_rms, sweep_folds
 
 __all__ = ["FieldPath", "Reidentifier", "ProtocolRun", "lag", "delay", "output_map", "output_map_inverse",
            "steepest_slope"]
@@ -38,6 +39,17 @@ __all__ = ["FieldPath", "Reidentifier", "ProtocolRun", "lag", "delay", "output_m
 # Least-squares re-identification: table intervals and regression rows (speed vs resolution).
 REIDENTIFY_INTERVALS = 40
 REIDENTIFY_ROWS = 20_000
+REIDENTIFY_SMOOTHING = 1e-4
+# Shares of the smoothness penalty along the diagonal (equal switching width) tried for the re-identified tables,
+# the isotropic 0 first; one is taken when it predicts whole held-out sweeps of the protocol runs (a first-order
+# curve, a loop's branch) better by DIAGONAL_GAIN of their RMS. A narrow coercivity spread and a broad interaction
+# field (a hard steel) make a ridge along the diagonal that a few measured curves cross: the isotropic penalty
+# blurs it between them (a clean `rig_soft` bundle, 7 curves per family: 2.43 N·mm held out, noise 1.48; 0.9 along
+# the diagonal: 2.06). The whole penalty along it (1.75) leaves the density free across the diagonal, and what a
+# per-recording calibration left there an output map took: a wrong name.
+DIAGONAL_SHARES = (0.0, 0.5, 0.9)
+DIAGONAL_GAIN = 0.02
+DIAGONAL_FOLDS = 3
 # Identifications of a rate-dependent path's tables with the slopes of the tables identified before (see
 # Reidentifier.settle_slopes): 2 passes left a coil lag to name beside a dynamic field, 4 none.
 RATE_SLOPE_PASSES = 4
@@ -207,6 +219,46 @@ class Reidentifier:
         lo, hi = model.hysteresis.input_range
         self.input_range = (float(lo), float(hi))
         self.runs = [ProtocolRun(r, t0_s, model, context) for r, t0_s in self.protocol]
+        self._diagonal: tuple[float, dict[float, float]] | None = None
+
+    @property
+    def diagonal_smoothing(self) -> float:
+        """The share of the tables' smoothness penalty along the diagonal (:data:`DIAGONAL_SHARES`), chosen once per
+        diagnosis on the commanded current and the measured torque by whole held-out sweeps."""
+        return self.diagonal_choice[0]
+
+    @property
+    def diagonal_choice(self) -> tuple[float, dict[float, float]]:
+        """The chosen share and the held-out sweep RMS (output units) of each share tried (empty: not tried)."""
+        if self._diagonal is None:
+            self._diagonal = self._choose_diagonal()
+        return self._diagonal
+
+    @property
+    def diagonal_chosen(self) -> tuple[float, dict[float, float]] | None:
+        """:attr:`diagonal_choice` once it was made (None before any table was identified again)."""
+        return self._diagonal
+
+    def _choose_diagonal(self) -> tuple[float, dict[float, float]]:
+        inputs, weights = self._inputs(FieldPath.nominal(self.model))
+        if not inputs:
+            return 0.0, {}
+        lo, hi = self.input_range
+        masks = sweep_folds(inputs, weights, SWEEP_DEADBAND * (hi - lo), DIAGONAL_FOLDS)
+        if sum(1 for fold in masks if any(np.count_nonzero(w[m]) for w, m in zip(weights, fold))) < 2:
+            return 0.0, {}
+        data = [(u, np.ascontiguousarray(pr.torque), w, fold_of_each_sample(masks, k), k, np.zeros(0), 1.0)
+                for k, (u, w, pr) in enumerate(zip(inputs, weights, self.runs))]
+        try:
+            folds = _core.EverettFolds(np.linspace(lo, hi, REIDENTIFY_INTERVALS + 1), data, len(data), len(masks))
+            rms = {share: pooled_rms(folds.score(REIDENTIFY_SMOOTHING, ridge=1e-9, diagonal_smoothing=share))
+                   for share in DIAGONAL_SHARES}
+        except BmrError:
+            return 0.0, {}
+        best = min(rms, key=lambda share: (rms[share], share))
+        if not rms[best] <= (1.0 - DIAGONAL_GAIN) * rms[0.0]:
+            best = 0.0
+        return best, rms
 
     def release(self) -> None:
         """Drop the prepared regressions (tens of MB each on a long bundle) once no more tables will be
@@ -308,6 +360,17 @@ class Reidentifier:
     def _prepare(self, path: "FieldPath", slope_core: Any) -> Any:
         """:meth:`_regression` built (not cached)."""
         lo, hi = self.input_range
+        inputs, weights = self._inputs(path, slope_core)
+        # One output offset per protocol run: each is its own recording (a zero or a remanence of its own).
+        return _core.EverettRegression(np.linspace(lo, hi, REIDENTIFY_INTERVALS + 1),
+                                       [(u, w, k) for k, (u, w) in enumerate(zip(inputs, weights))], len(inputs),
+                                       smoothing=REIDENTIFY_SMOOTHING, ridge=1e-9,
+                                       diagonal_smoothing=self.diagonal_smoothing)
+
+    def _inputs(self, path: "FieldPath", slope_core: Any = None) -> tuple[list[np.ndarray], list[np.ndarray]]:
+        """The core's input of every protocol run under ``path`` and its row weights (zero before the state is
+        known, at the output's rails and between the rows kept)."""
+        lo, hi = self.input_range
         inputs, weights = [], []
         for pr in self.runs:
             u = pr.current
@@ -330,10 +393,7 @@ class Reidentifier:
             keep = np.zeros(w.size, dtype=bool)
             keep[np.flatnonzero(w)[::stride]] = True
             w[~keep] = 0.0
-        # One output offset per protocol run: each is its own recording (a zero or a remanence of its own).
-        return _core.EverettRegression(np.linspace(lo, hi, REIDENTIFY_INTERVALS + 1),
-                                       [(u, w, k) for k, (u, w) in enumerate(zip(inputs, weights))], len(inputs),
-                                       smoothing=1e-4, ridge=1e-9)
+        return inputs, weights
 
     def _identify(self, path: "FieldPath") -> Curves:
         """Core tables identified again from the protocol runs as the core sees them — current through the delay

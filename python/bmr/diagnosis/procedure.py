@@ -122,6 +122,7 @@ class Diagnosis:
     closed_loop: dict[str, Any] | None = None
     alternatives: list[Alternative] = field(default_factory=list)
     identification_drift: dict[str, float] | None = None
+    reidentified_tables: dict[str, Any] | None = None
     history: list[HistoryFindings] = field(default_factory=list)
     output_rails: OutputRails = field(default_factory=OutputRails)
     wall_time_s: float = 0.0
@@ -174,6 +175,7 @@ class Diagnosis:
             "closed_loop": self.closed_loop,
             "alternatives": [a.to_dict() for a in self.alternatives],
             "identification_drift": self.identification_drift,
+            "reidentified_tables": self.reidentified_tables,
             "history": [h.to_dict() for h in self.history],
             "output_rails": self.output_rails.to_dict() if self.output_rails.any else None,
             "folds": self.folds,
@@ -223,6 +225,17 @@ def nominal_model(bundle: Bundle) -> Any:
     # The fixed default resolution and smoothing: the paper's model, not one tuned by cross-validation.
     return identify(bundle, method="lstsq", max_order=NOMINAL_FRICTION_ORDER, subdivisions=1, drift="auto",
                     n_intervals=DEFAULT_INTERVALS, smoothing=DEFAULT_SMOOTHING)
+
+
+def _reidentified_tables(reidentifier: Any) -> dict[str, Any] | None:
+    """How the least-squares tables of the protocol runs were regularised: the share of the smoothness penalty
+    along the diagonal and the held-out sweep RMS of each share tried (None when none was tried)."""
+    if reidentifier.diagonal_chosen is None:
+        return None
+    share, rms = reidentifier.diagonal_chosen
+    if not rms:
+        return None
+    return {"diagonal_smoothing": share, "sweep_rms": [{"diagonal_smoothing": k, "rms": v} for k, v in rms.items()]}
 
 
 @one_blas_thread
@@ -339,7 +352,8 @@ def diagnose(bundle: Bundle | str | Path, model: Any = None, *, folds: int = 5, 
                   seed=seed, wall_time_s=0.0, model=model, extended_model=ext_model, signals=signals,
                   quantities=bundle.quantities, noise=data.noise.to_dict(), learned=learned,
                   alternatives=sel["alternatives"], identification_drift=_identification_drift(model),
-                  history=history, output_rails=data.rails)
+                  reidentified_tables=_reidentified_tables(fitter.reidentifier), history=history,
+                  output_rails=data.rails)
     # What each extension does: held-out prediction for all, closed-loop tracking for those the compensator undoes.
     rows = {e["name"]: e for e in accepted}
     for entry in ext_model.extensions:
