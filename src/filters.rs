@@ -27,6 +27,18 @@ pub fn leak_pole(dt_s: f64, decay_per_s: f64) -> f64 {
     }
 }
 
+/// A torque sensor's zero drift at time `t_s` (s from the device's start) per unit of its initial rate: `t` for a
+/// drift that never settles (`settle_per_s` 0 or less), `(1 − e^(−settle·t))/settle` for a strain bridge warming up
+/// towards its final zero, which it approaches with time constant `1/settle_per_s`.
+#[inline]
+pub fn drift_offset(t_s: f64, settle_per_s: f64) -> f64 {
+    if settle_per_s > 0.0 {
+        -libm::expm1(-settle_per_s * t_s) / settle_per_s
+    } else {
+        t_s
+    }
+}
+
 /// One sample of the charge a leakage current `x` leaves on a charge amplifier whose feedback discharges it
 /// (`q' = x − decay·q`, `pole` from [`leak_pole`]): trapezoids of the input, the older end and the charge before
 /// decayed over the period, `q[n] = p·q[n−1] + dt/2·(x[n] + p·x[n−1])`. With `pole` 1 exactly the trapezoid rule.

@@ -45,6 +45,7 @@ pub struct Simulation<S, D, const N: usize, const K: usize> {
     dt_s: f64,
     offset_nmm: f64,
     drift_nmm_per_s: f64,
+    drift_settle_per_s: f64,
     t0_s: f64,
     index: u64,
     /// Leakage charge of the coil current since the reset (A·s, `filters::leak_step`) and the last coil current
@@ -75,12 +76,13 @@ impl<S: AsRef<[f64]>, D: AsRef<[f64]> + AsMut<[f64]>, const N: usize, const K: u
             return Err(StageError::Scale("delay storage (samples)", samples as f64));
         };
         let mut offset_nmm = 0.0;
-        let mut drift_nmm_per_s = 0.0;
+        let (mut drift_nmm_per_s, mut drift_settle_per_s) = (0.0, 0.0);
         for p in effects {
             if p.spec.name == "offset" {
                 offset_nmm = p.values()[0];
             } else if p.spec.name == EffectKind::SensorDrift.name() {
                 drift_nmm_per_s = p.values()[0];
+                drift_settle_per_s = p.values()[1];
             }
         }
         Ok(Simulation {
@@ -92,6 +94,7 @@ impl<S: AsRef<[f64]>, D: AsRef<[f64]> + AsMut<[f64]>, const N: usize, const K: u
             dt_s,
             offset_nmm,
             drift_nmm_per_s,
+            drift_settle_per_s,
             t0_s: 0.0,
             index: 0,
             leak_integral: 0.0,
@@ -198,7 +201,7 @@ impl<S: AsRef<[f64]>, D: AsRef<[f64]> + AsMut<[f64]>, const N: usize, const K: u
             torque_nmm,
             measured_nmm: torque_nmm
                 + self.offset_nmm
-                + self.drift_nmm_per_s * t_s
+                + self.drift_nmm_per_s * crate::filters::drift_offset(t_s, self.drift_settle_per_s)
                 + self.stages.leak_per_s * self.leak_integral,
         }
     }

@@ -209,9 +209,12 @@ vocabulary! {
         [p("eps", "1", 0.05, 0.0, 0.9, "relative field-torque modulation"),
          p("phase_rad", "rad", 0.0, -1e3, 1e3, "phase of the once-per-revolution modulation")];
     SensorDrift = "sensor_drift", Sensor, NOT_IN_LOOP, NO_ANGLE,
-        "The torque sensor offset drifts linearly with time at rate_nmm_per_s (from the actuator's start). \
-         Signature: a trend in zero-torque segments.",
-        [p("rate_nmm_per_s", "N·mm/s", 0.02, -1e3, 1e3, "offset drift rate")];
+        "The torque sensor offset drifts with time from the actuator's start at rate_nmm_per_s, linearly, or \
+         settling as a strain bridge warms up: rate_nmm_per_s * (1 - exp(-settle_per_s * t)) / settle_per_s \
+         (0: a drift that never settles). Signature: a trend in zero-torque segments.",
+        [p("rate_nmm_per_s", "N·mm/s", 0.02, -1e3, 1e3, "offset drift rate at the start"),
+         p("settle_per_s", "1/s", 0.0, 0.0, 1.0,
+           "rate at which the drift settles (1/the warm-up time constant; 0: linear)")];
     TimeDelay = "time_delay", Current,
         stage(1, PERIOD, "the last references and angles (output units, rad)"), NO_ANGLE,
         "Pure delay of delay_s (rounded to whole samples) between the commanded current and the coils. \

@@ -70,6 +70,7 @@ __all__ = [
     "heating_state",
     "lag",
     "leak_integral",
+    "drift_offset",
     "lead",
     "output_map",
     "output_map_inverse",
@@ -517,6 +518,10 @@ def heating_state(current_a: _ArrayLike, tau_s: float, dt_s: float, full_current
 def leak_integral(x: _ArrayLike, dt_s: float, decay_per_s: float = 0.0) -> np.ndarray:
     """The leakage integral of ``x`` from its first sample (0 there): ``q' = x − decay·q`` by trapezoids, the
     charge a leakage current leaves on a charge amplifier discharging it at ``decay_per_s`` (0: ``∫x dt``)."""
+
+def drift_offset(t_s: _ArrayLike, settle_per_s: float = 0.0) -> np.ndarray:
+    """A sensor's zero drift per unit of its initial rate at times ``t_s`` (s from the device's start): ``t``, or
+    ``(1 − e^(−settle·t))/settle`` for a drift settling at ``settle_per_s`` (a strain bridge warming up)."""
 
 def creep_relaxation(v: _ArrayLike, taus_s: _ArrayLike, dt_s: float) -> np.ndarray:
     """Mean over ``taus_s`` of ``lag(v, τ) − v`` per sample (exact lags from rest at ``v[0]``): the creep output of

@@ -225,6 +225,7 @@ pub struct VirtualDevice {
     thermal_tau_s: f64,
     heating: Heating,
     drift_per_s: f64,
+    drift_settle_per_s: f64,
     leak_per_s: f64,
     /// The leakage integral's decay over one sample (`filters::leak_pole`; 1: an ideal integrator).
     leak_pole: f64,
@@ -252,6 +253,7 @@ impl VirtualDevice {
         let mut feedback = 0.0;
         let (mut thermal_loss, mut thermal_tau_s, mut drift, mut leak) = (0.0, 0.0, 0.0, 0.0);
         let mut leak_pole = 1.0;
+        let mut drift_settle = 0.0;
         let mut run_gain_offset = None;
         let mut viscous = (0.0, 0.0, 1.0);
         for e in config.effects.iter() {
@@ -297,7 +299,13 @@ impl VirtualDevice {
                     thermal_loss = gain_loss;
                     thermal_tau_s = tau_s;
                 }
-                Effect::SensorDrift { rate_nmm_per_s } => drift = rate_nmm_per_s,
+                Effect::SensorDrift {
+                    rate_nmm_per_s,
+                    settle_per_s,
+                } => {
+                    drift = rate_nmm_per_s;
+                    drift_settle = settle_per_s;
+                }
                 Effect::Leakage {
                     rate_per_s,
                     decay_per_s,
@@ -333,6 +341,7 @@ impl VirtualDevice {
             thermal_tau_s,
             heating: Heating::new(thermal_tau_s, dt_s, half, 0.0),
             drift_per_s: drift,
+            drift_settle_per_s: drift_settle,
             leak_per_s: leak,
             leak_pole,
             leak_integral: 0.0,
@@ -452,7 +461,7 @@ impl VirtualDevice {
         self.last_applied = applied;
         let sensed = self.run_gain * (y + self.leak_per_s * self.leak_integral)
             + self.run_offset
-            + self.drift_per_s * t_s;
+            + self.drift_per_s * crate::filters::drift_offset(t_s, self.drift_settle_per_s);
         let measured = sensed
             + cfg.noise
                 * if cfg.noise > 0.0 {

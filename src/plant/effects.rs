@@ -41,6 +41,7 @@ pub enum Effect {
     },
     SensorDrift {
         rate_nmm_per_s: f64,
+        settle_per_s: f64,
     },
     TimeDelay {
         delay_s: f64,
@@ -133,6 +134,7 @@ impl Effect {
             },
             EffectKind::SensorDrift => Effect::SensorDrift {
                 rate_nmm_per_s: v[0],
+                settle_per_s: v[1],
             },
             EffectKind::TimeDelay => Effect::TimeDelay { delay_s: v[0] },
             EffectKind::NonCongruent => Effect::NonCongruent {
@@ -189,7 +191,10 @@ impl Effect {
                 phase_rad,
             } => vec![order as f64, amplitude_nmm, phase_rad],
             Effect::TorqueRipple { eps, phase_rad } => vec![eps, phase_rad],
-            Effect::SensorDrift { rate_nmm_per_s } => vec![rate_nmm_per_s],
+            Effect::SensorDrift {
+                rate_nmm_per_s,
+                settle_per_s,
+            } => vec![rate_nmm_per_s, settle_per_s],
             Effect::TimeDelay { delay_s } => vec![delay_s],
             Effect::NonCongruent {
                 curvature,

@@ -266,6 +266,7 @@ struct ActiveEffects {
     harmonic: Option<(usize, f64, f64)>,
     ripple: Option<(f64, f64)>,
     drift_nmm_per_s: f64,
+    drift_settle_per_s: f64,
     delay_samples: usize,
     curvature: f64,
     /// Full-scale torque of the output map (0: the configuration's `full_torque_nmm`).
@@ -303,6 +304,7 @@ impl ActiveEffects {
             harmonic: None,
             ripple: None,
             drift_nmm_per_s: 0.0,
+            drift_settle_per_s: 0.0,
             delay_samples: 0,
             curvature: 0.0,
             curvature_scale_nmm: 0.0,
@@ -330,7 +332,13 @@ impl ActiveEffects {
                     phase_rad,
                 } => a.harmonic = Some((order as usize, amplitude_nmm, phase_rad)),
                 Effect::TorqueRipple { eps, phase_rad } => a.ripple = Some((eps, phase_rad)),
-                Effect::SensorDrift { rate_nmm_per_s } => a.drift_nmm_per_s = rate_nmm_per_s,
+                Effect::SensorDrift {
+                    rate_nmm_per_s,
+                    settle_per_s,
+                } => {
+                    a.drift_nmm_per_s = rate_nmm_per_s;
+                    a.drift_settle_per_s = settle_per_s;
+                }
                 Effect::TimeDelay { delay_s } => {
                     a.delay_samples = libm::round(delay_s / dt_s) as usize
                 }
@@ -847,7 +855,8 @@ impl VirtualActuator {
         }
         let friction_nmm = self.friction.with_terms(&angle, field1_a + field2_a);
         let torque_true_nmm = field + friction_nmm;
-        let drift = self.fx.drift_nmm_per_s * t_s;
+        let drift =
+            self.fx.drift_nmm_per_s * crate::filters::drift_offset(t_s, self.fx.drift_settle_per_s);
         // What reaches the sensor: a charge-type measurement integrates the leakage (trapezoids of the applied
         // command), scaled and offset by this run's calibration.
         self.leak_integral = crate::filters::leak_step(

@@ -1,10 +1,10 @@
 //! Batch versions of the per-sample filters (`crate::filters`) for the Python diagnosis: `lag`, `lead`, `delay`,
-//! `heating_state`, `leak_integral`. Each runs the very filter the plant and the compensator step, over a whole
+//! `heating_state`, `leak_integral`, `drift_offset`. Each runs the very filter the plant and the compensator step, over a whole
 //! array.
 use numpy::PyArray1;
 use pyo3::prelude::*;
 
-use crate::filters::{DelayLine, Heating, Lag, Lead, leak_pole, leak_step};
+use crate::filters::{self, DelayLine, Heating, Lag, Lead, leak_pole, leak_step};
 use crate::python::BmrError;
 use crate::python::arrays::{DETACH_LEN, extract_f64_array, to_numpy};
 
@@ -151,11 +151,30 @@ fn leak_integral<'py>(
     }))
 }
 
+/// A torque sensor's zero drift per unit of its initial rate at times `t_s` (s from the device's start): `t`, or
+/// `(1 − e^(−settle·t))/settle` for a drift that settles at `settle_per_s` (a strain bridge warming up).
+#[pyfunction]
+#[pyo3(signature = (t_s, settle_per_s=0.0))]
+fn drift_offset<'py>(
+    py: Python<'py>,
+    t_s: &Bound<'py, PyAny>,
+    settle_per_s: f64,
+) -> PyResult<Bound<'py, PyArray1<f64>>> {
+    let settle = check("settle_per_s", settle_per_s, false)?;
+    let t = extract_f64_array(t_s, "t_s")?;
+    Ok(map_array(py, t, move |mut t| {
+        t.iter_mut()
+            .for_each(|v| *v = filters::drift_offset(*v, settle));
+        t
+    }))
+}
+
 pub(crate) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(lag, m)?)?;
     m.add_function(wrap_pyfunction!(lead, m)?)?;
     m.add_function(wrap_pyfunction!(delay, m)?)?;
     m.add_function(wrap_pyfunction!(heating_state, m)?)?;
     m.add_function(wrap_pyfunction!(leak_integral, m)?)?;
+    m.add_function(wrap_pyfunction!(drift_offset, m)?)?;
     Ok(())
 }

@@ -40,7 +40,7 @@ def test_vocabulary_and_parameter_listing():
     assert set(params) == set(bmr.EFFECTS)
     expected = {"coil_lag": {"tau_s"}, "thermal_drift": {"gain_loss", "tau_s"}, "friction_current": {"gain_per_a"},
                 "friction_harmonics": {"order", "amplitude_nmm", "phase_rad"},
-                "torque_ripple": {"eps", "phase_rad"}, "sensor_drift": {"rate_nmm_per_s"},
+                "torque_ripple": {"eps", "phase_rad"}, "sensor_drift": {"rate_nmm_per_s", "settle_per_s"},
                 "time_delay": {"delay_s"}, "non_congruent": {"curvature", "scale_nmm", "cubic", "feedback"},
                 "creep": {"fraction", "tau_min_s", "tau_max_s", "fluctuation", "tau0_s"}, "rate_dependence": {"tau_s"},
                 "run_gain_offset": {"gain_sd", "offset_sd"}, "leakage": {"rate_per_s", "decay_per_s"},
@@ -178,6 +178,23 @@ def test_sensor_drift_is_a_trend_in_the_measurement_only():
     assert np.max(np.abs(diff - 0.1 * t_abs)) <= q + 1e-9  # two roundings to the sensor's step
     slope = np.polyfit(t_abs, diff, 1)[0]
     assert slope == pytest.approx(0.1, rel=0.01)
+
+
+def test_a_warming_bridge_drifts_at_its_rate_and_settles():
+    # A strain bridge warming up with a 20 s time constant: 0.1 N·mm/s at the start, 2 N·mm in all.
+    zeros = np.zeros(int(100 * FS))
+    a, b, _ = _pair(zeros, {"sensor_drift": {"rate_nmm_per_s": 0.1, "settle_per_s": 0.05}})
+    _assert_same(a, b, UNCHANGED + ("torque_true_nmm", "field_torque_nmm", "friction_nmm"))
+    diff = b["torque_nmm"] - a["torque_nmm"]
+    want = 0.1 * -np.expm1(-0.05 * a["t_s"]) / 0.05
+    q = bmr.VirtualActuator("bmr2013").resolution_nmm
+    assert np.max(np.abs(diff - want)) <= q + 1e-9
+    np.testing.assert_allclose(bmr._core.drift_offset(a["t_s"], 0.05), -np.expm1(-0.05 * a["t_s"]) / 0.05, rtol=1e-13)
+    np.testing.assert_array_equal(bmr._core.drift_offset(a["t_s"]), a["t_s"])
+    with pytest.raises(bmr.BmrError, match="settle_per_s"):
+        bmr._core.drift_offset(a["t_s"], -1.0)
+    with pytest.raises(bmr.BmrError):
+        bmr.VirtualActuator("bmr2013", effects={"sensor_drift": {"rate_nmm_per_s": 0.1, "settle_per_s": 2.0}})
 
 
 def test_time_delay_shifts_the_command_without_widening_loops():
