@@ -180,5 +180,6 @@ def test_the_magnetometers_drift_is_named_as_its_calibration_points_measure_it(t
         duration += float(t[-1] - t[0]) + (float(t[1] - t[0]) if t.size > 1 else 0.0)
     measured, r2 = _calibration_drift(ds.paths()[0])
     assert r2 > 0.99, r2
-    named_drift = named["sensor_drift"]["rate_nmm_per_s"] * duration
+    drift = named["sensor_drift"]
+    named_drift = drift["rate_nmm_per_s"] * float(bmr._core.drift_offset([duration], drift["settle_per_s"])[0])
     assert 0.6 < named_drift / measured < 1.4, (named_drift, measured)
