@@ -761,6 +761,7 @@ def evaluate(fitter: Fitter, config: Configuration, eff: Effect, before: Heldout
             best = [int(np.argmin(settled_sse[:, k])) for k in range(data.folds)]
     if acting:
         best = _chosen_where_it_acts(acting, best)
+    best = _simplest_unless_beaten(fitter, config, eff, grid, best)
     if eff.gain_beyond_refitted_tables and not compared.path.reidentify:
         refitted = {i for i in set(best) if _with(config, eff, grid[i], data)[0].reidentify}
         if refitted:
@@ -819,6 +820,28 @@ def evaluate(fitter: Fitter, config: Configuration, eff: Effect, before: Heldout
         else:
             cand.local = Candidate(eff, np.zeros(len(folds)), 0.0, 0.0, values, data.noise_floor_nmm)
     return cand
+
+
+def _simplest_unless_beaten(fitter: Fitter, config: Configuration, eff: Effect, grid: Sequence[Any],
+                           best: list[int]) -> list[int]:
+    """The folds' chosen values (``best``), or the effect's simplest value in every fold (``Effect.simplest``)
+    unless the chosen ones predict their held-out blocks better than it in most folds, each fitted on its fold's
+    training blocks as the acceptance fits it (the tables identified again with the correction removed: on the
+    configuration's tables, which the effect itself bent, the extra parameter fits their error)."""
+    if eff.simplest is None or eff.simplest not in grid:
+        return best
+    s = list(grid).index(eff.simplest)
+    if all(b == s for b in best):
+        return best
+    folds = len(best)
+    beaten = 0
+    for k in range(folds):
+        if best[k] == s:
+            continue
+        chosen = _fit_with(fitter, config, eff, grid[best[k]], k)[0]
+        simple = _fit_with(fitter, config, eff, eff.simplest, k)[0]
+        beaten += int(chosen.sse_test[k] < simple.sse_test[k])
+    return best if beaten > folds // 2 else [s] * folds
 
 
 def _clearly_below(gain: Callable[[int, FoldFit], float], fits: Sequence[FoldFit | None], best: Sequence[int],
@@ -933,11 +956,16 @@ def _in_range(eff: Effect, config: Configuration, value: Any, ff: FoldFit, index
     return not out_of_range(eff.name, eff.params(value, own, _with(config, eff, value, data)[0]))
 
 
-def refit(fitter: Fitter, config: Configuration, eff: Effect) -> tuple[Configuration, dict[str, float]]:
+def refit(fitter: Fitter, config: Configuration, eff: Effect, chosen: Sequence[Any] | None = None
+          ) -> tuple[Configuration, dict[str, float]]:
     """``config`` plus ``eff`` fitted on all evaluation data: grid search, then (continuous parameters) a golden
-    section search between the neighbours of the best grid value."""
+    section search between the neighbours of the best grid value. ``chosen``: the values the folds chose when the
+    candidate was judged; where every fold kept the effect's simplest value (``Effect.simplest``), so does this
+    fit."""
     data = fitter.data
     grid = eff.grid(data)
+    if eff.simplest is not None and chosen and all(v == eff.simplest for v in chosen):
+        grid = [eff.simplest]
 
     def crit(cfg: Configuration, v: Any, settle: bool = False) -> float:
         # The information criterion of the fit on all data (as the selection ranks grid values).
@@ -1095,7 +1123,7 @@ def forward_selection(fitter: Fitter, *, library: Sequence[Effect] = LIBRARY, ma
         ok.sort(key=lambda c: -c.mean_gain)
         best = None
         for c in ok:
-            trial, params = refit(fitter, judged_on(config, c.effect), c.effect)
+            trial, params = refit(fitter, judged_on(config, c.effect), c.effect, c.values)
             bad = _unphysical(fitter, trial, field_effects + ([c.effect] if c.effect.field else []))
             if bad:
                 c.unphysical = "; ".join(f"{name}: {', '.join(v)}" for name, v in bad.items())
@@ -1192,7 +1220,7 @@ def _needed_pair(fitter: Fitter, config: Configuration, cands: Sequence[Candidat
 
     def with_(c: Candidate) -> Configuration:
         if c.effect.name not in alone:
-            alone[c.effect.name] = refit(fitter, config, c.effect)[0]
+            alone[c.effect.name] = refit(fitter, config, c.effect, c.values)[0]
         return alone[c.effect.name]
 
     for i, a in enumerate(hopeful):
@@ -1205,14 +1233,14 @@ def _needed_pair(fitter: Fitter, config: Configuration, cands: Sequence[Candidat
             a_given_b = evaluate(fitter, with_b, a.effect, heldout(fitter, with_b))
             if not a_given_b.accepted:
                 continue
-            both, _ = refit(fitter, with_a, b.effect)
+            both, _ = refit(fitter, with_a, b.effect, b_given_a.values)
             fields = list(field_effects) + [e.effect for e in (a, b) if e.effect.field]
             if _unphysical(fitter, both, fields):
                 continue
             # Each signature reads its own effect's columns last in the configuration it is given.
             if b.effect.signature_missing(fitter, with_a, both):
                 continue
-            if a.effect.signature_missing(fitter, with_b, refit(fitter, with_b, a.effect)[0]):
+            if a.effect.signature_missing(fitter, with_b, refit(fitter, with_b, a.effect, a_given_b.values)[0]):
                 continue
             params = _config_params(fitter, both, fields)
             return both, [(a_given_b, params[a.effect.name]), (b_given_a, params[b.effect.name])]
@@ -1255,7 +1283,7 @@ def _alternatives(fitter: Fitter, config: Configuration, best: Candidate, others
         lo, hi = float(np.mean(d)) - half, float(np.mean(d)) + half
         if lo > 0:
             continue
-        trial, _ = refit(fitter, config, c.effect)
+        trial, _ = refit(fitter, config, c.effect, c.values)
         if _unphysical(fitter, trial, list(field_effects) + ([c.effect] if c.effect.field else [])):
             continue
         # An alternative is a name too: its mechanism signature must be in the residual.
