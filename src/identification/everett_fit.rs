@@ -979,8 +979,21 @@ mod tests {
         assert!(err < 1e-4, "held-out error {err}");
     }
 
-    /// First-order reversal curves of `truth` at `reversals` (input from positive saturation down to each
-    /// reversal, then up again), concatenated after one major loop.
+    /// One run from negative saturation with one offset column, unit gain and no drift.
+    fn plain_run<'a>(u: &'a [f64], y: &'a [f64], w: &'a [f64]) -> EverettRun<'a> {
+        EverettRun {
+            u,
+            y,
+            weight: w,
+            offset_col: 0,
+            history: &[],
+            gain: 1.0,
+            drift: &[],
+        }
+    }
+
+    /// The input of one major loop, then a first-order reversal curve at each of `reversals` (from positive
+    /// saturation down to the reversal, then up again), `n` samples a sweep.
     fn forc_input(reversals: &[f64], n: usize) -> Vec<f64> {
         let mut u = triangle(200, &[1.0]);
         for &r in reversals {
@@ -1026,16 +1039,7 @@ mod tests {
                 diagonal_smoothing: diagonal,
                 ..Default::default()
             };
-            let run = EverettRun {
-                u: &u,
-                y: &y,
-                weight: &w,
-                offset_col: 0,
-                history: &[],
-                gain: 1.0,
-                drift: &[],
-            };
-            let fit = fit_everett(&grid, &[run], 1, opts).unwrap();
+            let fit = fit_everett(&grid, &[plain_run(&u, &y, &w)], 1, opts).unwrap();
             let got = fit.model.simulate(&test, None);
             let sse: f64 = want.iter().zip(&got).map(|(a, b)| (a - b) * (a - b)).sum();
             libm::sqrt(sse / want.len() as f64)
@@ -1102,16 +1106,7 @@ mod tests {
                 signed,
                 ..Default::default()
             };
-            let run = EverettRun {
-                u: &u,
-                y: &y,
-                weight: &w,
-                offset_col: 0,
-                history: &[],
-                gain: 1.0,
-                drift: &[],
-            };
-            fit_everett(&grid, &[run], 1, opts).unwrap()
+            fit_everett(&grid, &[plain_run(&u, &y, &w)], 1, opts).unwrap()
         };
         let signed = fit_with(true);
         assert!(signed.rms < 1e-6, "signed rms {}", signed.rms);
