@@ -1,6 +1,6 @@
 //! Batch versions of the per-sample filters (`crate::filters`) for the Python diagnosis: `lag`, `lead`, `delay`,
-//! `heating_state`, `leak_integral`, `drift_offset`. Each runs the very filter the plant and the compensator step, over a whole
-//! array.
+//! `heating_state`, `leak_integral`, `drift_offset`. Each runs the very filter the plant and the compensator step,
+//! over a whole array.
 use numpy::PyArray1;
 use pyo3::prelude::*;
 

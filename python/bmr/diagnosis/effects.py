@@ -80,6 +80,13 @@ class Effect(ABC):
     # line's training blocks predicted the piezo's held-out blocks worse: 0.0214 → 0.0266 µm).
     simplest: Any = None
 
+    def value_in(self, config: Any, default: Any) -> Any:
+        """This effect's grid value in ``config`` when it is the configuration's last linear effect (the candidate
+        just fitted), else ``default``."""
+        if config is not None and config.linear and config.linear[-1][0] is self:
+            return config.linear[-1][1]
+        return default
+
     @property
     def needs_angle(self) -> bool:
         """The effect lives on the rotor angle (seal friction, ripple): actuators only (the vocabulary says)."""
@@ -669,7 +676,7 @@ class SensorDrift(Effect):
         with any one run left out. A step between one recording and the others (the tables identified between
         them, a gain that the coils' heating changed in one run) tilts a line through all runs too, but not through
         the others."""
-        value = after.linear[-1][1] if after is not None and after.linear and after.linear[-1][0] is self else 0.0
+        value = self.value_in(after, 0.0)
         overall, weak = leave_one_run_out(fitter, before, self.columns(fitter.data, value, None, None)[:, 0])
         if not weak:
             return ""
@@ -1362,7 +1369,7 @@ class Leakage(Effect):
         coefficient, in the same direction, with any one run left out. The misfit an after-effect leaves in one
         recording can follow that integral there (creep with t0 = 10 ms next to per-recording calibrations on the
         paper's protocol: leakage gained 5 % of a residual 1.17 × the noise), but not in the others."""
-        value = after.linear[-1][1] if after is not None and after.linear and after.linear[-1][0] is self else 0.0
+        value = self.value_in(after, 0.0)
         column = self.columns(fitter.data, value, None, None)[:, 0]
         overall, weak = leave_one_run_out(fitter, before, column)
         if not weak:
