@@ -866,6 +866,10 @@ class Creep(Effect):
         return len(self._spectra(data)) + len(self.ONSETS_S), len(self.FRACTIONS)
 
     def adjust_path(self, path, value):
+        if value[2] == 0.0:
+            # Nothing removed: the tables of the path re-identified as they are (shared by every onset's zero).
+            kept = tuple(c for c in path.corrections if c[0] is not self)
+            return path.with_(corrections=kept, reidentify=True)
         return path.with_correction(self, value, (value[2],))
 
     @staticmethod
