@@ -435,7 +435,8 @@ class EverettFit:
 @final
 class EverettRegression:
     """The ``fit_everett`` least squares prepared for one input history (regressors and normal matrix built
-    once); ``fit`` identifies the table for any outputs of the same runs, optionally warm-started."""
+    once); ``fit`` identifies the table for any outputs of the same runs, each fit starting from the last one's
+    answer (``warm_start``: where the first fit starts)."""
     def __new__(
         cls,
         grid: _ArrayLike,

@@ -16,7 +16,7 @@ use alloc::vec::Vec;
 
 use super::error::{IdentificationError, RunError};
 use super::everett_regressors::{EverettGrid, NormalEquations, simulate_everett_from};
-use super::nnls::{NnlsSolution, nnls_gram_warm};
+use super::nnls::{NnlsSolution, PassiveFactor, nnls_gram_carried};
 use crate::from_curves::CurveData;
 use crate::limits::{self, MAX_CURVE_POINTS, MAX_SOLVER_ITERATIONS};
 
@@ -418,7 +418,14 @@ pub fn fit_everett(
     }
     ne.finish();
     let q = mass_space_matrix(grid, &ne, options)?;
-    let mut fit = solve(grid, &DataTerm::of(&ne, &ne.rhs, ne.yy), &q, options, None)?;
+    let (mut fit, _) = solve(
+        grid,
+        &DataTerm::of(&ne, &ne.rhs, ne.yy),
+        &q,
+        options,
+        None,
+        None,
+    )?;
     if with_drift {
         fit.drift = fit.offsets.pop();
     }
@@ -594,16 +601,26 @@ fn adjoint_rows(
 }
 
 /// Solve the nonnegative quadratic for the right-hand side of `data` (optionally warm-started from a passive
-/// set) and measure the data-term residual.
+/// set, and from the factor of a passive set an earlier solve of `q` handed back: [`nnls_gram_carried`]) and
+/// measure the data-term residual. Returns the fit and the factor of its passive set.
 pub(super) fn solve(
     grid: &EverettGrid,
     data: &DataTerm<'_>,
     q: &[f64],
     options: EverettFitOptions,
     warm_start: Option<&[bool]>,
-) -> Result<EverettFit, IdentificationError> {
+    carried: Option<PassiveFactor>,
+) -> Result<(EverettFit, Option<PassiveFactor>), IdentificationError> {
     let m = data.rhs.len();
-    let (sol, model, offsets) = solve_masses(grid, data.rhs, data.n_nodes, q, options, warm_start)?;
+    let (sol, model, offsets, factor) = solve_masses(
+        grid,
+        data.rhs,
+        data.n_nodes,
+        q,
+        options,
+        warm_start,
+        carried,
+    )?;
     // Data-term RSS from the unregularised normal equations: yy − 2 zᵀ r + zᵀ G z, z = [C w, offsets].
     let mut z = model.node_values().to_vec();
     z.extend_from_slice(&offsets);
@@ -630,7 +647,7 @@ pub(super) fn solve(
     }
     let zr: f64 = z.iter().zip(data.rhs).map(|(a, b)| a * b).sum();
     let rss = (data.yy - 2.0 * zr + zgz).max(0.0);
-    Ok(EverettFit {
+    let fit = EverettFit {
         rms: (rss / data.weight_sum).sqrt(),
         model,
         offsets,
@@ -642,11 +659,13 @@ pub(super) fn solve(
         kkt_violation: sol.kkt_violation,
         condition: sol.condition,
         drift: None,
-    })
+    };
+    Ok((fit, factor))
 }
 
-/// The nonnegative solve of [`solve`] alone: the solver's result, the table and the offsets for the normal
-/// right-hand side `rhs` (its first `nn` entries the nodes) and the regularised matrix `q`.
+/// The nonnegative solve of [`solve`] alone: the solver's result, the table, the offsets and the factor of the
+/// solution's passive set for the normal right-hand side `rhs` (its first `nn` entries the nodes) and the
+/// regularised matrix `q` (`carried`: a factor an earlier solve of `q` handed back).
 pub(super) fn solve_masses(
     grid: &EverettGrid,
     rhs: &[f64],
@@ -654,12 +673,14 @@ pub(super) fn solve_masses(
     q: &[f64],
     options: EverettFitOptions,
     warm_start: Option<&[bool]>,
-) -> Result<(NnlsSolution, EverettModel, Vec<f64>), IdentificationError> {
+    carried: Option<PassiveFactor>,
+) -> Result<(NnlsSolution, EverettModel, Vec<f64>, Option<PassiveFactor>), IdentificationError> {
     let m = rhs.len();
     let mut c = grid.nodes_to_masses_adjoint(&rhs[..nn]);
     c.extend_from_slice(&rhs[nn..]);
     let constrained: Vec<bool> = (0..m).map(|i| i < nn && !options.signed).collect();
-    let sol = nnls_gram_warm(q, &c, &constrained, options.max_iter, warm_start)?;
+    let (sol, factor) =
+        nnls_gram_carried(q, &c, &constrained, options.max_iter, warm_start, carried)?;
     let offsets = sol.x[nn..].to_vec();
     let model = if options.signed {
         EverettModel::with_signed_masses(grid.clone(), sol.x[..nn].to_vec(), offsets[0])?
@@ -667,8 +688,12 @@ pub(super) fn solve_masses(
         let masses: Vec<f64> = sol.x[..nn].iter().map(|&v| v.max(0.0)).collect();
         EverettModel::new(grid.clone(), masses, offsets[0])?
     };
-    Ok((sol, model, offsets))
+    Ok((sol, model, offsets, factor))
 }
+
+/// Entries of a sparse regressor row reserved per row when a regression is prepared (rows of a deep memory take
+/// more, and the storage then grows).
+const ROW_ENTRIES_RESERVED: usize = 24;
 
 /// One run of an [`EverettRegression`]: input, per-sample row weight (0 keeps a sample out of the fit while it
 /// drives the memory) and its offset column.
@@ -686,7 +711,8 @@ pub struct EverettInput<'a> {
 /// and the regularised normal matrix are built once, and [`Self::fit`] then identifies the table for any
 /// output at the cost of one right-hand side and a (warm-started) nonnegative solve. Used where many outputs
 /// share one input, e.g. when the same runs are re-identified with different corrections of the measured
-/// output.
+/// output: each fit starts from the passive set of the last one and the factor of its normal matrix on that set
+/// (an output whose answer keeps that set takes no factorisation).
 #[derive(Clone, Debug)]
 pub struct EverettRegression {
     grid: EverettGrid,
@@ -701,6 +727,36 @@ pub struct EverettRegression {
     row_weight: Vec<f64>,
     col: Vec<u32>,
     val: Vec<f64>,
+    last: LastAnswer,
+}
+
+/// The factor of the last fit's passive set, the start of the next fit (not cloned: a copy starts afresh).
+#[derive(Default)]
+struct LastAnswer(std::sync::Mutex<Option<PassiveFactor>>);
+
+impl LastAnswer {
+    /// The factor, taken out (None when another fit holds it or there is none).
+    fn take(&self) -> Option<PassiveFactor> {
+        self.0.try_lock().ok().and_then(|mut held| held.take())
+    }
+
+    fn put(&self, factor: Option<PassiveFactor>) {
+        if let (Some(f), Ok(mut held)) = (factor, self.0.try_lock()) {
+            *held = Some(f);
+        }
+    }
+}
+
+impl Clone for LastAnswer {
+    fn clone(&self) -> Self {
+        Self::default()
+    }
+}
+
+impl core::fmt::Debug for LastAnswer {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.write_str("LastAnswer")
+    }
 }
 
 impl EverettRegression {
@@ -713,9 +769,19 @@ impl EverettRegression {
     ) -> Result<Self, IdentificationError> {
         check_options(n_offsets, options)?;
         let mut normal = NormalEquations::new(grid, n_offsets)?;
-        let (mut row_ptr, mut row_sample, mut row_weight) =
-            (alloc::vec![0], Vec::new(), Vec::new());
-        let (mut col, mut val) = (Vec::new(), Vec::new());
+        // Room for every row at once (the sparse rows hold a few dozen entries each): no copy as they grow.
+        let rows: usize = inputs
+            .iter()
+            .map(|r| r.weight.iter().filter(|&&w| w > 0.0).count())
+            .sum();
+        let (mut row_ptr, mut row_sample, mut row_weight) = (
+            Vec::with_capacity(rows + 1),
+            Vec::with_capacity(rows),
+            Vec::with_capacity(rows),
+        );
+        row_ptr.push(0);
+        let entries = limits::product(rows, ROW_ENTRIES_RESERVED);
+        let (mut col, mut val) = (Vec::with_capacity(entries), Vec::with_capacity(entries));
         let mut base = 0;
         for (k, run) in inputs.iter().enumerate() {
             normal
@@ -757,6 +823,7 @@ impl EverettRegression {
             row_weight,
             col,
             val,
+            last: LastAnswer::default(),
         })
     }
 
@@ -772,7 +839,8 @@ impl EverettRegression {
 
     /// Identify the table for the outputs of the runs (one slice per run, each as long as its input);
     /// `warm_start`: a passive set from an earlier fit (e.g. [`EverettFit::passive`]) to start the nonnegative
-    /// solver from. The result does not depend on the warm start (the solution is unique), only the work does.
+    /// solver from when this regression has not been fitted yet (afterwards each fit starts from the last one's
+    /// answer). The result does not depend on the start (the solution is unique), only the work does.
     pub fn fit(
         &self,
         outputs: &[&[f64]],
@@ -838,7 +906,18 @@ impl EverettRegression {
             yy += w * y * y;
         }
         let data = DataTerm::of(&self.normal, &rhs, yy);
-        solve(&self.grid, &data, &self.q, self.options, warm_start)
+        let carried = self.last.take();
+        let warm_start = if carried.is_some() { None } else { warm_start };
+        let (fit, factor) = solve(
+            &self.grid,
+            &data,
+            &self.q,
+            self.options,
+            warm_start,
+            carried,
+        )?;
+        self.last.put(factor);
+        Ok(fit)
     }
 }
 
@@ -1320,19 +1399,24 @@ mod tests {
         let cold = reg.fit(&[&y], None).unwrap();
         assert_eq!(cold.model, once.model);
         assert_eq!((cold.rss, cold.iterations), (once.rss, once.iterations));
-        // Another output on the same input: warm-started from the first solution, same answer as cold.
+        // Another output on the same input: started from the first fit's answer (its passive set and factor),
+        // the same answer to the bit as a cold start on a regression of its own.
         let y2: Vec<f64> = y.iter().zip(&u).map(|(a, b)| a + 0.3 * b * b).collect();
-        let cold2 = reg.fit(&[&y2], None).unwrap();
-        let warm2 = reg.fit(&[&y2], Some(&cold.passive)).unwrap();
-        let err = cold2
-            .model
-            .masses()
-            .iter()
-            .zip(warm2.model.masses())
-            .map(|(a, b)| (a - b).abs())
-            .fold(0.0, f64::max);
-        assert!(err < 1e-12, "warm vs cold masses differ by {err}");
-        assert!(warm2.iterations <= cold2.iterations);
+        let carried2 = reg.fit(&[&y2], None).unwrap();
+        let fresh = EverettRegression::new(&grid, &[input], 1, opts).unwrap();
+        let cold2 = fresh.fit(&[&y2], None).unwrap();
+        assert_eq!(carried2.model, cold2.model);
+        assert_eq!(carried2.rss.to_bits(), cold2.rss.to_bits());
+        assert!(carried2.iterations <= cold2.iterations);
+        // A warm start on a fresh regression: the same answer too.
+        let warm2 = EverettRegression::new(&grid, &[input], 1, opts)
+            .unwrap()
+            .fit(&[&y2], Some(&cold.passive))
+            .unwrap();
+        assert_eq!(warm2.model, cold2.model);
+        // The first output again, from the second's answer: the first fit to the bit.
+        let again = reg.fit(&[&y], None).unwrap();
+        assert_eq!(again.model, cold.model);
         assert!(reg.fit(&[&y2[1..]], None).is_err());
         assert!(reg.fit(&[&y2], Some(&[true; 3])).is_err());
     }

@@ -229,13 +229,14 @@ impl DenseFolds {
             };
             let mut q = train.q.clone();
             regularise(&self.grid, &mut q, part.n_cols(), part.n_nodes, options)?;
-            let (sol, model, offsets) = solve_masses(
+            let (sol, model, offsets, _) = solve_masses(
                 &self.grid,
                 &train.rhs,
                 part.n_nodes,
                 &q,
                 options,
                 nearest(warm, options.smoothing).or(given),
+                None,
             )?;
             drop(q);
             // Held-out error as a quadratic form of the fold's own part: yy − 2 zᵀ r + zᵀ G z, z = [C w, offsets].

@@ -130,8 +130,17 @@ impl EverettGrid {
         if beta >= alpha {
             return;
         }
-        let (i, s) = self.locate(beta);
-        let (j, t) = self.locate(alpha);
+        self.push_everett_located(self.locate(beta), self.locate(alpha), sign, row);
+    }
+
+    /// [`Self::push_everett`] with β and α already located ([`Self::locate`]), β < α.
+    fn push_everett_located(
+        &self,
+        (i, s): (usize, f64),
+        (j, t): (usize, f64),
+        sign: f64,
+        row: &mut Vec<(usize, f64)>,
+    ) {
         if i == j {
             // Diagonal triangle: E = E(g_i, g_{i+1}) · (t − s).
             let w = t - s;
@@ -279,6 +288,44 @@ pub struct PreisachMemory {
     rising: bool,
 }
 
+/// Where the entries of a memory's staircase lie on a grid ([`EverettGrid::locate`]), kept from one sample to the
+/// next: the staircase changes at reversals only, so a regression row locates the current input alone.
+#[derive(Clone, Debug, Default)]
+struct LocatedStack {
+    /// (entry, its grid interval and fraction) for the staircase's entries, bottom first.
+    cells: Vec<(f64, (usize, f64))>,
+}
+
+impl LocatedStack {
+    /// `visit(β, α, sign)` of [`PreisachMemory::for_each_term`] as `sign · E(β, α)` pushed onto `row`, the
+    /// entries located once while they stay in the staircase.
+    fn push_terms(
+        &mut self,
+        grid: &EverettGrid,
+        memory: &PreisachMemory,
+        gain: f64,
+        row: &mut Vec<(usize, f64)>,
+    ) {
+        let len = memory.stack.len();
+        self.cells.truncate(len);
+        for (k, &v) in memory.stack.iter().enumerate() {
+            match self.cells.get_mut(k) {
+                Some(cell) if cell.0 == v => {}
+                Some(cell) => *cell = (v, grid.locate(v)),
+                None => self.cells.push((v, grid.locate(v))),
+            }
+        }
+        let tip = (memory.tip, grid.locate(memory.tip));
+        let at = |k: usize| if k < len { self.cells[k] } else { tip };
+        memory.for_each_pair(|b, a, sign| {
+            let (beta, alpha) = (at(b), at(a));
+            if beta.0 < alpha.0 {
+                grid.push_everett_located(beta.1, alpha.1, gain * sign, row);
+            }
+        });
+    }
+}
+
 impl PreisachMemory {
     /// Negative saturation (all hysterons down) on the grid's input range.
     pub fn new(grid: &EverettGrid) -> Self {
@@ -364,11 +411,16 @@ impl PreisachMemory {
     pub fn for_each_term(&self, mut f: impl FnMut(f64, f64, f64)) {
         let len = self.stack.len();
         let at = |k: usize| if k < len { self.stack[k] } else { self.tip };
-        for k in 1..=len {
+        self.for_each_pair(|b, a, sign| f(at(b), at(a), sign));
+    }
+
+    /// The terms of [`Self::for_each_term`] as positions in the staircase (its length: the current input).
+    fn for_each_pair(&self, mut f: impl FnMut(usize, usize, f64)) {
+        for k in 1..=self.stack.len() {
             if k % 2 == 1 {
-                f(at(k - 1), at(k), 1.0);
+                f(k - 1, k, 1.0);
             } else {
-                f(at(k), at(k - 1), -1.0);
+                f(k, k - 1, -1.0);
             }
         }
     }
@@ -632,6 +684,7 @@ pub fn regressor_rows(
     }
     let off = n_nodes + offset_col;
     let mut memory = PreisachMemory::with_history(grid, history);
+    let mut located = LocatedStack::default();
     let mut row: Vec<(usize, f64)> = Vec::with_capacity(64);
     for i in 0..u.len() {
         memory.update(u[i]);
@@ -640,9 +693,7 @@ pub fn regressor_rows(
             continue;
         }
         row.clear();
-        memory.for_each_term(|beta, alpha, sign| {
-            grid.push_everett(beta, alpha, gain * sign, &mut row)
-        });
+        located.push_terms(grid, &memory, gain, &mut row);
         row.push((off, 1.0));
         if let Some((column, d)) = drift {
             row.push((n_nodes + column, d[i]));

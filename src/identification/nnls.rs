@@ -72,6 +72,44 @@ pub fn nnls_gram_warm(
     max_iter: usize,
     warm_start: Option<&[bool]>,
 ) -> Result<NnlsSolution, IdentificationError> {
+    nnls_gram_carried(q, c, constrained, max_iter, warm_start, None).map(|(solution, _)| solution)
+}
+
+/// The Cholesky factor of one passive set of a quadratic (`Q_FF = L Lᵀ`, the set `F` in increasing order), as
+/// [`nnls_gram_carried`] hands it back for its next solve of the same `Q` (another right-hand side).
+#[derive(Clone, Debug)]
+pub struct PassiveFactor {
+    n: usize,
+    idx: Vec<usize>,
+    factor: Mat<f64>,
+    condition: f64,
+}
+
+impl PassiveFactor {
+    /// The passive set as a mask of the unknowns (a warm start).
+    pub fn passive(&self) -> Vec<bool> {
+        let mut mask = alloc::vec![false; self.n];
+        for &i in &self.idx {
+            mask[i] = true;
+        }
+        mask
+    }
+}
+
+/// [`nnls_gram_warm`] carrying the factor of the answer's passive set from one solve of `Q` to the next: given
+/// `carried` (the factor a solve of this same `Q` returned), pivoting starts from its set unless `warm_start`
+/// says otherwise, solves sets a few exchanges from it through that factor, and an answer on that very set takes
+/// no factorisation at all (the factor of a set is the same to the bit however it was reached, so the answer is
+/// the one a fresh factorisation gives). Returns the solution and the factor of its passive set (None after the
+/// descent, or when its set was never factored). A `carried` factor of a problem of another size is ignored.
+pub fn nnls_gram_carried(
+    q: &[f64],
+    c: &[f64],
+    constrained: &[bool],
+    max_iter: usize,
+    warm_start: Option<&[bool]>,
+    carried: Option<PassiveFactor>,
+) -> Result<(NnlsSolution, Option<PassiveFactor>), IdentificationError> {
     let n = c.len();
     if q.len() != crate::limits::product(n, n)
         || constrained.len() != n
@@ -88,12 +126,20 @@ pub fn nnls_gram_warm(
     {
         return Err(IdentificationError::NotPositiveDefinite);
     }
+    let carried = carried.filter(|f| f.n == n);
+    let carried_start = carried.as_ref().map(PassiveFactor::passive);
+    let warm_start = warm_start.or(carried_start.as_deref());
     // Passive (free to move) set F; every other variable sits at its bound 0 (or the warm start's guess).
     let cold: Vec<bool> = constrained.iter().map(|&c| !c).collect();
     let mut iterations = 0;
     let mut x = alloc::vec![0.0; n];
     let mut grad = alloc::vec![0.0; n];
     let mut workspace = PassiveWorkspace::default();
+    if let Some(f) = carried {
+        workspace.idx = f.idx;
+        workspace.factor = Some(f.factor);
+        workspace.base = Some(f.condition);
+    }
     let mut passive = match warm_start {
         Some(w) => constrained.iter().zip(w).map(|(&c, &p)| !c || p).collect(),
         None => cold.clone(),
@@ -116,7 +162,7 @@ pub fn nnls_gram_warm(
         &mut iterations,
         &mut workspace,
     ) {
-        Some(solution) => return Ok(solution),
+        Some(solution) => return Ok(with_factor(solution, workspace)),
         None if warm_start.is_some() => {
             passive = cold;
             if let Some(solution) = pivot(
@@ -130,7 +176,7 @@ pub fn nnls_gram_warm(
                 &mut iterations,
                 &mut workspace,
             ) {
-                return Ok(solution);
+                return Ok(with_factor(solution, workspace));
             }
         }
         None => {}
@@ -166,15 +212,37 @@ pub fn nnls_gram_warm(
             }
         }
     }
-    Ok(NnlsSolution {
-        x,
-        iterations,
-        passive,
-        converged: kkt <= KKT_TOLERANCE,
-        kkt_violation: kkt,
+    Ok(with_factor(
+        NnlsSolution {
+            x,
+            iterations,
+            passive,
+            converged: kkt <= KKT_TOLERANCE,
+            kkt_violation: kkt,
+            condition,
+            descent: true,
+        },
+        workspace,
+    ))
+}
+
+/// The solution and, when `workspace` holds the factor of the solution's own passive set, that factor.
+fn with_factor(
+    solution: NnlsSolution,
+    workspace: PassiveWorkspace,
+) -> (NnlsSolution, Option<PassiveFactor>) {
+    let n = solution.passive.len();
+    let held = workspace.base.zip(workspace.factor).filter(|_| {
+        workspace.idx.len() == solution.passive.iter().filter(|&&p| p).count()
+            && workspace.idx.iter().all(|&i| solution.passive[i])
+    });
+    let factor = held.map(|(condition, factor)| PassiveFactor {
+        n,
+        idx: workspace.idx,
+        factor,
         condition,
-        descent: true,
-    })
+    });
+    (solution, factor)
 }
 
 /// Block principal pivoting from the passive set `passive` for at most `max_iter` iterations (counted into
@@ -203,7 +271,6 @@ fn pivot(
             })
             .collect()
     };
-    workspace.base = None;
     for _ in 0..max_iter {
         *iterations += 1;
         // A set a few exchanges away from the last factored one is solved through that factor; the answer's
@@ -635,6 +702,55 @@ mod tests {
         for (a, b) in warm.x.iter().zip(&cold.x) {
             assert!((a - b).abs() <= 1e-9 * b.abs().max(1.0), "{a} vs {b}");
         }
+    }
+
+    #[test]
+    fn a_carried_factor_changes_the_work_not_the_bits() {
+        // Two right-hand sides of the ill-conditioned problem above: the second solved fresh and from the factor
+        // the first handed back gives the same minimiser to the bit, and the first solved again from its own
+        // factor takes one iteration and no factorisation of a new set.
+        let (n, q, c, constrained) = hilbert_problem();
+        let c2: Vec<f64> = c
+            .iter()
+            .enumerate()
+            .map(|(i, v)| v + 0.05 * (i as f64 * 0.7).sin())
+            .collect();
+        let (first, factor) = nnls_gram_carried(&q, &c, &constrained, 500, None, None).unwrap();
+        let factor = factor.expect("pivoting ends on a factored set");
+        assert_eq!(factor.passive(), first.passive);
+        let fresh = nnls_gram(&q, &c2, &constrained, 500).unwrap();
+        let (carried, _) =
+            nnls_gram_carried(&q, &c2, &constrained, 500, None, Some(factor.clone())).unwrap();
+        assert!(fresh.converged && carried.converged);
+        assert_eq!(fresh.passive, carried.passive);
+        for i in 0..n {
+            assert_eq!(fresh.x[i].to_bits(), carried.x[i].to_bits(), "unknown {i}");
+        }
+        assert_eq!(fresh.condition.to_bits(), carried.condition.to_bits());
+        let (again, _) = nnls_gram_carried(&q, &c, &constrained, 500, None, Some(factor)).unwrap();
+        assert_eq!(again.iterations, 1);
+        assert!(
+            again
+                .x
+                .iter()
+                .zip(&first.x)
+                .all(|(a, b)| a.to_bits() == b.to_bits())
+        );
+        // A factor of a problem of another size is ignored.
+        let small = PassiveFactor {
+            n: 2,
+            idx: alloc::vec![0],
+            factor: Mat::zeros(1, 1),
+            condition: 1.0,
+        };
+        let (other, _) = nnls_gram_carried(&q, &c, &constrained, 500, None, Some(small)).unwrap();
+        assert!(
+            other
+                .x
+                .iter()
+                .zip(&first.x)
+                .all(|(a, b)| a.to_bits() == b.to_bits())
+        );
     }
 
     #[test]
