@@ -835,9 +835,10 @@ def _simplest_unless_beaten(fitter: Fitter, config: Configuration, eff: Effect, 
         return best
     folds = len(best)
     beaten = 0
-    for k in range(folds):
-        if best[k] == s:
-            continue
+    open_folds = [k for k in range(folds) if best[k] != s]
+    for n, k in enumerate(open_folds):
+        if beaten > folds // 2 or beaten + len(open_folds) - n <= folds // 2:
+            break  # the majority is decided whatever the folds left show
         chosen = _fit_with(fitter, config, eff, grid[best[k]], k)[0]
         simple = _fit_with(fitter, config, eff, eff.simplest, k)[0]
         beaten += int(chosen.sse_test[k] < simple.sse_test[k])
