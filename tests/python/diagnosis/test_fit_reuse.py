@@ -299,3 +299,46 @@ def test_the_next_correction_reaches_an_affine_maps_fixed_point_from_one_pass_pe
         if len(tried) == 1:
             assert np.array_equal(x, fitted[0])  # one pass: the fitted parameters themselves
     assert np.allclose(x, fixed, rtol=1e-9, atol=1e-9)
+
+
+def test_creeps_zero_removals_share_the_configurations_tables(fitter) -> None:
+    # The log form's grid removes no fluctuation field at its share 0 for every onset: each is the configuration's
+    # own least-squares tables, not a re-identification per onset.
+    config = Configuration(fitter.nominal_path().with_(reidentify=True))
+    fitter.solve(config.path, config.linear)
+    creep = _effect("creep")
+    zeros = [v for v in creep.grid(fitter.data) if v[0] == "log" and v[2] == 0.0]
+    assert len(zeros) == len(creep.ONSETS_S) > 1
+    before = fitter.reidentifier.fits
+    for value in zeros:
+        path, _ = selection._with(config, creep, value, fitter.data)
+        assert path.key() == config.path.key()
+        fitter.solve(path, config.linear + [(creep, value)])
+    assert fitter.reidentifier.fits == before
+
+
+class _Chosen:
+    """An effect whose folds chose value 1 over its simplest value 0 (for the majority vote alone)."""
+
+    simplest = 0
+
+
+@pytest.mark.parametrize("chosen_wins, compared", [((True, True, True, False, False), 3),
+                                                  ((False, False, False, True, True), 3),
+                                                  ((True, False, True, False, True), 5)])
+def test_the_simplest_value_stands_or_falls_by_a_majority_decided_as_soon_as_it_is(monkeypatch, chosen_wins,
+                                                                                 compared) -> None:
+    # Each fold compares the chosen value with the simplest one on its held-out block (two fits); once most folds
+    # have spoken either way, the rest are not fitted, and the choice is the one all folds would give.
+    calls: list[int] = []
+
+    def fake_fit_with(fitter, config, eff, value, fold):
+        calls.append(fold)
+        sse = np.zeros(5)
+        sse[fold] = 1.0 if (value == 1) == chosen_wins[fold] else 2.0
+        return (selection.FoldFit(np.zeros((6, 1)), np.zeros(6), sse, np.ones(5), (0,)), None, None, None)
+
+    monkeypatch.setattr(selection, "_fit_with", fake_fit_with)
+    best = selection._simplest_unless_beaten(None, None, _Chosen(), [0, 1], [1] * 5)
+    assert best == ([1] * 5 if sum(chosen_wins) > 2 else [0] * 5)
+    assert len(calls) == 2 * compared
