@@ -810,6 +810,9 @@ impl EverettRegression {
         if normal.n_rows == 0 {
             return Err(IdentificationError::NoSamples);
         }
+        // The room reserved and not taken is given back (the regression is kept while it is reused).
+        col.shrink_to_fit();
+        val.shrink_to_fit();
         normal.finish();
         let q = mass_space_matrix(grid, &normal, options)?;
         Ok(Self {
