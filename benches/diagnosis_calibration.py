@@ -10,7 +10,10 @@ Plants (so that detection is not tuned to one generator):
   reversible share) and protocol: 7 first-order curves per family at 250 Hz;
 * ``piezo``: the virtual hysteretic device (``bmr.VirtualDevice``: voltage → displacement, no angle) with its own
   protocol (first-order families, steps with dwells, rate sweeps, repeated loops, random reversals,
-  ``bmr.simulation.device.device_bundle``); only effects that need no angle.
+  ``bmr.simulation.device.device_bundle``); only effects that need no angle;
+* ``piezo_import`` (not in the default set): the same recordings as an import of lab logs makes them, every run of
+  kind ``custom`` (no first-order protocol: the tables come from, and are identified again from, the training
+  recordings).
 
 For each plant, each effect of the vocabulary at 0.5×, 1× and 2× a medium size and several seeds, pairs of effects
 at medium size, and clean bundles are diagnosed blind:
@@ -103,6 +106,8 @@ def _plants() -> dict[str, tuple[Callable[[Any, int], Any], dict[str, tuple[dict
         "rig_soft": (lambda fx, seed: diagnosis_bundle("rig_preisach", effects=fx, seed=seed, sample_rate_hz=250.0,
                                                        forc_reversals=7, overrides=RIG_SOFT), ACTUATOR_MEDIUM),
         "piezo": (lambda fx, seed: device_bundle("piezo", effects=fx, seed=seed), PIEZO_MEDIUM),
+        "piezo_import": (lambda fx, seed: device_bundle("piezo", effects=fx, seed=seed, imported=True),
+                         PIEZO_MEDIUM),
     }
 
 

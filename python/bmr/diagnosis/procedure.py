@@ -50,7 +50,8 @@ from bmr.diagnosis.history import HistoryFindings, history_findings
 from bmr.diagnosis.noise import from_residual
 from bmr.diagnosis.extended_model import ExtendedModel, extensions_from_selection, stored_zero, with_extensions
 from bmr.diagnosis.residuals import one_blas_thread, prepare, signal_label, structure
-from bmr.diagnosis.selection import MIN_EXCESS, NOISE_MARGIN, Alternative, Fitter, forward_selection, t975
+from bmr.diagnosis.selection import (MIN_EXCESS, NOISE_MARGIN, Alternative, Configuration, Fitter, forward_selection,
+                                     heldout, t975)
 from bmr.identification.procedure import identify
 from bmr.identification.model import LOOP_STAGES, Model
 from bmr.identification.table_choice import DEFAULT_INTERVALS, DEFAULT_SMOOTHING
@@ -227,15 +228,43 @@ def nominal_model(bundle: Bundle) -> Any:
                     n_intervals=DEFAULT_INTERVALS, smoothing=DEFAULT_SMOOTHING)
 
 
-def _reidentified_tables(reidentifier: Any) -> dict[str, Any] | None:
-    """How the least-squares tables of the protocol runs were regularised: the share of the smoothness penalty
-    along the diagonal and the held-out sweep RMS of each share tried (None when none was tried)."""
-    if reidentifier.diagonal_chosen is None:
-        return None
-    share, rms = reidentifier.diagonal_chosen
-    if not rms:
-        return None
-    return {"diagonal_smoothing": share, "sweep_rms": [{"diagonal_smoothing": k, "rms": v} for k, v in rms.items()]}
+# Least-squares tables identified again from a bundle's training runs (no first-order protocol) judge the candidates
+# only when, with nothing removed, they predict the held-out runs within this share of the nominal tables' RMS.
+REIDENTIFY_TOLERANCE = 0.02
+
+
+def _fitter(bundle: Bundle, data: Any, model: Any) -> tuple[Fitter, dict[str, Any]]:
+    """The diagnosis's fitter, whose candidates identify the core tables again from the runs the nominal tables
+    came from (``Bundle.roles().train``: the first-order protocol runs, else every training run), and what it does
+    so from. Tables re-identified by least squares from runs that are not a first-order protocol (lab logs as they
+    come: FORC files, sweeps, loops) stand in for the nominal ones only where they are as good: with nothing
+    removed, their held-out RMS must stay within :data:`REIDENTIFY_TOLERANCE` of the nominal tables' (a single
+    major loop, or a density of both signs, identifies no such tables); else the candidates are judged on the
+    nominal tables, their corrections not removed from the training runs."""
+    roles = bundle.roles()
+    runs = [(r, data.run_start_s[r.name]) for r in roles.train]
+    fitter = Fitter(data, model, runs)
+    if roles.protocol or not runs:
+        return fitter, {"runs": "protocol" if roles.protocol else "none"}
+    nominal = heldout(fitter, Configuration(fitter.nominal_path())).rms()
+    again = heldout(fitter, Configuration(fitter.nominal_path().with_(reidentify=True))).rms()
+    used = bool(again <= (1.0 + REIDENTIFY_TOLERANCE) * nominal)
+    record = {"runs": "training" if used else "none", "heldout_rms_nominal": nominal,
+              "heldout_rms_reidentified": again}
+    return (fitter if used else Fitter(data, model, [])), record
+
+
+def _reidentified_tables(reidentifier: Any, table_runs: dict[str, Any]) -> dict[str, Any]:
+    """Which runs the candidates identified the core tables again from (``table_runs``, :func:`_fitter`) and how
+    those least-squares tables were regularised: the share of the smoothness penalty along the diagonal and the
+    held-out sweep RMS of each share tried (absent when none was tried)."""
+    out = dict(table_runs)
+    if reidentifier.diagonal_chosen is not None:
+        share, rms = reidentifier.diagonal_chosen
+        if rms:
+            out.update({"diagonal_smoothing": share,
+                        "sweep_rms": [{"diagonal_smoothing": k, "rms": v} for k, v in rms.items()]})
+    return out
 
 
 @one_blas_thread
@@ -259,8 +288,7 @@ def diagnose(bundle: Bundle | str | Path, model: Any = None, *, folds: int = 5, 
         model = Model.load(model)
     lo, hi = model.hysteresis.input_range
     data = prepare(bundle, (lo, hi), folds, friction=model.friction)
-    protocol = [(r, data.run_start_s[r.name]) for r in bundle.roles().protocol]
-    fitter = Fitter(data, model, protocol)
+    fitter, table_runs = _fitter(bundle, data, model)
     if data.noise is None:
         # No off-state run, dwell, repeated run or declared uncertainty: the high-frequency part of the nominal
         # residual is the noise.
@@ -352,7 +380,7 @@ def diagnose(bundle: Bundle | str | Path, model: Any = None, *, folds: int = 5, 
                   seed=seed, wall_time_s=0.0, model=model, extended_model=ext_model, signals=signals,
                   quantities=bundle.quantities, noise=data.noise.to_dict(), learned=learned,
                   alternatives=sel["alternatives"], identification_drift=_identification_drift(model),
-                  reidentified_tables=_reidentified_tables(fitter.reidentifier), history=history,
+                  reidentified_tables=_reidentified_tables(fitter.reidentifier, table_runs), history=history,
                   output_rails=data.rails)
     # What each extension does: held-out prediction for all, closed-loop tracking for those the compensator undoes.
     rows = {e["name"]: e for e in accepted}

@@ -59,10 +59,12 @@ def device_bundle(preset: str = "piezo", *, effects: Mapping[str, Any] | Sequenc
                   seed: int = 0, sample_rate_hz: float = DEVICE_SAMPLE_RATE_HZ, reversals: int = 11,
                   forc_rate: float = 0.5, sweep_rates: Sequence[float] = (0.5, 2.0, 8.0), dwell_s: float = 4.0,
                   rest_s: float | None = None, overrides: Mapping[str, float] | None = None,
-                  random_seed: int = 2013) -> Bundle:
+                  random_seed: int = 2013, imported: bool = False) -> Bundle:
     """The device's experiment set (module doc) as a ``bmr-bundle/2`` :class:`bmr.Bundle`. Rates are in spans per
     second (a span: from one saturation end to the other). ``seed`` fixes the noise and the per-run
-    calibration; the excitations are the same for every seed (``random_seed`` fixes the random run)."""
+    calibration; the excitations are the same for every seed (``random_seed`` fixes the random run).
+    ``imported``: every run of kind ``custom``, as an import of the recordings makes them (no first-order protocol:
+    identification and diagnosis see training and held-out recordings only)."""
     dev = VirtualDevice(preset, seed=seed, sample_rate_hz=sample_rate_hz, effects=effects,
                         overrides=dict(overrides) if overrides else None)
     q = device_quantities(dev)
@@ -128,7 +130,8 @@ def device_bundle(preset: str = "piezo", *, effects: Mapping[str, Any] | Sequenc
         if "run_gain_offset" in dev.effects:
             gain, offset = dev.run_calibration
             meta["calibration"] = {"gain": gain, "offset": offset}
-        runs.append(_record(dev, q, name, kind, role, np.concatenate([opening, body]), opening.size, meta))
+        runs.append(_record(dev, q, name, "custom" if imported else kind, role, np.concatenate([opening, body]),
+                            opening.size, meta))
     sim = {"device": preset, "seed": int(seed), "effects": {k: dict(v) for k, v in dev.effects.items()},
            "noise": dev.noise, "rest_s": rest_s, "overrides": {k: float(v) for k, v in (overrides or {}).items()}}
     # Every run was recorded on this one device after the previous: one measurement history.
