@@ -228,36 +228,40 @@ def nominal_model(bundle: Bundle) -> Any:
                     n_intervals=DEFAULT_INTERVALS, smoothing=DEFAULT_SMOOTHING)
 
 
-# Least-squares tables identified again from a bundle's training runs (no first-order protocol) judge the candidates
-# only when, with nothing removed, they predict the held-out runs within this share of the nominal tables' RMS.
-REIDENTIFY_TOLERANCE = 0.02
+# Least-squares tables identified again from a bundle's training runs (no first-order protocol) are tried only when,
+# with nothing removed, they predict the held-out runs within this share of the nominal tables' RMS: beyond it the
+# training runs cannot stand for the nominal tables (a single major loop, a density of both signs).
+REIDENTIFY_TOLERANCE = 0.25
 
 
-def _fitter(bundle: Bundle, data: Any, model: Any) -> tuple[Fitter, dict[str, Any]]:
-    """The diagnosis's fitter, whose candidates identify the core tables again from the runs the nominal tables
-    came from (``Bundle.roles().train``: the first-order protocol runs, else every training run), and what it does
-    so from. Tables re-identified by least squares from runs that are not a first-order protocol (lab logs as they
-    come: FORC files, sweeps, loops) stand in for the nominal ones only where they are as good: with nothing
-    removed, their held-out RMS must stay within :data:`REIDENTIFY_TOLERANCE` of the nominal tables' (a single
-    major loop, or a density of both signs, identifies no such tables); else the candidates are judged on the
-    nominal tables, their corrections not removed from the training runs."""
+def _fitters(bundle: Bundle, data: Any, model: Any) -> tuple[list[tuple[str, Fitter]], dict[str, Any]]:
+    """The diagnosis's fitters, each named by the runs its candidates identify the core tables again from
+    (``Bundle.roles().train``): ``protocol`` (the first-order protocol runs), ``training`` (every training run of a
+    bundle without them: lab logs as they come, FORC files, sweeps, loops) or ``none`` (the candidates are judged
+    on the nominal tables, their corrections not removed from the training runs). Without a protocol both
+    ``training`` and ``none`` are tried, ``training`` only while its tables with nothing removed predict the
+    held-out runs within :data:`REIDENTIFY_TOLERANCE` of the nominal ones; the diagnosis keeps the selection that
+    predicts the held-out blocks better. Also returns that check's figures."""
     roles = bundle.roles()
     runs = [(r, data.run_start_s[r.name]) for r in roles.train]
-    fitter = Fitter(data, model, runs)
     if roles.protocol or not runs:
-        return fitter, {"runs": "protocol" if roles.protocol else "none"}
+        return [("protocol" if roles.protocol else "none", Fitter(data, model, runs))], {}
+    fitter = Fitter(data, model, runs)
     nominal = heldout(fitter, Configuration(fitter.nominal_path())).rms()
     again = heldout(fitter, Configuration(fitter.nominal_path().with_(reidentify=True))).rms()
-    used = bool(again <= (1.0 + REIDENTIFY_TOLERANCE) * nominal)
-    record = {"runs": "training" if used else "none", "heldout_rms_nominal": nominal,
-              "heldout_rms_reidentified": again}
-    return (fitter if used else Fitter(data, model, [])), record
+    record = {"heldout_rms_nominal": nominal, "heldout_rms_reidentified": again}
+    plain = Fitter(data, model, [])
+    if again <= (1.0 + REIDENTIFY_TOLERANCE) * nominal:
+        return [("training", fitter), ("none", plain)], record
+    fitter.release()
+    return [("none", plain)], record
 
 
 def _reidentified_tables(reidentifier: Any, table_runs: dict[str, Any]) -> dict[str, Any]:
-    """Which runs the candidates identified the core tables again from (``table_runs``, :func:`_fitter`) and how
-    those least-squares tables were regularised: the share of the smoothness penalty along the diagonal and the
-    held-out sweep RMS of each share tried (absent when none was tried)."""
+    """Which runs the candidates identified the core tables again from (``table_runs``: ``runs`` and the figures
+    that chose them, :func:`_fitters`) and how those least-squares tables were regularised: the share of the
+    smoothness penalty along the diagonal and the held-out sweep RMS of each share tried (absent when none was
+    tried)."""
     out = dict(table_runs)
     if reidentifier.diagonal_chosen is not None:
         share, rms = reidentifier.diagonal_chosen
@@ -288,7 +292,8 @@ def diagnose(bundle: Bundle | str | Path, model: Any = None, *, folds: int = 5, 
         model = Model.load(model)
     lo, hi = model.hysteresis.input_range
     data = prepare(bundle, (lo, hi), folds, friction=model.friction)
-    fitter, table_runs = _fitter(bundle, data, model)
+    fitters, table_runs = _fitters(bundle, data, model)
+    fitter = fitters[0][1]
     if data.noise is None:
         # No off-state run, dwell, repeated run or declared uncertainty: the high-frequency part of the nominal
         # residual is the noise.
@@ -299,9 +304,17 @@ def diagnose(bundle: Bundle | str | Path, model: Any = None, *, folds: int = 5, 
     bar = tqdm(total=0, file=sys.stderr, desc="bmr diagnose", unit="test", disable=not progress,
                leave=False)
     try:
-        sel = forward_selection(fitter, library=library, progress=bar)
+        selections = [(runs, f, forward_selection(f, library=library, progress=bar)) for runs, f in fitters]
     finally:
         bar.close()
+    # Without a protocol: the tables the held-out blocks prefer (on a tie, the nominal ones).
+    runs_used, fitter, sel = min(selections, key=lambda x: (x[2]["final_heldout_rms_nmm"], x[0] != "none"))
+    for _, f, _ in selections:
+        if f is not fitter:
+            f.release()
+    table_runs = {"runs": runs_used, **table_runs}
+    if len(selections) > 1:
+        table_runs["final_heldout_rms"] = {runs: s["final_heldout_rms_nmm"] for runs, _, s in selections}
     config = sel["config"]
     accepted = sel["accepted"]
     rng = np.random.default_rng(seed)
