@@ -617,6 +617,17 @@ def run_cli(args: Any) -> int:
         print(f"  {a.message}")
     if d.output_rails.any:
         print(f"  {d.output_rails.describe(q.output)}")
+    tables = d.reidentified_tables or {}
+    finals = tables.get("final_heldout_rms")
+    if finals:
+        kept = "training runs" if tables["runs"] == "training" else "nominal tables"
+        print(f"  no first-order runs: the candidates were selected on tables identified again from the training runs "
+              f"({q.output.format(finals['training'], 4)} held out) and on the nominal tables "
+              f"({q.output.format(finals['none'], 4)}); kept the {kept}")
+    elif "heldout_rms_nominal" in tables:
+        print(f"  no first-order runs: judged on the nominal tables (the training runs' least-squares tables predict "
+              f"{q.output.format(tables['heldout_rms_reidentified'], 4)} held out against "
+              f"{q.output.format(tables['heldout_rms_nominal'], 4)})")
     if d.identification_drift:
         print(f"  identification: branches open by {100 * d.identification_drift['closure']:.3g} % of the span; "
               f"leakage {d.identification_drift['leakage_rate']:.4g} {q.output.unit} per {q.input.unit}·s fitted "
