@@ -11,9 +11,9 @@ Plants (so that detection is not tuned to one generator):
 * ``piezo``: the virtual hysteretic device (``bmr.VirtualDevice``: voltage → displacement, no angle) with its own
   protocol (first-order families, steps with dwells, rate sweeps, repeated loops, random reversals,
   ``bmr.simulation.device.device_bundle``); only effects that need no angle;
-* ``piezo_import`` (not in the default set): the same recordings as an import of lab logs makes them, every run of
-  kind ``custom`` (no first-order protocol: the tables come from, and are identified again from, the training
-  recordings).
+* ``piezo_import`` and ``rig_import`` (not in the default set): the piezo's and ``rig_preisach``'s recordings as an
+  import of lab logs makes them, every driven run of kind ``custom`` (no first-order protocol: the tables come from,
+  and may be identified again from, the training recordings).
 
 For each plant, each effect of the vocabulary at 0.5×, 1× and 2× a medium size and several seeds, pairs of effects
 at medium size, and clean bundles are diagnosed blind:
@@ -59,6 +59,7 @@ import json
 import math
 import sys
 import time
+from dataclasses import replace
 from pathlib import Path
 from typing import Any, Callable
 
@@ -100,6 +101,11 @@ RIG_SOFT = {f"steel{k}.{p}": v for k in (1, 2) for p, v in
              ("reversible_fraction", 0.15))}
 
 
+def _imported(bundle: Any) -> Any:
+    """``bundle`` as an import of its recordings makes it: every driven run of kind ``custom``."""
+    return replace(bundle, runs=[r if r.kind == "off_state" else replace(r, kind="custom") for r in bundle.runs])
+
+
 def _plants() -> dict[str, tuple[Callable[[Any, int], Any], dict[str, tuple[dict[str, float], str, list[str]]]]]:
     return {
         "rig_preisach": (lambda fx, seed: diagnosis_bundle("rig_preisach", effects=fx, seed=seed), ACTUATOR_MEDIUM),
@@ -108,6 +114,8 @@ def _plants() -> dict[str, tuple[Callable[[Any, int], Any], dict[str, tuple[dict
         "piezo": (lambda fx, seed: device_bundle("piezo", effects=fx, seed=seed), PIEZO_MEDIUM),
         "piezo_import": (lambda fx, seed: device_bundle("piezo", effects=fx, seed=seed, imported=True),
                          PIEZO_MEDIUM),
+        "rig_import": (lambda fx, seed: _imported(diagnosis_bundle("rig_preisach", effects=fx, seed=seed)),
+                       ACTUATOR_MEDIUM),
     }
 
 
