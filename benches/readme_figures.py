@@ -317,8 +317,8 @@ def _ambiguous(r: dict[str, Any]) -> str:
 
 def render_calibration(rec: dict[str, Any]) -> str:
     v = rec["values"]
-    units = {"rig_preisach": "N·mm", "rig_soft": "N·mm", "piezo": "µm", "piezo_import": "µm", "rig_import": "N·mm", "independent": "N·mm",
-             "independent_coarse": "N·mm"}
+    units = {"rig_preisach": "N·mm", "rig_soft": "N·mm", "piezo": "µm", "piezo_import": "µm", "rig_import": "N·mm",
+             "independent": "N·mm", "independent_coarse": "N·mm"}
     text = ["| plant | hidden effect | size | detected | wrong name | false alarm | median param. error | "
             "held-out RMS nominal → extended (noise floor) |", "|---|---|---|---|---|---|---|---|"]
     for g in v["groups"]:
