@@ -5,6 +5,7 @@ and bmr's defaults — next to the best reference figure for that data.
     python benches/real_data.py            # print the table
     python benches/real_data.py --record   # and record it as the ``real_data`` section of docs/results.md
     python benches/real_data.py --only feco_forc --only slac   # only these data sets (print only)
+    python benches/real_data.py --diagnose-without-model   # every data set diagnosed as `bmr diagnose BUNDLE` does
 
 The same chain runs in the tests (tests/python/real_data), which skip the data sets that are absent. References:
 the measurement's own noise floor (FORC files: the white noise of the moment along each curve, from its second
@@ -159,8 +160,9 @@ def _play_lstsq(train: list[tuple[np.ndarray, np.ndarray]], test: tuple[np.ndarr
     return float(np.sqrt(np.mean(e * e)))
 
 
-def run_chain(ds: DataSet, workdir: Path, figures: bool = False) -> ChainResult:
-    """The chain on one data set in ``workdir`` (``figures``: also draw the data set's FORC diagram into docs/)."""
+def run_chain(ds: DataSet, workdir: Path, figures: bool = False, without_model: bool = False) -> ChainResult:
+    """The chain on one data set in ``workdir`` (``figures``: also draw the data set's FORC diagram into docs/;
+    ``without_model``: diagnose every data set as ``bmr diagnose BUNDLE`` does, on the model it makes itself)."""
     import bmr
     from bmr.data.signals import sample_noise
 
@@ -176,10 +178,11 @@ def run_chain(ds: DataSet, workdir: Path, figures: bool = False) -> ChainResult:
              ("identify", ["identify", str(bundle), "-o", str(model)]),
              ("predict", ["predict", str(model), str(bundle), "--json", str(pred)])]
     extended = workdir / "extended.json"
-    if ds.diagnose:
+    if ds.diagnose or without_model:
         # The README's chain: the diagnosis extends the model identify chose.
-        steps.append(("diagnose", ["diagnose", str(bundle), "--model", str(model), "--json",
-                                   str(workdir / "diagnosis.json"), "--model-out", str(extended)]))
+        given = [] if without_model else ["--model", str(model)]
+        steps.append(("diagnose", ["diagnose", str(bundle), *given, "--json", str(workdir / "diagnosis.json"),
+                                   "--model-out", str(extended)]))
         steps.append(("predict extended", ["predict", str(extended), str(bundle), "--json",
                                            str(workdir / "extended_prediction.json")]))
     for step, args in steps:
@@ -220,14 +223,15 @@ def run_chain(ds: DataSet, workdir: Path, figures: bool = False) -> ChainResult:
     return res
 
 
-def run_all(datasets: tuple[DataSet, ...] = DATASETS, figures: bool = False) -> list[ChainResult]:
+def run_all(datasets: tuple[DataSet, ...] = DATASETS, figures: bool = False, without_model: bool = False
+            ) -> list[ChainResult]:
     out = []
     for ds in datasets:
         if not ds.present():
             print(f"{ds.key}: skipped, {DATA / ds.folder} is absent", file=sys.stderr)
             continue
         with tempfile.TemporaryDirectory() as tmp:
-            out.append(run_chain(ds, Path(tmp), figures))
+            out.append(run_chain(ds, Path(tmp), figures, without_model))
     return out
 
 
@@ -261,11 +265,14 @@ def main(argv: list[str] | None = None) -> int:
                     "and draw the FORC diagrams into docs/")
     ap.add_argument("--only", action="append", choices=[d.key for d in DATASETS], metavar="NAME",
                     help="run only this data set (repeatable; one of %(choices)s); not with --record")
+    ap.add_argument("--diagnose-without-model", action="store_true",
+                    help="diagnose every data set without --model (on the model `bmr diagnose` makes itself) and "
+                         "predict its extended model; not with --record")
     args = ap.parse_args(argv)
-    if args.only and args.record:
-        ap.error("--record measures every data set: drop --only")
+    if (args.only or args.diagnose_without_model) and args.record:
+        ap.error("--record measures the README's chain on every data set: drop --only and --diagnose-without-model")
     chosen = tuple(d for d in DATASETS if not args.only or d.key in args.only)
-    results = run_all(chosen, figures=args.record)
+    results = run_all(chosen, figures=args.record, without_model=args.diagnose_without_model)
     values = {"results": [r.to_dict() for r in results]}
     print(render(values))
     for r in results:

@@ -118,7 +118,8 @@ def _parser() -> argparse.ArgumentParser:
                                    "once on Dask (one row per bundle in a Parquet table, --out).")
     g.add_argument("bundle", nargs="+", help=BUNDLE_HELP + "; several bundles are diagnosed in parallel on Dask "
                    "(pip install 'bmr[dask]')")
-    g.add_argument("--model", help="model file (default: identify the paper's model from the bundle)")
+    g.add_argument("--model", help="model file (default: the paper's model from the bundle's first-order "
+                   "runs; a bundle without any is diagnosed against the model `bmr identify` makes of it)")
     g.add_argument("--folds", type=int, default=5,
                    help="blocked folds: each evaluation run is cut into this many time blocks, each held out in "
                         "turn (default: 5)")

@@ -214,15 +214,19 @@ def _rms(x: np.ndarray) -> float:
 
 
 def nominal_model(bundle: Bundle) -> Any:
-    """The paper's model of a bundle: friction (3 harmonics) from the off-state run, CBH tables from the measured
-    first-order curves alone (no curves added between them). Least-squares tables when the bundle has no
-    first-order runs, or when its curves give no tables (branches that do not close are a finding: the
-    least-squares fit then estimates a leakage with the table, see ``fit_tables_lstsq``)."""
-    if bundle.roles().protocol:
-        try:
-            return identify(bundle, method="forc", max_order=NOMINAL_FRICTION_ORDER, subdivisions=1)
-        except TableError:
-            pass
+    """The model a bundle is diagnosed against when none is given. With first-order runs, the paper's model:
+    friction (3 harmonics) from the off-state run, CBH tables from the measured first-order curves alone (no curves
+    added between them); least-squares tables at the fixed default resolution when its curves give no tables
+    (branches that do not close are a finding: the least-squares fit then estimates a leakage with the table, see
+    ``fit_tables_lstsq``). Without them (lab logs, FORC files, loops as an import makes them) the model
+    ``bmr identify`` makes of the bundle with its defaults: there is no paper's model to measure against, and an
+    extended model built on a coarser one than the user's own could predict worse than it."""
+    if not bundle.roles().protocol:
+        return identify(bundle)
+    try:
+        return identify(bundle, method="forc", max_order=NOMINAL_FRICTION_ORDER, subdivisions=1)
+    except TableError:
+        pass
     # The fixed default resolution and smoothing: the paper's model, not one tuned by cross-validation.
     return identify(bundle, method="lstsq", max_order=NOMINAL_FRICTION_ORDER, subdivisions=1, drift="auto",
                     n_intervals=DEFAULT_INTERVALS, smoothing=DEFAULT_SMOOTHING)
@@ -274,8 +278,8 @@ def _reidentified_tables(reidentifier: Any, table_runs: dict[str, Any]) -> dict[
 @one_blas_thread
 def diagnose(bundle: Bundle | str | Path, model: Any = None, *, folds: int = 5, seed: int = 0,
              progress: bool = True, closed_loop: bool = True) -> Diagnosis:
-    """Diagnose ``bundle`` (a :class:`bmr.Bundle` or its folder) against ``model`` (default: the nominal model
-    identified from the bundle). ``folds``: number of blocked folds (time blocks of every evaluation run);
+    """Diagnose ``bundle`` (a :class:`bmr.Bundle` or its folder) against ``model`` (default: :func:`nominal_model`:
+    the paper's model from the bundle's first-order runs; without any, the model ``bmr identify`` makes of it). ``folds``: number of blocked folds (time blocks of every evaluation run);
     ``seed``: fixes the bootstrap of the fold gains (reported next to the t interval). Shows progress on stderr
     unless ``progress=False``. ``closed_loop``: when the bundle records its simulator, measure the tracking error
     of the extended vs the nominal compensator on that plant."""
