@@ -119,7 +119,7 @@ def _parser() -> argparse.ArgumentParser:
     g.add_argument("bundle", nargs="+", help=BUNDLE_HELP + "; several bundles are diagnosed in parallel on Dask "
                    "(pip install 'bmr[dask]')")
     g.add_argument("--model", help="model file (default: the paper's model from the bundle's first-order "
-                   "runs; a bundle without any is diagnosed against the model `bmr identify` makes of it)")
+                   "runs; a bundle without any gets the tables `bmr identify` chooses, with the paper's friction)")
     g.add_argument("--folds", type=int, default=5,
                    help="blocked folds: each evaluation run is cut into this many time blocks, each held out in "
                         "turn (default: 5)")

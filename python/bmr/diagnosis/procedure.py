@@ -218,11 +218,12 @@ def nominal_model(bundle: Bundle) -> Any:
     friction (3 harmonics) from the off-state run, CBH tables from the measured first-order curves alone (no curves
     added between them); least-squares tables at the fixed default resolution when its curves give no tables
     (branches that do not close are a finding: the least-squares fit then estimates a leakage with the table, see
-    ``fit_tables_lstsq``). Without them (lab logs, FORC files, loops as an import makes them) the model
-    ``bmr identify`` makes of the bundle with its defaults: there is no paper's model to measure against, and an
-    extended model built on a coarser one than the user's own could predict worse than it."""
+    ``fit_tables_lstsq``). Without them (lab logs, FORC files, loops as an import makes them) the tables
+    ``bmr identify`` chooses for the bundle with its defaults, next to the paper's friction: there are no measured
+    curves to take the tables from, and an extended model built on coarser tables than the user's own could
+    predict worse than them (a friction with more harmonics is a finding, ``friction_harmonics``)."""
     if not bundle.roles().protocol:
-        return identify(bundle)
+        return identify(bundle, max_order=NOMINAL_FRICTION_ORDER)
     try:
         return identify(bundle, method="forc", max_order=NOMINAL_FRICTION_ORDER, subdivisions=1)
     except TableError:
@@ -279,7 +280,7 @@ def _reidentified_tables(reidentifier: Any, table_runs: dict[str, Any]) -> dict[
 def diagnose(bundle: Bundle | str | Path, model: Any = None, *, folds: int = 5, seed: int = 0,
              progress: bool = True, closed_loop: bool = True) -> Diagnosis:
     """Diagnose ``bundle`` (a :class:`bmr.Bundle` or its folder) against ``model`` (default: :func:`nominal_model`:
-    the paper's model from the bundle's first-order runs; without any, the model ``bmr identify`` makes of it). ``folds``: number of blocked folds (time blocks of every evaluation run);
+    the paper's model from the bundle's first-order runs; without any, the tables ``bmr identify`` chooses). ``folds``: number of blocked folds (time blocks of every evaluation run);
     ``seed``: fixes the bootstrap of the fold gains (reported next to the t interval). Shows progress on stderr
     unless ``progress=False``. ``closed_loop``: when the bundle records its simulator, measure the tracking error
     of the extended vs the nominal compensator on that plant."""
