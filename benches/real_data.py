@@ -179,7 +179,7 @@ def run_chain(ds: DataSet, workdir: Path, figures: bool = False, without_model: 
              ("predict", ["predict", str(model), str(bundle), "--json", str(pred)])]
     extended = workdir / "extended.json"
     if ds.diagnose or without_model:
-        # The README's chain: the diagnosis extends the model identify chose.
+        # The README's chain: the diagnosis extends the model identify chose (or, without it, its own).
         given = [] if without_model else ["--model", str(model)]
         steps.append(("diagnose", ["diagnose", str(bundle), *given, "--json", str(workdir / "diagnosis.json"),
                                    "--model-out", str(extended)]))

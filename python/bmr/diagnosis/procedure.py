@@ -280,10 +280,11 @@ def _reidentified_tables(reidentifier: Any, table_runs: dict[str, Any]) -> dict[
 def diagnose(bundle: Bundle | str | Path, model: Any = None, *, folds: int = 5, seed: int = 0,
              progress: bool = True, closed_loop: bool = True) -> Diagnosis:
     """Diagnose ``bundle`` (a :class:`bmr.Bundle` or its folder) against ``model`` (default: :func:`nominal_model`:
-    the paper's model from the bundle's first-order runs; without any, the tables ``bmr identify`` chooses). ``folds``: number of blocked folds (time blocks of every evaluation run);
-    ``seed``: fixes the bootstrap of the fold gains (reported next to the t interval). Shows progress on stderr
-    unless ``progress=False``. ``closed_loop``: when the bundle records its simulator, measure the tracking error
-    of the extended vs the nominal compensator on that plant."""
+    the paper's model from the bundle's first-order runs; without any, the tables ``bmr identify`` chooses).
+    ``folds``: number of blocked folds (time blocks of every evaluation run); ``seed``: fixes the bootstrap of the
+    fold gains (reported next to the t interval). Shows progress on stderr unless ``progress=False``.
+    ``closed_loop``: when the bundle records its simulator, measure the tracking error of the extended vs the
+    nominal compensator on that plant."""
     from tqdm import tqdm
 
     t0 = time.perf_counter()
