@@ -59,7 +59,6 @@ import json
 import math
 import sys
 import time
-from dataclasses import replace
 from pathlib import Path
 from typing import Any, Callable
 
@@ -101,11 +100,6 @@ RIG_SOFT = {f"steel{k}.{p}": v for k in (1, 2) for p, v in
              ("reversible_fraction", 0.15))}
 
 
-def _imported(bundle: Any) -> Any:
-    """``bundle`` as an import of its recordings makes it: every driven run of kind ``custom``."""
-    return replace(bundle, runs=[r if r.kind == "off_state" else replace(r, kind="custom") for r in bundle.runs])
-
-
 def _plants() -> dict[str, tuple[Callable[[Any, int], Any], dict[str, tuple[dict[str, float], str, list[str]]]]]:
     return {
         "rig_preisach": (lambda fx, seed: diagnosis_bundle("rig_preisach", effects=fx, seed=seed), ACTUATOR_MEDIUM),
@@ -114,7 +108,7 @@ def _plants() -> dict[str, tuple[Callable[[Any, int], Any], dict[str, tuple[dict
         "piezo": (lambda fx, seed: device_bundle("piezo", effects=fx, seed=seed), PIEZO_MEDIUM),
         "piezo_import": (lambda fx, seed: device_bundle("piezo", effects=fx, seed=seed, imported=True),
                          PIEZO_MEDIUM),
-        "rig_import": (lambda fx, seed: _imported(diagnosis_bundle("rig_preisach", effects=fx, seed=seed)),
+        "rig_import": (lambda fx, seed: diagnosis_bundle("rig_preisach", effects=fx, seed=seed).as_imported(),
                        ACTUATOR_MEDIUM),
     }
 

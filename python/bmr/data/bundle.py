@@ -34,7 +34,7 @@ from __future__ import annotations
 import json
 import math
 import numbers
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, Callable, Iterable, Iterator, Sequence
 
@@ -271,6 +271,12 @@ class Bundle:
                     r.role) for r in self.runs]
         return Bundle(self.actuator, self.sample_rate_hz / factor, runs, dict(self.meta), self.quantities,
                       self.histories)
+
+    def as_imported(self) -> "Bundle":
+        """This bundle as an import of its recordings makes it: every driven run of kind ``custom`` (no first-order
+        protocol: identification and diagnosis see training and held-out recordings only), the off-state run kept;
+        samples, roles and metadata unchanged."""
+        return replace(self, runs=[r if r.kind == "off_state" else replace(r, kind="custom") for r in self.runs])
 
     def identification_runs(self) -> list[Run]:
         """Runs labelled for identification (by role, or by an identification kind when they have no role)."""

@@ -63,8 +63,7 @@ def device_bundle(preset: str = "piezo", *, effects: Mapping[str, Any] | Sequenc
     """The device's experiment set (module doc) as a ``bmr-bundle/2`` :class:`bmr.Bundle`. Rates are in spans per
     second (a span: from one saturation end to the other). ``seed`` fixes the noise and the per-run
     calibration; the excitations are the same for every seed (``random_seed`` fixes the random run).
-    ``imported``: every run of kind ``custom``, as an import of the recordings makes them (no first-order protocol:
-    identification and diagnosis see training and held-out recordings only)."""
+    ``imported``: as an import of the recordings makes them (:meth:`bmr.Bundle.as_imported`)."""
     dev = VirtualDevice(preset, seed=seed, sample_rate_hz=sample_rate_hz, effects=effects,
                         overrides=dict(overrides) if overrides else None)
     q = device_quantities(dev)
@@ -130,9 +129,9 @@ def device_bundle(preset: str = "piezo", *, effects: Mapping[str, Any] | Sequenc
         if "run_gain_offset" in dev.effects:
             gain, offset = dev.run_calibration
             meta["calibration"] = {"gain": gain, "offset": offset}
-        runs.append(_record(dev, q, name, "custom" if imported else kind, role, np.concatenate([opening, body]),
-                            opening.size, meta))
+        runs.append(_record(dev, q, name, kind, role, np.concatenate([opening, body]), opening.size, meta))
     sim = {"device": preset, "seed": int(seed), "effects": {k: dict(v) for k, v in dev.effects.items()},
            "noise": dev.noise, "rest_s": rest_s, "overrides": {k: float(v) for k, v in (overrides or {}).items()}}
     # Every run was recorded on this one device after the previous: one measurement history.
-    return Bundle(dev.name, fs, runs, {"simulator": sim}, q, [[r.name for r in runs]] if len(runs) > 1 else [])
+    bundle = Bundle(dev.name, fs, runs, {"simulator": sim}, q, [[r.name for r in runs]] if len(runs) > 1 else [])
+    return bundle.as_imported() if imported else bundle
